@@ -1,0 +1,21 @@
+"""Illumination Lab: classic illumination models as Blender tools, measured.
+
+``register()`` registers each UI module's ``classes`` in order, ``unregister()``
+in reverse, and leaves nothing behind. ``import addon.core`` needs no bpy: the
+UI modules are imported only when registering.
+"""
+
+
+def _modules():
+    from .ui import lightmaps, panel, props, shading, shadows, ssao
+    return (panel, shading, lightmaps, shadows, ssao, props)
+
+
+def register():
+    for module in _modules():
+        module.register()
+
+
+def unregister():
+    for module in reversed(_modules()):
+        module.unregister()

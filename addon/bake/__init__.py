@@ -1,0 +1,1 @@
+"""Light-map pipeline on Cycles (bpy side): UVs, temporary materials, bakes, restore."""

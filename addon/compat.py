@@ -1,0 +1,54 @@
+"""Every difference between Blender 5.0 and 4.5 LTS that the project meets, in one place.
+
+Callers never test ``bpy.app.version`` themselves; they call these helpers.
+"""
+import bpy
+
+VERSION = bpy.app.version
+IS_5 = VERSION >= (5, 0, 0)
+
+#: Render engine id of EEVEE (EEVEE Next was renamed back to EEVEE in 5.0).
+EEVEE = "BLENDER_EEVEE" if IS_5 else "BLENDER_EEVEE_NEXT"
+WORKBENCH = "BLENDER_WORKBENCH"
+CYCLES = "CYCLES"
+
+
+def set_eevee_ao_distance(scene, view_layer, distance):
+    """EEVEE's horizon-scan AO distance: per view layer in 5.0, per scene in 4.5."""
+    if IS_5:
+        view_layer.eevee.ambient_occlusion_distance = distance
+    else:
+        scene.eevee.gtao_distance = distance
+
+
+def set_multilayer_exr(image_settings, depth="32"):
+    """Multilayer float EXR output (5.0 needs the media type set first)."""
+    if IS_5:
+        image_settings.media_type = "MULTI_LAYER_IMAGE"
+    image_settings.file_format = "OPEN_EXR_MULTILAYER"
+    image_settings.color_depth = depth
+    image_settings.exr_codec = "ZIP"
+
+
+def set_single_exr(image_settings, depth="32"):
+    """Single-layer float EXR output."""
+    if IS_5:
+        image_settings.media_type = "IMAGE"
+    image_settings.file_format = "OPEN_EXR"
+    image_settings.color_depth = depth
+    image_settings.exr_codec = "ZIP"
+
+
+def set_png(image_settings, color_mode="RGB", depth="8"):
+    """8- or 16-bit PNG output."""
+    if IS_5:
+        image_settings.media_type = "IMAGE"
+    image_settings.file_format = "PNG"
+    image_settings.color_mode = color_mode
+    image_settings.color_depth = depth
+
+
+def ensure_use_nodes(idblock):
+    """Materials and worlds always use nodes in 5.0 (the flag is deprecated there)."""
+    if not IS_5 and not idblock.use_nodes:
+        idblock.use_nodes = True

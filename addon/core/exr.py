@@ -1,0 +1,60 @@
+"""Float OpenEXR files with named channels and string attributes (OpenEXR package).
+
+Arrays are (height, width) with row 0 at the TOP of the image, as every image
+viewer shows them. Blender's pixel buffers start at the bottom row: flip them
+with ``np.flipud`` before writing.
+"""
+import numpy as np
+
+from .errors import ILError
+from .fileio import atomic_path
+
+
+def _openexr():
+    try:
+        import OpenEXR
+    except ImportError as e:  # pragma: no cover - the extension bundles the wheel
+        raise ILError("the OpenEXR package is missing: install it with pip install OpenEXR") from e
+    return OpenEXR
+
+
+def write_exr(path, channels, attributes=None):
+    """Write ``{name: 2-D array}`` as float32 channels, zip-compressed, atomically.
+
+    ``attributes`` values are stored as strings (ints and floats too), so any
+    tool can read them back.
+    """
+    OpenEXR = _openexr()
+    shapes = {np.shape(a) for a in channels.values()}
+    if len(shapes) != 1 or len(next(iter(shapes))) != 2:
+        raise ILError(f"EXR channels must be 2-D arrays of one shape, got {sorted(shapes)}")
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    for key, value in (attributes or {}).items():
+        header[key] = str(value)
+    data = {name: np.ascontiguousarray(a, dtype=np.float32) for name, a in channels.items()}
+    with atomic_path(path) as tmp:
+        with OpenEXR.File(header, data) as f:
+            f.write(tmp)
+
+
+def read_exr(path):
+    """Return ``(channels, attributes)``: float32 2-D arrays by channel name, header dict."""
+    OpenEXR = _openexr()
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        channels = {name: np.array(ch.pixels, dtype=np.float32) for name, ch in f.channels().items()}
+        header = dict(f.header())
+    return channels, header
+
+
+def read_multipart(path):
+    """Return ``{part name: {channel: array}}`` of a multi-part EXR (Blender's multilayer output).
+
+    Blender names channels ``<layer>.<pass>.<channel>``; they are returned with
+    the full name as stored.
+    """
+    OpenEXR = _openexr()
+    out = {}
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        for part in f.parts:
+            out[part.name()] = {n: np.array(c.pixels, dtype=np.float32) for n, c in part.channels.items()}
+    return out

@@ -1,0 +1,67 @@
+"""Render a scene and hand its passes to numpy (through a temporary multilayer EXR)."""
+import os
+import tempfile
+
+import bpy
+import numpy as np
+
+from .. import compat
+from ..core import exr
+from ..core.errors import ILError
+
+
+def cycles_cpu(scene, samples, seed=0, adaptive=False):
+    """Cycles on the CPU with a fixed sample count and no denoising."""
+    scene.render.engine = compat.CYCLES
+    cy = scene.cycles
+    cy.device = "CPU"
+    cy.samples = int(samples)
+    cy.use_adaptive_sampling = bool(adaptive)
+    cy.use_denoising = False
+    cy.seed = int(seed)
+
+
+def render_layers(scene, camera=None):
+    """Render ``scene`` (all enabled passes of its active view layer); return ``{pass: array}``.
+
+    Each array is (H, W) or (H, W, C) with row 0 at the top. Pass names are
+    Blender's ("Combined", "Depth", "Normal", "AO", ...); channels are
+    R, G, B, A / X, Y, Z / V as Blender writes them.
+    """
+    if camera is not None:
+        scene.camera = camera
+    if scene.camera is None:
+        raise ILError(f"scene '{scene.name}' has no camera")
+    r = scene.render
+    saved = (r.filepath, r.use_file_extension)
+    settings = r.image_settings
+    with tempfile.TemporaryDirectory(prefix="il_render_") as tmp:
+        path = os.path.join(tmp, "passes.exr")
+        try:
+            compat.set_multilayer_exr(settings)
+            r.filepath = path
+            r.use_file_extension = False
+            bpy.ops.render.render(write_still=True, scene=scene.name)
+        finally:
+            r.filepath, r.use_file_extension = saved
+        if not os.path.exists(path):
+            raise ILError("the render wrote no image")
+        parts = exr.read_multipart(path)
+    return _group_passes(parts, scene.view_layers[0].name if len(scene.view_layers) == 1 else None)
+
+
+def _group_passes(parts, layer):
+    """``{"ViewLayer.Normal.X": a, ...}`` -> ``{"Normal": (H, W, 3)}``, channel order as Blender's."""
+    order = "RGBAXYZVUW"
+    grouped = {}
+    for channels in parts.values():
+        for name, a in channels.items():
+            bits = name.split(".")
+            pass_name = bits[-2] if len(bits) >= 2 else "Combined"
+            grouped.setdefault(pass_name, {})[bits[-1]] = a
+    out = {}
+    for pass_name, chans in grouped.items():
+        keys = sorted(chans, key=lambda k: order.index(k) if k in order else len(order))
+        stack = np.stack([chans[k] for k in keys], axis=-1)
+        out[pass_name] = stack[..., 0] if stack.shape[-1] == 1 else stack
+    return out

@@ -1,0 +1,1 @@
+"""Node-group builders and light linking (bpy side of the shading models)."""

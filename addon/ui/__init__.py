@@ -1,0 +1,1 @@
+"""Properties, operators and panels: thin adapters that parse, call one function, report."""

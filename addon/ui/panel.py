@@ -1,0 +1,57 @@
+"""The sidebar panel "Illumination" (3D viewport > N panel) and its Comparisons parent."""
+import bpy
+
+from ..core.errors import ILError
+from ..lab import demo
+from . import polls
+
+
+class IL_OT_build_demo_scene(bpy.types.Operator):
+    """Build the embedded demo scene as a new scene (the current one is left untouched)"""
+
+    bl_idname = "illumination.build_demo_scene"
+    bl_label = "Build Demo Scene"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return polls.object_mode(cls, context)
+
+    def execute(self, context):
+        try:
+            scene = demo.build_demo_scene(new_scene=True)
+        except ILError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        context.window.scene = scene if context.window else scene
+        self.report({"INFO"}, f"Built scene '{scene.name}'")
+        return {"FINISHED"}
+
+
+class IL_PT_main(bpy.types.Panel):
+    bl_idname = "IL_PT_main"
+    bl_label = "Illumination"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Illumination"
+
+    def draw(self, context):
+        self.layout.operator(IL_OT_build_demo_scene.bl_idname, icon="SCENE_DATA")
+
+
+class IL_PT_comparisons(bpy.types.Panel):
+    bl_idname = "IL_PT_comparisons"
+    bl_label = "Comparisons"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Illumination"
+    bl_parent_id = "IL_PT_main"
+    bl_options = {"DEFAULT_CLOSED"}
+    bl_order = 30
+
+    def draw(self, context):
+        self.layout.label(text="Each method against a ray-traced reference")
+
+
+classes = (IL_OT_build_demo_scene, IL_PT_main, IL_PT_comparisons)
+register, unregister = bpy.utils.register_classes_factory(classes)

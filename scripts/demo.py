@@ -1,0 +1,30 @@
+"""The main job: build the embedded demo scene and write its outputs to --out.
+
+    python scripts/demo.py --out out/demo
+    blender -b -P scripts/demo.py -- --out out/demo
+"""
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import _cli  # noqa: E402
+
+
+def main(args):
+    from addon.lab import demo_job
+    summary = demo_job.run(os.path.abspath(args.out), quick=args.quick, samples=args.samples)
+    print(f"demo: outputs in {summary['out']}")
+    for line in summary["lines"]:
+        print(f"  {line}")
+
+
+def build_parser():
+    p = _cli.parser("demo.py", "Build the demo scene and run the project's tools on it.", blend_file=False)
+    p.add_argument("--out", default="out/demo", help="output folder (default: out/demo)")
+    p.add_argument("--samples", type=int, default=32, help="Cycles samples of the preview render (default 32)")
+    p.add_argument("--quick", action="store_true", help="smallest sizes, for tests")
+    return p
+
+
+if __name__ == "__main__":
+    _cli.run(build_parser(), main)

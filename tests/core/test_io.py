@@ -1,0 +1,67 @@
+"""EXR and PNG files round-trip exactly; files appear atomically."""
+import json
+import os
+import zlib
+
+import numpy as np
+import pytest
+
+from addon.core import exr, fileio, imageio
+
+
+def test_exr_roundtrip_channels_and_attributes(tmp_path):
+    rng = np.random.default_rng(1)
+    y = rng.random((5, 7)).astype(np.float32) * 1e4
+    a = (rng.random((5, 7)) > 0.5).astype(np.float32)
+    path = tmp_path / "m.exr"
+    exr.write_exr(path, {"Y": y, "A": a}, {"il:units": "1", "il:samples": 64})
+    channels, header = exr.read_exr(path)
+    assert set(channels) == {"Y", "A"}
+    np.testing.assert_array_equal(channels["Y"], y)
+    np.testing.assert_array_equal(channels["A"], a)
+    assert header["il:units"] == "1" and header["il:samples"] == "64"
+    assert os.listdir(tmp_path) == ["m.exr"]
+
+
+def test_exr_rejects_mismatched_channels(tmp_path):
+    from addon.core.errors import ILError
+    with pytest.raises(ILError):
+        exr.write_exr(tmp_path / "x.exr", {"R": np.zeros((2, 2)), "G": np.zeros((3, 2))})
+    assert not os.listdir(tmp_path)
+
+
+def test_png_roundtrip_grey_and_rgb(tmp_path):
+    grey = np.arange(12, dtype=np.uint8).reshape(3, 4) * 20
+    rgb = np.random.default_rng(0).integers(0, 256, (4, 3, 3)).astype(np.uint8)
+    for pixels in (grey, rgb):
+        imageio.write_png(tmp_path / "p.png", pixels)
+        data = (tmp_path / "p.png").read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n"
+        np.testing.assert_array_equal(imageio.decode_png(data), pixels)
+
+
+def test_png_crc_is_valid(tmp_path):
+    data = imageio.encode_png(np.zeros((2, 2), np.uint8))
+    n = int.from_bytes(data[8:12], "big")
+    body = data[12:16 + n]
+    assert int.from_bytes(data[16 + n:20 + n], "big") == zlib.crc32(body)
+
+
+def test_srgb_encode_matches_the_standard_at_known_points():
+    x = np.array([0.0, 0.0031308, 0.18, 1.0])
+    expected = np.array([0.0, 12.92 * 0.0031308, 1.055 * 0.18 ** (1 / 2.4) - 0.055, 1.0])
+    np.testing.assert_allclose(imageio.srgb_encode(x), expected, atol=1e-6)
+
+
+def test_tonemap_is_finite_on_bad_values():
+    out = imageio.tonemap(np.array([np.nan, np.inf, -1.0, 0.5, 2.0]))
+    assert np.all(np.isfinite(out)) and out.min() >= 0 and out.max() <= 1
+
+
+def test_failed_write_leaves_nothing(tmp_path):
+    target = tmp_path / "r.json"
+    with pytest.raises(ValueError):
+        fileio.write_json(target, {"x": float("nan")})
+    assert not os.listdir(tmp_path)
+    fileio.write_json(target, {"x": 1})
+    assert json.loads(target.read_text()) == {"x": 1}

@@ -1,0 +1,61 @@
+"""Scripts run as a pipeline runs them: --help, exit codes, one error line, real output."""
+import json
+
+import numpy as np
+import pytest
+
+from addon.core import exr, imageio
+
+pytestmark = pytest.mark.both_versions
+
+
+def test_help_exits_zero(script):
+    proc = script("demo.py", "--help")
+    assert proc.returncode == 0
+    assert "--out" in proc.stdout
+
+
+def test_bad_argument_exits_two_with_one_line(script):
+    proc = script("demo.py", "--samples", "many")
+    assert proc.returncode == 2
+    assert len(proc.stderr.strip().splitlines()) == 1
+    assert "--samples" in proc.stderr
+
+
+def test_value_error_exits_two_with_one_line(script, tmp_path):
+    proc = script("demo.py", "--samples", "0", "--out", tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines()[-1] == "demo.py: error: --samples must be positive, got 0"
+
+
+def test_after_double_dash_arguments_belong_to_the_script():
+    import _cli_path  # noqa: F401
+    import _cli
+    assert _cli.script_argv(["blender", "-b", "-P", "x.py", "--", "--out", "d"]) == ["--out", "d"]
+    assert _cli.script_argv(["scripts/x.py", "f.blend", "--out", "d"]) == ["f.blend", "--out", "d"]
+
+
+def test_missing_blend_file_exits_two(script, tmp_path):
+    proc = script("build_extension.py", "--help")
+    assert proc.returncode == 0
+    import _cli_path  # noqa: F401
+    import _cli
+    p = _cli.parser("x.py", "test")
+    with pytest.raises(SystemExit) as e:
+        _cli.run(p, lambda args: None, ["x.py", str(tmp_path / "nope.blend")])
+    assert e.value.code == 2
+
+
+def test_demo_writes_render_exr_png_and_report(script, tmp_path):
+    proc = script("demo.py", "--quick", "--out", tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert "[demo 1/" in proc.stderr
+    channels, header = exr.read_exr(tmp_path / "demo_render.exr")
+    rgb = np.stack([channels[c] for c in "RGB"], -1)
+    assert rgb.shape == (120, 160, 3)
+    assert np.all(np.isfinite(rgb)) and rgb.mean() > 0.01
+    assert header["il:units"] == "W/(m^2 sr)"
+    png = imageio.decode_png((tmp_path / "demo_render.png").read_bytes())
+    assert png.shape == (120, 160, 3)
+    report = json.loads((tmp_path / "demo_report.json").read_text())
+    assert report["steps"]["render"]["samples"] == 8
