@@ -65,3 +65,20 @@ def _group_passes(parts, layer):
         stack = np.stack([chans[k] for k in keys], axis=-1)
         out[pass_name] = stack[..., 0] if stack.shape[-1] == 1 else stack
     return out
+
+
+def camera_matrices(scene, camera=None):
+    """``(world_to_view, proj, width, height)`` of the scene camera as numpy arrays (see core.camera)."""
+    cam = camera or scene.camera
+    if cam is None:
+        raise ILError(f"scene '{scene.name}' has no camera")
+    r = scene.render
+    width = int(r.resolution_x * r.resolution_percentage / 100)
+    height = int(r.resolution_y * r.resolution_percentage / 100)
+    view_layer = scene.view_layers[0]
+    view_layer.update()
+    depsgraph = view_layer.depsgraph
+    proj = cam.calc_matrix_camera(depsgraph, x=width, y=height,
+                                  scale_x=r.pixel_aspect_x, scale_y=r.pixel_aspect_y)
+    world_to_view = np.array(cam.matrix_world.inverted(), dtype=np.float64)
+    return world_to_view, np.array(proj, dtype=np.float64), width, height
