@@ -1,0 +1,84 @@
+"""Charts (matplotlib, Agg backend) and tables (CSV) of the measurements; imported lazily.
+
+Every chart the project writes goes through :func:`line_chart` or :func:`scatter_chart`,
+so they share one look: labelled axes with units, a legend, a title, 120 dpi PNG.
+"""
+import csv
+import io
+
+import numpy as np
+
+from .fileio import atomic_path, write_bytes
+
+
+def _pyplot():
+    import matplotlib
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _finish(fig, ax, path, title, xlabel, ylabel, logx, logy):
+    ax.set_title(title)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    if logx:
+        ax.set_xscale("log")
+    if logy:
+        ax.set_yscale("log")
+    ax.grid(True, which="both", alpha=0.3)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize="small")
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=120, format="png")
+    _pyplot().close(fig)
+    return str(path)
+
+
+def line_chart(path, series, title, xlabel, ylabel, logx=False, logy=False, marks=None):
+    """``series``: {label: (x, y)}; ``marks``: {label: (x, y)} single highlighted points."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for label, (x, y) in series.items():
+        ax.plot(x, y, marker="o", ms=3, label=label)
+    for label, (x, y) in (marks or {}).items():
+        ax.plot([x], [y], marker="*", ms=14, color="crimson", ls="none", label=label)
+    return _finish(fig, ax, path, title, xlabel, ylabel, logx, logy)
+
+
+def scatter_chart(path, points, title, xlabel, ylabel, logx=False, logy=False, front=True):
+    """``points``: {label: (x, y)} one point per method; the Pareto front (lower x and y better) is drawn."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for label, (x, y) in points.items():
+        ax.plot([x], [y], marker="o", ls="none", label=label)
+        ax.annotate(label, (x, y), textcoords="offset points", xytext=(4, 4), fontsize="x-small")
+    if front and points:
+        idx = pareto_front([p[0] for p in points.values()], [p[1] for p in points.values()])
+        xy = np.array(list(points.values()), dtype=float)[idx]
+        ax.plot(xy[:, 0], xy[:, 1], "k--", lw=1, label="Pareto front")
+    return _finish(fig, ax, path, title, xlabel, ylabel, logx, logy)
+
+
+def pareto_front(cost, error):
+    """Indices of the points no other point beats in both cost and error, sorted by cost."""
+    cost, error = np.asarray(cost, float), np.asarray(error, float)
+    order = np.lexsort((error, cost))
+    front, best = [], np.inf
+    for i in order:
+        if error[i] < best:
+            front.append(int(i))
+            best = error[i]
+    return front
+
+
+def write_csv(path, rows):
+    """Rows (a list of dicts with the same keys) as CSV, atomically; floats written with repr precision."""
+    buf = io.StringIO()
+    if rows:
+        w = csv.DictWriter(buf, fieldnames=list(rows[0].keys()), lineterminator="\n")
+        w.writeheader()
+        w.writerows(rows)
+    write_bytes(path, buf.getvalue().encode("utf-8"))
+    return str(path)
