@@ -52,3 +52,34 @@ def ensure_use_nodes(idblock):
     """Materials and worlds always use nodes in 5.0 (the flag is deprecated there)."""
     if not IS_5 and not idblock.use_nodes:
         idblock.use_nodes = True
+
+
+def new_compositor(scene, name="IL Compositor"):
+    """An empty compositor node tree for ``scene`` and the node its result must be linked to.
+
+    5.0: a compositor node group with a color output, set as scene.compositing_node_group;
+    4.5: the scene's own node tree with a Composite node. Returns ``(tree, output_socket)``.
+    """
+    if IS_5:
+        tree = bpy.data.node_groups.new(name, "CompositorNodeTree")
+        tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+        scene.compositing_node_group = tree
+        out = tree.nodes.new("NodeGroupOutput")
+    else:
+        scene.use_nodes = True
+        tree = scene.node_tree
+        for node in list(tree.nodes):
+            tree.nodes.remove(node)
+        out = tree.nodes.new("CompositorNodeComposite")
+    return tree, out.inputs[0]
+
+
+def remove_compositor(scene, tree):
+    """Undo :func:`new_compositor` (the scene itself is usually removed right after)."""
+    if IS_5:
+        scene.compositing_node_group = None
+        bpy.data.node_groups.remove(tree)
+
+
+#: Name of the Object Index render pass in the multilayer EXR (renamed in 5.0).
+OBJECT_INDEX_PASS = "Object Index" if IS_5 else "IndexOB"

@@ -1,4 +1,4 @@
-"""The demo end to end (the README's main job). Each finished tool adds its step here."""
+"""The demo end to end (the README's main job): one step per tool, each timed, one report."""
 import os
 import time
 
@@ -12,32 +12,48 @@ from ..progress import Progress
 from . import demo, render
 
 
+def _render(scene, out, quick, samples):
+    render.cycles_cpu(scene, samples=8 if quick else samples)
+    passes = render.render_layers(scene)
+    rgb = passes["Combined"][..., :3]
+    path = os.path.join(out, "demo_render.exr")
+    exr.write_exr(path, {"R": rgb[..., 0], "G": rgb[..., 1], "B": rgb[..., 2]},
+                  {"il:quantity": "radiance", "il:units": "W/(m^2 sr)",
+                   "il:samples": scene.cycles.samples, "il:blender_version": bpy.app.version_string})
+    imageio.write_png(os.path.join(out, "demo_render.png"), imageio.to_uint8(imageio.tonemap(rgb)))
+    return {"samples": scene.cycles.samples, "mean_radiance": float(np.mean(rgb)),
+            "files": [path, os.path.join(out, "demo_render.png")]}
+
+
+def _lightmaps(scene, out, quick):
+    from ..bake.bench import demo_step
+    return demo_step(scene, os.path.join(out, "lightmaps"), quick)
+
+
 def run(out, quick=False, samples=32):
-    """Build the demo scene, render a preview, write ``out/demo_report.json``; return a summary."""
+    """Build the demo scene, run every tool on it, write ``out/demo_report.json``; return a summary."""
     if samples <= 0:
         raise InputError(f"--samples must be positive, got {samples}")
     os.makedirs(out, exist_ok=True)
-    steps = ["build the demo scene", "render the preview"]
-    lines, report = [], {"steps": {}}
-    with Progress("demo", len(steps)) as progress:
-        progress.step(steps[0])
+    steps = [
+        ("render", "render the shaded scene", lambda s: _render(s, out, quick, samples)),
+        ("lightmaps", "bake AO and irradiance maps", lambda s: _lightmaps(s, out, quick)),
+    ]
+    report = {"quick": quick, "blender": bpy.app.version_string, "steps": {}}
+    lines = []
+    with Progress("demo", len(steps) + 1) as progress:
+        progress.step("build the demo scene")
         t = time.perf_counter()
         scene = demo.build_demo_scene(new_scene=True, resolution=(160, 120) if quick else (320, 240))
         report["steps"]["scene"] = {"seconds": time.perf_counter() - t, "objects": len(scene.objects)}
-
-        progress.step(steps[1])
-        t = time.perf_counter()
-        render.cycles_cpu(scene, samples=8 if quick else samples)
-        passes = render.render_layers(scene)
-        rgb = passes["Combined"][..., :3]
-        exr.write_exr(os.path.join(out, "demo_render.exr"),
-                      {"R": rgb[..., 0], "G": rgb[..., 1], "B": rgb[..., 2]},
-                      {"il:quantity": "radiance", "il:units": "W/(m^2 sr)",
-                       "il:samples": scene.cycles.samples, "il:blender_version": bpy.app.version_string})
-        imageio.write_png(os.path.join(out, "demo_render.png"), imageio.to_uint8(imageio.tonemap(rgb)))
-        report["steps"]["render"] = {"seconds": time.perf_counter() - t, "samples": scene.cycles.samples,
-                                     "mean_radiance": float(np.mean(rgb))}
-        lines.append(f"render: {os.path.join(out, 'demo_render.exr')} (+ .png)")
-    write_json(os.path.join(out, "demo_report.json"), report)
-    lines.append(f"report: {os.path.join(out, 'demo_report.json')}")
+        for key, label, step in steps:
+            progress.step(label)
+            t = time.perf_counter()
+            result = step(scene)
+            result["seconds"] = time.perf_counter() - t
+            report["steps"][key] = result
+            lines.append(f"{key}: {len(result.get('files', []))} files, {result['seconds']:.1f} s")
+    path = os.path.join(out, "demo_report.json")
+    write_json(path, report)
+    lines.append(f"report: {path}")
     return {"out": out, "lines": lines}

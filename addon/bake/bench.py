@@ -1,0 +1,221 @@
+"""Light-map benchmarks and the demo step.
+
+- :func:`sweeps` -- pipeline overhead over the bare Cycles bake call, and time to reach
+  RMS 0.01 against the analytic k_A of the demo floor for plain sampling, target-error
+  (pilot variance) and Blender's denoiser; tables, charts, figures.
+- :func:`demo_step` -- AO and irradiance maps of the demo scene's objects.
+"""
+import math
+import os
+import time
+
+import bpy
+import numpy as np
+
+from ..core import charts, exr
+from ..core import lightmap as lm
+from ..lab import demo
+from .options import BakeOptions
+from .pipeline import bake_lightmaps
+
+DEMO_OBJECTS = ("Floor", "Box", "Sphere", "Torus")
+PLANAR = "IL planar"
+
+
+def demo_step(scene, out, quick=False):
+    """Bake AO and irradiance maps of Floor, Box, Sphere and Torus of the demo ``scene`` into ``out``.
+
+    Returns figures for the demo report: {"seconds", "resolution", "samples", "maps":
+    {object: {map: {file, seconds, estimated_error, mean}}}, "files": [...]}.
+    """
+    objects = [scene.objects[n] for n in DEMO_OBJECTS if n in scene.objects]
+    res, samples = (32, 8) if quick else (256, 64)
+    t = time.perf_counter()
+    report = bake_lightmaps(objects, ["ao", "irradiance"], out,
+                            BakeOptions(resolution=res, samples=samples, bounces=2, overwrite=True), scene=scene)
+    maps, files = {}, []
+    for name, entries in report["objects"].items():
+        for kind, e in entries.items():
+            ch, _ = exr.read_exr(e["file"])
+            cov = ch["A"] > 0
+            v = ch["Y"] if kind == "ao" else (ch["R"] + ch["G"] + ch["B"]) / 3.0
+            maps.setdefault(name, {})[kind] = {
+                "file": e["file"], "seconds": e["seconds"], "estimated_error": e["estimated_error"],
+                "mean": float(v[cov].mean()) if cov.any() else None,
+                "units": "1" if kind == "ao" else "W/m^2"}
+            files += [e["file"], e["preview"]]
+    files.append(report["report"])
+    return {"seconds": time.perf_counter() - t, "resolution": res, "samples": samples, "maps": maps, "files": files}
+
+
+# ------------------------------------------------------------------ the demo floor and its analytic k_A
+
+def _demo_floor_scene():
+    """The demo scene with the Torus hidden (no closed form) and a planar UV layer on the Floor."""
+    scene = demo.build_demo_scene(new_scene=True, resolution=(32, 32))
+    scene.objects["Torus"].hide_render = True
+    floor = scene.objects["Floor"]
+    me = floor.data
+    layer = me.uv_layers.new(name=PLANAR)
+    co = np.zeros(len(me.vertices) * 3)
+    me.vertices.foreach_get("co", co)
+    vi = np.zeros(len(me.loops), int)
+    me.loops.foreach_get("vertex_index", vi)
+    layer.data.foreach_set("uv", (co.reshape(-1, 3)[vi, :2] / 8.0 + 0.5).ravel())
+    return scene, floor
+
+
+def _world_faces(obj):
+    mw = np.array(obj.matrix_world, float)
+    co = np.array([mw[:3, :3] @ np.array(v.co) + mw[:3, 3] for v in obj.data.vertices])
+    return [co[list(p.vertices)] for p in obj.data.polygons], co
+
+
+def analytic_floor_ao(scene, n):
+    """(reference k_A, mask) on an n × n planar map of the 8 m demo floor, rows bottom-first.
+
+    k_A = 1 - F_box - F_sphere: Lambert's polygon formula over the box faces facing the
+    texel and F = (R/D)² cos θ for the sphere (REFERENCE.md §3). The mask keeps texels
+    whose two occluders' cones do not overlap and that lie 0.25 m or more away from them.
+    """
+    box, sphere = scene.objects["Box"], scene.objects["Sphere"]
+    faces, corners = _world_faces(box)
+    centre_s = np.array(sphere.matrix_world.translation)
+    radius = max(np.linalg.norm(np.array(v.co)) for v in sphere.data.vertices)
+    # polygonal sphere: use the radius of the sphere of equal volume-ish (mean of in- and circumradius)
+    radius *= 0.5 * (1 + math.cos(math.pi / 48))
+    c = (np.arange(n) + 0.5) / n * 8.0 - 4.0
+    ref = np.ones((n, n))
+    mask = np.zeros((n, n), bool)
+    centre_b = corners.mean(axis=0)
+    for i, y in enumerate(c):
+        for j, x in enumerate(c):
+            p = np.array([x, y, 0.0])
+            db = centre_b - p
+            ab = max(_angle(db, q - p) for q in corners)
+            ds = centre_s - p
+            dist = np.linalg.norm(ds)
+            as_ = math.asin(min(radius / dist, 1.0))
+            near_box = np.all(np.abs((np.linalg.inv(np.array(box.matrix_world))[:3] @ np.append(p, 1.0))[:2]) < 0.75)
+            ok = _angle(db, ds) > ab + as_ and dist > radius + 0.25 and not near_box
+            f = lm.view_factor_convex(p, (0, 0, 1), faces) + lm.view_factor_sphere(dist, ds[2] / dist, radius)
+            ref[i, j] = 1.0 - f
+            mask[i, j] = ok
+    return ref, mask
+
+
+def _angle(a, b):
+    return math.acos(np.clip(np.dot(a, b) / (np.linalg.norm(a) * np.linalg.norm(b)), -1.0, 1.0))
+
+
+def _bare_bake(scene, floor, res, samples):
+    """Time of the bare Cycles AO bake call (material, image and UVs prepared beforehand)."""
+    img = bpy.data.images.new("IL bench", res, res, float_buffer=True, alpha=True)
+    mat = bpy.data.materials.new("IL bench")
+    nt = mat.node_tree
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    nt.nodes.active = tex
+    floor.data.materials.append(mat)
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = samples
+    scene.world.light_settings.distance = 10.0
+    vl = scene.view_layers[0]
+    for o in vl.objects:
+        o.select_set(o == floor, view_layer=vl)
+    vl.objects.active = floor
+    try:
+        t = time.perf_counter()
+        with bpy.context.temp_override(scene=scene, view_layer=vl, active_object=floor, object=floor,
+                                       selected_objects=[floor], selected_editable_objects=[floor]):
+            bpy.ops.object.bake(type="AO", margin=4, target="IMAGE_TEXTURES", uv_layer=PLANAR,
+                                save_mode="INTERNAL")
+        return time.perf_counter() - t
+    finally:
+        floor.data.materials.clear()
+        bpy.data.materials.remove(mat)
+        bpy.data.images.remove(img)
+
+
+def _pipeline(scene, floor, out, **kw):
+    kw.setdefault("uv_layer", PLANAR)
+    kw.setdefault("overwrite", True)
+    rep = bake_lightmaps([floor], ["ao"], out, BakeOptions(**kw), scene=scene)
+    e = rep["objects"]["Floor"]["ao"]
+    ch, _ = exr.read_exr(e["file"])
+    return rep["seconds"], np.flipud(ch["Y"]), e
+
+
+def _time_to(seconds, errors, goal):
+    """Seconds at which the error curve crosses ``goal`` (log-log interpolation), or None."""
+    pts = sorted(zip(seconds, errors))
+    for (t0, e0), (t1, e1) in zip(pts, pts[1:]):
+        if e0 > goal >= e1:
+            w = (math.log(e0) - math.log(goal)) / (math.log(e0) - math.log(e1))
+            return math.exp(math.log(t0) + w * (math.log(t1) - math.log(t0)))
+    if pts and pts[0][1] <= goal:
+        return pts[0][0]
+    return None
+
+
+def sweeps(out_dir, quick=False):
+    """Run the light-map benchmarks; return {"tables", "charts", "figures"} (see module doc)."""
+    os.makedirs(out_dir, exist_ok=True)
+    work = os.path.join(out_dir, "bake_bench_maps")
+    scene, floor = _demo_floor_scene()
+    try:
+        return _sweeps(scene, floor, out_dir, work, quick)
+    finally:
+        bpy.data.scenes.remove(scene)
+
+
+def _sweeps(scene, floor, out_dir, work, quick):
+    tables, figures = {}, {}
+    # 1. overhead over the bare bake call
+    res, samples = (128, 16) if quick else (512, 64)
+    rows = []
+    _bare_bake(scene, floor, 32, 1)                    # warm-up: kernels and scene sync once
+    for rep in range(1 if quick else 2):
+        bare = _bare_bake(scene, floor, res, samples)
+        pipe, _, _ = _pipeline(scene, floor, work, resolution=res, samples=samples, margin=4)
+        rows.append({"resolution": res, "samples": samples, "bare_s": bare, "pipeline_s": pipe,
+                     "overhead": pipe / bare - 1.0})
+    tables["bake_overhead"] = rows
+    best = min(rows, key=lambda r: r["pipeline_s"])
+    figures["bake_overhead"] = min(r["pipeline_s"] for r in rows) / min(r["bare_s"] for r in rows) - 1.0
+    figures["bake_overhead_at"] = f"{res}x{res}, {samples} samples"
+    del best
+    # 2. time to RMS 0.01 against the analytic k_A
+    n = 64 if quick else 128
+    ref, mask = analytic_floor_ao(scene, n)
+    goal = 0.01
+    plans = {
+        "plain": [dict(samples=s) for s in ((4, 16, 64, 256) if quick else (4, 8, 16, 32, 64, 128, 256, 512))],
+        "target error": [dict(target_error=e, pilot_samples=8)
+                         for e in ((0.04, 0.01) if quick else (0.04, 0.02, 0.01, 0.007))],
+        "denoised": [dict(samples=s, denoise=True) for s in ((4, 16) if quick else (2, 4, 8, 16, 32, 64))],
+    }
+    rows, series = [], {}
+    for method, runs in plans.items():
+        xs, ys = [], []
+        for kw in runs:
+            secs, k, e = _pipeline(scene, floor, work, resolution=n, margin=0, **kw)
+            err = lm.rms(k, ref, mask)
+            rows.append({"method": method, "samples": e["samples"], "seconds": secs, "rms": err,
+                         "estimated_error": e["estimated_error"]})
+            xs.append(secs)
+            ys.append(err)
+        series[method] = (xs, ys)
+    tables["bake_time_to_error"] = rows
+    times = {m: _time_to(*series[m], goal) for m in series}
+    figures["bake_time_to_rms_0.01_s"] = times
+    figures["bake_texels_compared"] = int(mask.sum())
+    plain = times.get("plain")
+    best = min((t for m, t in times.items() if m != "plain" and t), default=None)
+    figures["bake_speedup_best_vs_plain"] = (plain / best) if (plain and best) else None
+    chart = charts.line_chart(os.path.join(out_dir, "bake_error_vs_seconds.png"), series,
+                              f"AO light map of the demo floor ({n}x{n}): error against time",
+                              "seconds (whole pipeline)", "RMS error vs analytic k_A", logx=True, logy=True,
+                              marks={f"goal RMS {goal}": (plain or (min(series['plain'][0])), goal)})
+    return {"tables": tables, "charts": [chart], "figures": figures}

@@ -1,0 +1,103 @@
+"""Bake options: one dataclass shared by the operator, scripts/bake.py and other tools."""
+import dataclasses
+import os
+
+from ..core.errors import InputError
+from ..core.lightmap import MAX_RESOLUTION
+
+MAPS = ("ao", "irradiance")
+TARGETS = ("image", "vertex")
+
+
+@dataclasses.dataclass
+class BakeOptions:
+    """Everything a bake needs besides the objects, the maps and the output folder.
+
+    resolution      square map side in texels (ignored when texel_density is set)
+    texel_density   texels per metre; the side is then T √(area / UV coverage), capped
+    max_resolution  the cap for texel_density
+    samples         Cycles samples (ignored when target_error is set)
+    target_error    wanted RMS Monte Carlo error (k_A units for AO, W/m² for irradiance);
+                    the samples then come from a pilot bake's variance
+    pilot_samples   samples of the pilot bake(s) for target_error
+    max_samples     upper bound of the samples target_error may choose
+    ao_distance     AO ray length in metres (World > Light Settings > Distance)
+    bounces         diffuse bounces of the irradiance bake (0 = direct light only)
+    margin          dilation in texels beyond the covered texels
+    denoise         run Blender's denoiser (OpenImageDenoise, compositor) on image maps
+    uv_layer        an existing UV layer used as it is; None generates "Lightmap"
+    target          "image" (EXR + PNG per map) or "vertex" (a colour attribute per map)
+    atlas           bake every object into one shared map ("atlas_<map>.exr")
+    overwrite       replace existing output files
+    keep_products   leave the generated "Lightmap" UV layer / vertex colour attributes on the meshes
+    seed            Cycles seed of the (first) bake
+    """
+    resolution: int = 256
+    texel_density: float = None
+    max_resolution: int = 4096
+    samples: int = 64
+    target_error: float = None
+    pilot_samples: int = 16
+    max_samples: int = 4096
+    ao_distance: float = 10.0
+    bounces: int = 3
+    margin: int = 4
+    denoise: bool = False
+    uv_layer: str = None
+    target: str = "image"
+    atlas: bool = False
+    overwrite: bool = False
+    keep_products: bool = True
+    seed: int = 0
+
+    def validate(self):
+        """Raise InputError for any value out of range (before anything is touched)."""
+        if self.texel_density is None:
+            if not 1 <= int(self.resolution) <= MAX_RESOLUTION:
+                raise InputError(f"resolution must be between 1 and {MAX_RESOLUTION}, got {self.resolution}")
+        elif not self.texel_density > 0:
+            raise InputError(f"texel density must be positive, got {self.texel_density}")
+        if not 1 <= int(self.max_resolution) <= MAX_RESOLUTION:
+            raise InputError(f"maximum resolution must be between 1 and {MAX_RESOLUTION}, got {self.max_resolution}")
+        if self.target_error is None:
+            if int(self.samples) < 1:
+                raise InputError(f"samples must be at least 1, got {self.samples}")
+        elif not self.target_error > 0:
+            raise InputError(f"target error must be positive, got {self.target_error}")
+        if int(self.pilot_samples) < 2 or int(self.max_samples) < 1:
+            raise InputError("pilot samples must be at least 2 and maximum samples at least 1")
+        if not self.ao_distance > 0:
+            raise InputError(f"AO distance must be positive, got {self.ao_distance}")
+        if not 0 <= int(self.bounces) <= 1024:
+            raise InputError(f"bounces must be between 0 and 1024, got {self.bounces}")
+        if not 0 <= int(self.margin) <= 1024:
+            raise InputError(f"margin must be between 0 and 1024 texels, got {self.margin}")
+        if self.target not in TARGETS:
+            raise InputError(f"target must be one of {', '.join(TARGETS)}, got {self.target!r}")
+        return self
+
+
+def validate_maps(maps):
+    maps = [m.lower() for m in maps]
+    if not maps:
+        raise InputError("no maps asked for: choose ao and/or irradiance")
+    for m in maps:
+        if m not in MAPS:
+            raise InputError(f"unknown map {m!r}: choose from {', '.join(MAPS)}")
+    return list(dict.fromkeys(maps))
+
+
+def check_out_dir(out):
+    """The output folder exists or can be created, and is writable."""
+    out = os.path.abspath(os.fspath(out))
+    probe = out
+    while not os.path.exists(probe):
+        parent = os.path.dirname(probe)
+        if parent == probe:
+            break
+        probe = parent
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise InputError(f"output folder is a file: {out}")
+    if not os.path.isdir(probe) or not os.access(probe, os.W_OK | os.X_OK):
+        raise InputError(f"output folder cannot be written: {out}")
+    return out

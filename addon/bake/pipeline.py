@@ -1,0 +1,392 @@
+"""The light-map pipeline: validate, UVs, temporary white Lambert materials, Cycles bakes, files, restore."""
+import json
+import os
+import time
+
+import bpy
+import numpy as np
+
+from .. import compat
+from ..core import exr, imageio, lightmap
+from ..core.errors import ILError, InputError
+from ..core.fileio import write_json
+from ..progress import Progress
+from . import uv as uvmod
+from .options import BakeOptions, check_out_dir, validate_maps
+from .state import SavedState
+
+REPORT = "bake_report.json"
+ATLAS = "atlas"
+ATTRIBUTE = {"ao": "IL AO", "irradiance": "IL Irradiance"}
+QUANTITY = {"ao": ("ambient occlusion k_A (1 = open)", "1"), "irradiance": ("irradiance E", "W/m^2")}
+
+
+class BakeResult:
+    """One baked map of one object group, in Blender's pixel order (row 0 at v = 0).
+
+    values  (H, W) k_A or (H, W, 3) E in W/m² for images; {object: (V,) or (V, 3)} for vertices
+    mask    (H, W) bool covered texels (images) / None (vertices)
+    samples total Cycles samples per texel; seconds; estimated_error (RMS, same units as values)
+    """
+
+    def __init__(self, values, mask, samples, seconds, estimated_error, pilot_samples=0):
+        self.values, self.mask, self.samples = values, mask, samples
+        self.seconds, self.estimated_error, self.pilot_samples = seconds, estimated_error, pilot_samples
+
+
+# ------------------------------------------------------------------ validation
+
+def validate(scene, objects, maps, out, options):
+    """Every input check, before anything in the file is touched. Returns (objects, maps, out)."""
+    options.validate()
+    maps = validate_maps(maps)
+    objects = list(objects)
+    if not objects:
+        raise InputError("nothing selected: select or name at least one mesh object")
+    vl = scene.view_layers[0]
+    for o in objects:
+        if o is None:
+            raise InputError("no such object")
+        if o.type != "MESH":
+            raise InputError(f"'{o.name}' is not a mesh (it is a {o.type.lower()})")
+        if len(o.data.polygons) == 0:
+            raise InputError(f"mesh '{o.name}' has no faces to bake")
+        if scene.objects.get(o.name) != o:
+            raise InputError(f"'{o.name}' is not in scene '{scene.name}'")
+        if o.mode != "OBJECT":
+            raise InputError(f"'{o.name}' is in {o.mode.lower()} mode: switch to object mode first")
+        if options.uv_layer and options.target == "image":
+            uvmod.check_layer(o, options.uv_layer)
+    if options.atlas and len({o.data.name for o in objects}) != len(objects):
+        raise InputError("objects sharing one mesh cannot share an atlas: bake them separately")
+    out = check_out_dir(out)
+    if not options.overwrite:
+        for path in output_files(objects, maps, out, options):
+            if os.path.exists(path):
+                raise InputError(f"{path} exists: pass --overwrite to replace it")
+    return objects, maps, out
+
+
+def output_files(objects, maps, out, options):
+    """The map files a bake would write (EXR and PNG per map, or one vertex EXR per object and map)."""
+    files = []
+    names = [ATLAS] if (options.atlas and options.target == "image") else [o.name for o in objects]
+    for name in names:
+        for m in maps:
+            if options.target == "image":
+                files += [os.path.join(out, f"{name}_{m}.exr"), os.path.join(out, f"{name}_{m}.png")]
+            else:
+                files.append(os.path.join(out, f"{name}_{m}_vertex.exr"))
+    return files
+
+
+# ------------------------------------------------------------------ public entry point
+
+def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
+    """Bake ``maps`` ("ao", "irradiance") of mesh ``objects`` into folder ``out``; return the report dict.
+
+    Writes ``<out>/<object>_<map>.exr`` (+ ``.png`` preview) per object (``atlas_<map>``
+    with ``options.atlas``), or ``<object>_<map>_vertex.exr`` for the vertex target, and
+    merges ``<out>/bake_report.json``. The user's file comes back as it was (materials,
+    images, UV layers, selection, active object, render settings), also on errors and
+    interruptions; only the products (generated "Lightmap" UV layer, "IL AO" /
+    "IL Irradiance" colour attributes) stay when ``options.keep_products``.
+    ``on_step(message)`` is called at every step (progress hooks, tests).
+    """
+    options = options or BakeOptions()
+    scene = scene or bpy.context.scene
+    objects, maps, out = validate(scene, objects, maps, out, options)
+    t_all = time.perf_counter()
+    groups = [(ATLAS, objects)] if (options.atlas and options.target == "image") else [(o.name, [o]) for o in objects]
+    steps = (1 if options.target == "image" else 0) + len(groups) * len(maps)
+    report = {"objects": {}}
+    os.makedirs(out, exist_ok=True)
+    with Progress("bake", steps) as progress, SavedState(scene, objects) as state:
+        def step(message):
+            progress.step(message)
+            if on_step:
+                on_step(message)
+
+        _setup_render(scene, options)
+        layers = {}
+        if options.target == "image":
+            step("light-map UVs")
+            margin_uv = options.margin / max(options.resolution if options.texel_density is None else 256, 1)
+            layers = uvmod.prepare(scene, objects, state, options.uv_layer, margin_uv=max(margin_uv, 0.002),
+                                   together=options.atlas)
+        for name, group in groups:
+            res = uvmod.resolution(group, layers, options) if options.target == "image" else 0
+            materials = _temporary_materials(group, state)
+            for m in maps:
+                step(f"{name}: {m}" + (f" {res}x{res}" if res else " (vertices)"))
+                result = bake_map(scene, group, m, options, layers, res, materials, state)
+                entries = _write(name, group, m, result, out, options, layers)
+                for o in group:
+                    report["objects"].setdefault(o.name, {})[m] = entries[o.name]
+        if options.keep_products:       # products stay only when the whole bake succeeded
+            state.keep |= {(o.data.name, uvmod.LIGHTMAP) for o in objects}
+            state.keep |= {(o.data.name, ATTRIBUTE[m]) for o in objects for m in maps}
+    report["seconds"] = time.perf_counter() - t_all
+    _merge_report(os.path.join(out, REPORT), report)
+    return report
+
+
+# ------------------------------------------------------------------ bakes
+
+def _setup_render(scene, options):
+    scene.render.engine = compat.CYCLES
+    cy = scene.cycles
+    cy.device = "CPU"
+    cy.use_denoising = False
+    cy.use_adaptive_sampling = False
+    if hasattr(cy, "use_animated_seed"):
+        cy.use_animated_seed = False
+    cy.diffuse_bounces = int(options.bounces)
+    cy.max_bounces = max(int(options.bounces), 1)
+    if scene.world is None:
+        scene.world = bpy.data.worlds.new("IL temporary world")
+        scene.world.color = (0.0, 0.0, 0.0)
+    scene.world.light_settings.distance = float(options.ao_distance)
+
+
+def _temporary_materials(group, state):
+    """Give every slot of each object a temporary white Lambertian material with an image node.
+
+    Returns ``{object name: image node}``; the node's image is set per map.
+    """
+    nodes = {}
+    for o in group:
+        mat = state.track(bpy.data.materials, bpy.data.materials.new(f"IL bake {o.name}"))
+        compat.ensure_use_nodes(mat)
+        nt = mat.node_tree
+        for n in list(nt.nodes):
+            nt.nodes.remove(n)
+        bsdf = nt.nodes.new("ShaderNodeBsdfDiffuse")
+        bsdf.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+        bsdf.inputs["Roughness"].default_value = 0.0
+        out = nt.nodes.new("ShaderNodeOutputMaterial")
+        nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+        tex = nt.nodes.new("ShaderNodeTexImage")
+        nt.nodes.active = tex
+        if len(o.material_slots) == 0:
+            o.data.materials.append(mat)
+        for slot in o.material_slots:
+            slot.material = mat
+        nodes[o.name] = tex
+    return nodes
+
+
+def bake_map(scene, group, kind, options, layers, res, materials, state):
+    """Bake one map of one object group (already prepared); return a :class:`BakeResult`."""
+    t0 = time.perf_counter()
+    image_target = options.target == "image"
+    image = None
+    if image_target:
+        image = state.track(bpy.data.images, bpy.data.images.new(f"IL {kind}", res, res, float_buffer=True,
+                                                                 alpha=True))
+        for tex in materials.values():
+            tex.image = image
+    else:
+        for o in group:
+            me = o.data
+            name = ATTRIBUTE[kind]
+            if name not in me.color_attributes:
+                me.color_attributes.new(name, "FLOAT_COLOR", "POINT")
+                state.created_attribute(me, name)
+            me.color_attributes.active_color_name = name
+    uv_name = layers.get(group[0].name) if image_target else None
+
+    def once(samples, seed):
+        return _bake_once(scene, group, kind, samples, seed, image, uv_name, options)
+
+    pilot = 0
+    if options.target_error is None:
+        n = int(options.samples)
+        if kind == "irradiance" and n >= 2:
+            h = n // 2
+            (a, mask), (b, _) = once(h, options.seed), once(n - h, options.seed + 1)
+            var = lightmap.per_sample_variance_pair(_flat(a), _flat(b), h, n - h, _flat_mask(mask, a))
+            values = _combine([a, b], [h, n - h])
+        else:
+            values, mask = once(n, options.seed)
+            var = _variance_single(kind, values, mask)
+    else:
+        # two independent half pilots: their difference measures the real noise of Cycles'
+        # (quasi-)Monte Carlo sampler, lower than the binomial bound for AO
+        pilot = int(options.pilot_samples)
+        h = pilot // 2
+        (a, mask), (b, _) = once(h, options.seed), once(pilot - h, options.seed + 1)
+        var = lightmap.per_sample_variance_pair(_flat(a), _flat(b), h, pilot - h, _flat_mask(mask, a))
+        parts, counts = [a, b], [h, pilot - h]
+        n = lightmap.samples_for_error(var, options.target_error, minimum=pilot, maximum=max(options.max_samples, pilot))
+        if n > pilot:
+            c, _ = once(n - pilot, options.seed + 2)
+            parts.append(c)
+            counts.append(n - pilot)
+        values = _combine(parts, counts)
+    err = lightmap.expected_error(var, n)
+    if image_target and options.denoise:
+        filled, _ = lightmap.nearest_fill(values, mask)
+        from .denoise import denoise
+        values = np.where((mask[..., None] if values.ndim == 3 else mask), denoise(filled), 0.0).astype(np.float32)
+    return BakeResult(values, mask, n, time.perf_counter() - t0, err, pilot)
+
+
+def _variance_single(kind, values, mask):
+    """Per-sample variance from one bake: binomial k_A(1 - k_A) for AO (REFERENCE.md §3)."""
+    if kind == "ao":
+        return lightmap.per_sample_variance_ao(_flat(values), _flat_mask(mask, values))
+    return float("nan")
+
+
+def _flat(values):
+    if isinstance(values, dict):
+        return np.concatenate([np.asarray(v, float).reshape(len(v), -1) for v in values.values()])
+    return values
+
+
+def _flat_mask(mask, values):
+    if isinstance(values, dict):
+        return np.ones(sum(len(v) for v in values.values()), bool)
+    return mask
+
+
+def _combine(parts, counts):
+    if isinstance(parts[0], dict):
+        return {k: lightmap.combine([p[k] for p in parts], counts) for k in parts[0]}
+    return lightmap.combine(parts, counts).astype(np.float32)
+
+
+def _bake_once(scene, group, kind, samples, seed, image, uv_name, options):
+    """One Cycles bake call; returns (values, mask) with E already multiplied by π."""
+    cy = scene.cycles
+    cy.samples, cy.seed = int(samples), int(seed)
+    vl = scene.view_layers[0]
+    for o in vl.objects:
+        want = o in group
+        if o.select_get(view_layer=vl) != want:
+            o.select_set(want, view_layer=vl)
+    vl.objects.active = group[0]
+    if image is not None:
+        image.pixels.foreach_set(np.zeros(image.size[0] * image.size[1] * 4, np.float32))
+    kwargs = dict(margin=0, use_clear=False, use_selected_to_active=False, save_mode="INTERNAL",
+                  target="IMAGE_TEXTURES" if image is not None else "VERTEX_COLORS")
+    if image is not None:
+        kwargs["uv_layer"] = uv_name
+    if kind == "ao":
+        kwargs["type"] = "AO"
+    else:
+        kwargs["type"] = "DIFFUSE"
+        kwargs["pass_filter"] = {"DIRECT", "INDIRECT"} if options.bounces > 0 else {"DIRECT"}
+    ctx = dict(scene=scene, view_layer=vl, active_object=group[0], object=group[0],
+               selected_objects=list(group), selected_editable_objects=list(group))
+    try:
+        with bpy.context.temp_override(**ctx):
+            result = bpy.ops.object.bake(**kwargs)
+    except RuntimeError as e:
+        raise ILError(f"Cycles bake failed: {str(e).strip().splitlines()[-1]}") from e
+    if "FINISHED" not in result:
+        raise ILError(f"Cycles bake did not finish ({', '.join(result)})")
+    scale = np.pi if kind == "irradiance" else 1.0
+    if image is not None:
+        w, h = image.size
+        px = np.zeros(w * h * 4, np.float32)
+        image.pixels.foreach_get(px)
+        px = px.reshape(h, w, 4)
+        mask = px[..., 3] > 0.5
+        values = px[..., 0] if kind == "ao" else px[..., :3] * scale
+        return values.astype(np.float32), mask
+    values = {}
+    for o in group:
+        attr = o.data.color_attributes[ATTRIBUTE[kind]]
+        c = np.zeros(len(attr.data) * 4, np.float32)
+        attr.data.foreach_get("color", c)
+        c = c.reshape(-1, 4)
+        values[o.name] = c[:, 0].copy() if kind == "ao" else c[:, :3] * scale
+    return values, None
+
+
+# ------------------------------------------------------------------ files
+
+def _attributes(kind, result, options, uv_name):
+    quantity, units = QUANTITY[kind]
+    return {"il:quantity": quantity, "il:units": units, "il:samples": result.samples,
+            "il:ao_distance": options.ao_distance, "il:uv_layer": uv_name or "",
+            "il:blender_version": bpy.app.version_string, "il:bounces": options.bounces if kind != "ao" else "",
+            "il:denoised": int(bool(options.denoise and options.target == "image")),
+            "il:estimated_error": result.estimated_error}
+
+
+def _channels(kind, values, alpha):
+    if kind == "ao":
+        return {"Y": values, "A": alpha}
+    return {"R": values[..., 0], "G": values[..., 1], "B": values[..., 2], "A": alpha}
+
+
+def _preview(kind, values, mask):
+    if kind == "ao":
+        display = imageio.srgb_encode(values)
+    else:
+        display = imageio.tonemap(values)
+    display = np.where(mask[..., None] if display.ndim == 3 else mask, display, 0.0)
+    return imageio.to_uint8(display)
+
+
+def _entry(path, res, result, extra=None):
+    e = {"file": path, "resolution": list(res), "samples": int(result.samples), "seconds": round(result.seconds, 4),
+         "estimated_error": None if not np.isfinite(result.estimated_error) else float(result.estimated_error)}
+    if result.pilot_samples:
+        e["pilot_samples"] = int(result.pilot_samples)
+    e.update(extra or {})
+    return e
+
+
+def _write(name, group, kind, result, out, options, layers):
+    """Write the files of one baked map; return ``{object: report entry}``."""
+    if options.target == "image":
+        values, grown = lightmap.dilate(result.values, result.mask, options.margin)
+        values = np.where(grown[..., None] if values.ndim == 3 else grown, values, 0.0)
+        alpha = result.mask.astype(np.float32)
+        uv_name = layers.get(group[0].name)
+        path = os.path.join(out, f"{name}_{kind}.exr")
+        exr.write_exr(path, _channels(kind, np.flipud(values), np.flipud(alpha)),
+                      _attributes(kind, result, options, uv_name))
+        png = os.path.join(out, f"{name}_{kind}.png")
+        imageio.write_png(png, np.flipud(_preview(kind, values, grown)))
+        res = (values.shape[1], values.shape[0])
+        extra = {"preview": png, "uv_layer": uv_name, "coverage": float(result.mask.mean()),
+                 "denoised": bool(options.denoise)}
+        return {o.name: _entry(path, res, result, extra) for o in group}
+    entries = {}
+    scale = 1.0
+    for o in group:
+        v = np.asarray(result.values[o.name], np.float32) * scale
+        row = v[None, :] if v.ndim == 1 else v[None, :, :]
+        path = os.path.join(out, f"{o.name}_{kind}_vertex.exr")
+        attrs = _attributes(kind, result, options, None)
+        attrs["il:layout"] = "one texel per mesh vertex, in vertex order"
+        exr.write_exr(path, _channels(kind, row, np.ones(row.shape[:2], np.float32)), attrs)
+        attr = o.data.color_attributes.get(ATTRIBUTE[kind])
+        if attr is not None:
+            rgba = np.ones((len(v), 4), np.float32)
+            rgba[:, :3] = v[:, None] if v.ndim == 1 else v
+            attr.data.foreach_set("color", rgba.ravel())
+        entries[o.name] = _entry(path, (len(v), 1), result, {"attribute": ATTRIBUTE[kind]})
+    return entries
+
+
+def _merge_report(path, report):
+    old = {}
+    if os.path.exists(path):
+        try:
+            with open(path, encoding="utf-8") as f:
+                old = json.load(f)
+        except (OSError, ValueError):
+            old = {}
+    objects = old.get("objects", {}) if isinstance(old.get("objects"), dict) else {}
+    for name, maps in report["objects"].items():
+        objects.setdefault(name, {}).update(maps)
+    merged = {"objects": objects, "seconds": round(report["seconds"], 4),
+              "blender_version": bpy.app.version_string}
+    write_json(path, merged)
+    report["report"] = path

@@ -1,0 +1,161 @@
+"""Save what a bake touches and put it back, also after an error or an interruption.
+
+Usage::
+
+    with SavedState(scene, objects) as state:
+        state.track_image(img)          # temporary data-blocks removed on exit
+        ...
+
+On exit (normal, exception or KeyboardInterrupt) the render settings, the world's
+AO distance, selection, active object, material slots, active UV layer / render UV
+layer, active colour attributes and the mode are restored, and every temporary
+data-block registered with ``track_*`` is removed.
+"""
+import bpy
+
+_CYCLES = ("device", "samples", "seed", "use_denoising", "use_adaptive_sampling", "max_bounces",
+           "diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces",
+           "transparent_max_bounces", "use_animated_seed", "sample_offset")
+
+
+def _rna_values(struct):
+    out = {}
+    for prop in struct.bl_rna.properties:
+        if prop.identifier == "rna_type" or prop.is_readonly or prop.type in {"POINTER", "COLLECTION"}:
+            continue
+        try:
+            value = getattr(struct, prop.identifier)
+        except AttributeError:
+            continue
+        if hasattr(value, "__len__") and not isinstance(value, str):
+            value = tuple(value) if prop.type != "ENUM" else set(value)
+        out[prop.identifier] = value
+    return out
+
+
+def _set_rna_values(struct, values):
+    for key, value in values.items():
+        try:
+            if getattr(struct, key) != value:
+                setattr(struct, key, value)
+        except (AttributeError, TypeError, ValueError):
+            pass
+
+
+class SavedState:
+    def __init__(self, scene, objects):
+        self.scene = scene
+        self.objects = list(objects)
+        self.temp = []            # (collection, id) removed on exit
+        self.uv_created = []      # (mesh, layer name) removed on exit unless kept
+        self.attr_created = []    # (mesh, attribute name) removed on exit unless kept
+        self.keep = set()         # (mesh name, layer/attribute name) to keep
+
+    # ---- save
+    def __enter__(self):
+        sc, r = self.scene, self.scene.render
+        vl = sc.view_layers[0]
+        self.engine = r.engine
+        self.cycles = {k: getattr(sc.cycles, k) for k in _CYCLES if hasattr(sc.cycles, k)}
+        self.bake = _rna_values(r.bake)
+        self.world = sc.world
+        self.ao_distance = sc.world.light_settings.distance if sc.world else None
+        self.selection = {o.name: o.select_get(view_layer=vl) for o in vl.objects}
+        self.active = vl.objects.active
+        self.slots = {}
+        self.meshes = {}
+        for o in self.objects:
+            self.slots[o.name] = [(s.link, s.material) for s in o.material_slots]
+            me = o.data
+            self.meshes[me.name] = {
+                "materials": list(me.materials),
+                "uv_active": me.uv_layers.active_index,
+                "uv_render": next((l.name for l in me.uv_layers if l.active_render), None),
+                "color_active": me.color_attributes.active_color_name,
+                "color_render": me.color_attributes.render_color_index,
+                "attr_active": me.attributes.active.name if me.attributes.active else None,
+            }
+        return self
+
+    # ---- register temporaries
+    def track(self, collection, idblock):
+        self.temp.append((collection, idblock))
+        return idblock
+
+    def created_uv(self, mesh, name):
+        self.uv_created.append((mesh, name))
+
+    def created_attribute(self, mesh, name):
+        self.attr_created.append((mesh, name))
+
+    # ---- restore
+    def __exit__(self, *exc):
+        sc = self.scene
+        vl = sc.view_layers[0]
+        for o in self.objects:
+            if o.mode != "OBJECT":
+                try:
+                    with bpy.context.temp_override(scene=sc, view_layer=vl, active_object=o, object=o):
+                        bpy.ops.object.mode_set(mode="OBJECT")
+                except RuntimeError:
+                    pass
+        for o in self.objects:
+            saved = self.slots[o.name]
+            me = o.data
+            mats = self.meshes[me.name]["materials"]
+            if len(me.materials) != len(mats):
+                me.materials.clear()          # clear() also resyncs the object's slot count (pop() does not)
+                for m in mats:
+                    me.materials.append(m)
+            for i, m in enumerate(mats):
+                if me.materials[i] != m:
+                    me.materials[i] = m
+            for slot, (link, mat) in zip(o.material_slots, saved):
+                if slot.link != link:
+                    slot.link = link
+                if slot.material != mat:
+                    slot.material = mat
+        for me, name in self.uv_created:
+            if (me.name, name) not in self.keep and name in me.uv_layers:
+                me.uv_layers.remove(me.uv_layers[name])
+        for me, name in self.attr_created:
+            if (me.name, name) not in self.keep and name in me.color_attributes:
+                me.color_attributes.remove(me.color_attributes[name])
+        for o in self.objects:
+            me = o.data
+            m = self.meshes.get(me.name)
+            if m is None:
+                continue
+            if m["uv_render"] is not None and m["uv_render"] in me.uv_layers:
+                me.uv_layers[m["uv_render"]].active_render = True
+            if 0 <= m["uv_active"] < len(me.uv_layers):
+                me.uv_layers.active_index = m["uv_active"]
+            if m["color_active"] is not None and m["color_active"] in me.color_attributes:
+                me.color_attributes.active_color_name = m["color_active"]
+            if 0 <= m["color_render"] < len(me.color_attributes):
+                me.color_attributes.render_color_index = m["color_render"]
+            if m["attr_active"] is not None and m["attr_active"] in me.attributes:
+                me.attributes.active = me.attributes[m["attr_active"]]
+        for collection, idblock in reversed(self.temp):
+            try:
+                collection.remove(idblock)
+            except (ReferenceError, RuntimeError):
+                pass
+        r = sc.render
+        if r.engine != self.engine:
+            r.engine = self.engine
+        for k, v in self.cycles.items():
+            if getattr(sc.cycles, k) != v:
+                setattr(sc.cycles, k, v)
+        _set_rna_values(r.bake, self.bake)
+        if sc.world != self.world:
+            sc.world = self.world
+        if self.world is not None and self.world.light_settings.distance != self.ao_distance:
+            self.world.light_settings.distance = self.ao_distance
+        for o in vl.objects:
+            want = self.selection.get(o.name, False)
+            if o.select_get(view_layer=vl) != want:
+                o.select_set(want, view_layer=vl)
+        if vl.objects.active != self.active:
+            vl.objects.active = self.active
+        return False

@@ -1,0 +1,237 @@
+"""Light maps in numpy: texel budget, coverage, dilation, Monte Carlo error, closed forms.
+
+Conventions: a light map array is (H, W) or (H, W, C) with row 0 at v = 0 (Blender's
+pixel order, bottom row first) unless a function says otherwise; texel (i, j) has
+its centre at uv = ((j + 0.5)/W, (i + 0.5)/H). k_A in [0, 1] with 1 = open
+(REFERENCE.md §1); irradiance E in W/m².
+"""
+import math
+
+import numpy as np
+
+MAX_RESOLUTION = 16384
+
+
+# ---------------------------------------------------------------- texel budget
+
+def resolution_for_density(area_m2, uv_coverage, texels_per_metre, cap=4096, minimum=4):
+    """Square map side N so that a metre of surface gets ``texels_per_metre`` texels.
+
+    N² · coverage = T² · A  ->  N = T √(A / coverage), rounded up, clamped to [minimum, cap].
+    ``uv_coverage`` is the fraction of the unit UV square the charts cover.
+    """
+    if area_m2 <= 0 or uv_coverage <= 0:
+        return int(minimum)
+    n = math.ceil(texels_per_metre * math.sqrt(area_m2 / uv_coverage))
+    return int(min(max(n, minimum), cap))
+
+
+def uv_area(tri_uv):
+    """Sum of |triangle areas| in UV space; ``tri_uv`` is (T, 3, 2)."""
+    t = np.asarray(tri_uv, float)
+    e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    return float(0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum())
+
+
+def coverage_mask(tri_uv, width, height):
+    """Boolean (H, W) mask of texels whose centre lies in at least one UV triangle (edges included)."""
+    mask = np.zeros((height, width), bool)
+    t = np.asarray(tri_uv, float) * (width, height)
+    for a, b, c in t:
+        lo = np.floor(np.minimum(np.minimum(a, b), c) - 0.5).astype(int)
+        hi = np.ceil(np.maximum(np.maximum(a, b), c) - 0.5).astype(int)
+        x0, y0 = max(lo[0], 0), max(lo[1], 0)
+        x1, y1 = min(hi[0], width - 1), min(hi[1], height - 1)
+        if x1 < x0 or y1 < y0:
+            continue
+        ys, xs = np.mgrid[y0:y1 + 1, x0:x1 + 1] + 0.5
+        d = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+        if abs(d) < 1e-12:
+            continue
+        w1 = ((xs - a[0]) * (c[1] - a[1]) - (ys - a[1]) * (c[0] - a[0])) / d
+        w2 = ((b[0] - a[0]) * (ys - a[1]) - (b[1] - a[1]) * (xs - a[0])) / d
+        inside = (w1 >= -1e-6) & (w2 >= -1e-6) & (w1 + w2 <= 1 + 1e-6)
+        mask[y0:y1 + 1, x0:x1 + 1] |= inside
+    return mask
+
+
+# ---------------------------------------------------------------- dilation
+
+def nearest_fill(values, mask, max_distance=None):
+    """Copy each uncovered texel from its nearest covered texel (chessboard distance, in texels).
+
+    Texels farther than ``max_distance`` keep their value. Returns ``(values, filled_mask)``.
+    """
+    from scipy import ndimage
+    m = np.asarray(mask, bool)
+    v = np.array(values, dtype=np.float32, copy=True)
+    if not m.any() or m.all():
+        return v, m.copy()
+    dist, (iy, ix) = ndimage.distance_transform_cdt(~m, metric="chessboard", return_indices=True)
+    grow = ~m if max_distance is None else (~m) & (dist <= max_distance)
+    v[grow] = v[iy[grow], ix[grow]]
+    return v, m | grow
+
+
+def dilate(values, mask, pixels):
+    """Dilation by ``pixels`` texels beyond the covered ones (nearest covered value).
+
+    A bilinear lookup across a UV seam then reads the chart's own border instead of
+    black. Returns ``(values, grown_mask)``; covered texels keep their values.
+    """
+    return nearest_fill(values, mask, float(pixels) + 1e-6)
+
+
+def bilinear(image, uv):
+    """Bilinear lookup of ``image`` (H, W[, C], row 0 at v = 0) at uv (N, 2), clamped at the border."""
+    img = np.asarray(image, float)
+    h, w = img.shape[:2]
+    x = np.clip(np.asarray(uv, float)[:, 0] * w - 0.5, 0, w - 1)
+    y = np.clip(np.asarray(uv, float)[:, 1] * h - 0.5, 0, h - 1)
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    fx, fy = x - x0, y - y0
+    if img.ndim == 3:
+        fx, fy = fx[:, None], fy[:, None]
+    return ((img[y0, x0] * (1 - fx) + img[y0, x1] * fx) * (1 - fy)
+            + (img[y1, x0] * (1 - fx) + img[y1, x1] * fx) * fy)
+
+
+# ---------------------------------------------------------------- Monte Carlo error (REFERENCE.md §3)
+
+def binomial_sd(k_a, samples):
+    """Standard deviation of a k_A estimate from N binary cosine samples: √(k_A(1 - k_A)/N)."""
+    k = np.clip(np.asarray(k_a, float), 0.0, 1.0)
+    return np.sqrt(k * (1.0 - k) / samples)
+
+
+def rms(values, reference, mask=None):
+    """Root-mean-square difference over ``mask`` (all texels when None)."""
+    d = np.asarray(values, float) - np.asarray(reference, float)
+    if mask is not None:
+        d = d[np.asarray(mask, bool)]
+    return float(np.sqrt(np.mean(d * d))) if d.size else float("nan")
+
+
+def per_sample_variance_ao(k_a, mask):
+    """Mean over covered texels of k_A(1 - k_A): the variance of one binary AO sample."""
+    k = np.clip(np.asarray(k_a, float)[np.asarray(mask, bool)], 0.0, 1.0)
+    return float(np.mean(k * (1.0 - k))) if k.size else 0.0
+
+
+def per_sample_variance_pair(a, b, samples_a, samples_b, mask):
+    """Per-sample variance from two independent estimates a (N_a samples) and b (N_b) of one map.
+
+    Var(a - b) = σ² (1/N_a + 1/N_b) per texel, so σ² = mean((a - b)²) / (1/N_a + 1/N_b)
+    (mean over covered texels and channels).
+    """
+    m = np.asarray(mask, bool)
+    d = (np.asarray(a, float) - np.asarray(b, float))[m]
+    return float(np.mean(d * d) / (1.0 / samples_a + 1.0 / samples_b)) if d.size else 0.0
+
+
+def samples_for_error(per_sample_variance, target_error, minimum=1, maximum=65536):
+    """Smallest N with √(σ²/N) <= target: N = ⌈σ²/E²⌉, clamped."""
+    if target_error <= 0:
+        raise ValueError("target error must be positive")
+    n = math.ceil(per_sample_variance / (target_error * target_error))
+    return int(min(max(n, minimum), maximum))
+
+
+def expected_error(per_sample_variance, samples):
+    """RMS Monte Carlo error √(σ²/N) of an N-sample estimate."""
+    return math.sqrt(max(per_sample_variance, 0.0) / max(samples, 1))
+
+
+def combine(estimates, samples):
+    """Sample-weighted mean of independent estimates (Σ N_i x_i / Σ N_i)."""
+    total = float(sum(samples))
+    return sum(np.asarray(x, float) * (n / total) for x, n in zip(estimates, samples))
+
+
+# ---------------------------------------------------------------- closed forms (REFERENCE.md §3)
+
+def view_factor_rect_corner(a, b, c):
+    """Howell B-3: point under one corner of a parallel a × b rectangle at height c.
+
+    X = a/c, Y = b/c, F = (1/2π)[X/√(1+X²) atan(Y/√(1+X²)) + Y/√(1+Y²) atan(X/√(1+Y²))].
+    """
+    x, y = a / c, b / c
+    sx, sy = math.sqrt(1 + x * x), math.sqrt(1 + y * y)
+    return (x / sx * math.atan(y / sx) + y / sy * math.atan(x / sy)) / (2 * math.pi)
+
+
+def view_factor_rect_centered(a, b, c):
+    """Parallel a × b rectangle centred over the point at height c: four B-3 corners of a/2 × b/2."""
+    return 4.0 * view_factor_rect_corner(a / 2.0, b / 2.0, c)
+
+
+def view_factor_polygon(point, normal, vertices):
+    """Lambert's formula: F = (1/2π) |Σ γ_i n·(R_i × R_{i+1})/|R_i × R_{i+1}||.
+
+    ``vertices`` (K, 3) of a planar polygon wholly above the point's tangent plane;
+    γ_i = angle between successive vertex directions R_i, R_{i+1}.
+    """
+    r = np.asarray(vertices, float) - np.asarray(point, float)
+    r /= np.linalg.norm(r, axis=1, keepdims=True)
+    r2 = np.roll(r, -1, axis=0)
+    cross = np.cross(r, r2)
+    norm = np.linalg.norm(cross, axis=1)
+    gamma = np.arctan2(norm, np.einsum("ij,ij->i", r, r2))
+    ok = norm > 1e-15
+    s = np.sum(gamma[ok] * (cross[ok] @ np.asarray(normal, float)) / norm[ok])
+    return float(abs(s) / (2 * math.pi))
+
+
+def view_factor_convex(point, normal, faces):
+    """View factor of a convex polyhedron: sum of Lambert's formula over the faces facing the point.
+
+    ``faces`` is a list of (K, 3) vertex arrays wound counter-clockwise seen from outside.
+    """
+    p = np.asarray(point, float)
+    total = 0.0
+    for f in faces:
+        f = np.asarray(f, float)
+        n = np.cross(f[1] - f[0], f[2] - f[0])
+        if np.dot(n, p - f[0]) > 1e-12:
+            total += view_factor_polygon(p, normal, f)
+    return total
+
+
+def view_factor_long_wall(d, height):
+    """Infinitely long wall of height H at distance d, parallel to the edge: F = (1 - d/√(d² + H²))/2."""
+    return 0.5 * (1.0 - d / math.sqrt(d * d + height * height))
+
+
+def view_factor_disk(radius, height):
+    """Coaxial parallel disk of radius R at height h: F = R²/(R² + h²)."""
+    return radius * radius / (radius * radius + height * height)
+
+
+def view_factor_sphere(distance, cos_theta, radius):
+    """Sphere of radius R whose centre is at ``distance`` D, angle θ from the normal, wholly above
+    the tangent plane: F = (R/D)² cos θ (Howell B-? sphere from a tilted element, visible case)."""
+    return (radius / distance) ** 2 * cos_theta
+
+
+def irradiance_uniform_sky(radiance, k_a=1.0):
+    """Uniform sky of radiance L seen over an unoccluded fraction k_A: E = π L k_A."""
+    return math.pi * radiance * k_a
+
+
+def irradiance_sun(strength, theta):
+    """Sun of strength S (W/m² facing it) at angle θ from the normal: E = S cos θ."""
+    return strength * np.maximum(np.cos(theta), 0.0)
+
+
+def irradiance_point(power, distance, cos_theta):
+    """Point light of power P W at distance d: E = P cos θ / (4π d²) (REFERENCE.md §1)."""
+    return power * np.maximum(cos_theta, 0.0) / (4 * math.pi * np.square(distance))
+
+
+def irradiance_enclosure(radiance, albedo, bounces):
+    """Inside a closed diffuse enclosure of emitted radiance Le and albedo ρ, K diffuse bounces:
+    E = π Le (1 - ρ^(K+1)) / (1 - ρ)  (π Le (K + 1) when ρ = 1)."""
+    if albedo == 1.0:
+        return math.pi * radiance * (bounces + 1)
+    return math.pi * radiance * (1.0 - albedo ** (bounces + 1)) / (1.0 - albedo)

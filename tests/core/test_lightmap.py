@@ -1,0 +1,142 @@
+"""Light-map maths without bpy: closed forms against each other, dilation, coverage, Monte Carlo error."""
+import math
+
+import numpy as np
+import pytest
+
+from addon.core import lightmap as lm
+
+
+def _square(cx, cy, z, a, b):
+    return np.array([(cx - a / 2, cy - b / 2, z), (cx + a / 2, cy - b / 2, z),
+                     (cx + a / 2, cy + b / 2, z), (cx - a / 2, cy + b / 2, z)])
+
+
+@pytest.mark.parametrize("a,b,c", [(1.0, 1.0, 1.0), (2.0, 0.5, 0.7), (10.0, 3.0, 0.2)])
+def test_howell_b3_corner_matches_lambert_polygon(a, b, c):
+    poly = np.array([(0, 0, c), (a, 0, c), (a, b, c), (0, b, c)])
+    assert lm.view_factor_rect_corner(a, b, c) == pytest.approx(lm.view_factor_polygon((0, 0, 0), (0, 0, 1), poly),
+                                                                rel=1e-9)
+
+
+def test_centred_rectangle_and_limits():
+    assert lm.view_factor_rect_centered(2.0, 2.0, 1.0) == pytest.approx(
+        lm.view_factor_polygon((0, 0, 0), (0, 0, 1), _square(0, 0, 1, 2, 2)), rel=1e-9)
+    assert lm.view_factor_rect_centered(1e5, 1e5, 1.0) == pytest.approx(1.0, abs=1e-4)   # infinite ceiling
+    # a 1 x 1 square at height 1: the tabulated 0.2 ... (Howell B-3, X = Y = 0.5 per corner)
+    assert lm.view_factor_rect_centered(1.0, 1.0, 1.0) == pytest.approx(0.2395, abs=2e-4)
+
+
+def test_disk_matches_polygon_of_many_sides():
+    k = 720
+    t = np.linspace(0, 2 * np.pi, k, endpoint=False)
+    poly = np.stack([0.8 * np.cos(t), 0.8 * np.sin(t), np.full(k, 0.5)], axis=1)
+    assert lm.view_factor_polygon((0, 0, 0), (0, 0, 1), poly) == pytest.approx(lm.view_factor_disk(0.8, 0.5), rel=1e-4)
+
+
+def test_long_wall_formula_matches_polygon_and_limits():
+    d, h, half = 0.3, 1.2, 1e4
+    wall = np.array([(-half, d, 0), (half, d, 0), (half, d, h), (-half, d, h)])
+    assert lm.view_factor_polygon((0, 0, 0), (0, 0, 1), wall) == pytest.approx(lm.view_factor_long_wall(d, h), rel=1e-6)
+    assert lm.view_factor_long_wall(1e-9, 1.0) == pytest.approx(0.5)
+    assert lm.view_factor_long_wall(1.0, 1e-9) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_convex_box_counts_only_faces_toward_the_point():
+    # a unit cube far above: only its bottom face is seen -> same as that square
+    lo, hi = np.array([-0.5, -0.5, 2.0]), np.array([0.5, 0.5, 3.0])
+    faces = _box_faces(lo, hi)
+    bottom = _square(0, 0, 2.0, 1, 1)
+    assert lm.view_factor_convex((0, 0, 0), (0, 0, 1), faces) == pytest.approx(
+        lm.view_factor_polygon((0, 0, 0), (0, 0, 1), bottom), rel=1e-9)
+
+
+def _box_faces(lo, hi):
+    x0, y0, z0 = lo
+    x1, y1, z1 = hi
+    v = lambda x, y, z: (x, y, z)  # noqa: E731
+    return [np.array(f) for f in (
+        [v(x0, y0, z0), v(x0, y1, z0), v(x1, y1, z0), v(x1, y0, z0)],   # bottom (-z)
+        [v(x0, y0, z1), v(x1, y0, z1), v(x1, y1, z1), v(x0, y1, z1)],   # top (+z)
+        [v(x0, y0, z0), v(x1, y0, z0), v(x1, y0, z1), v(x0, y0, z1)],   # -y
+        [v(x0, y1, z0), v(x0, y1, z1), v(x1, y1, z1), v(x1, y1, z0)],   # +y
+        [v(x0, y0, z0), v(x0, y0, z1), v(x0, y1, z1), v(x0, y1, z0)],   # -x
+        [v(x1, y0, z0), v(x1, y1, z0), v(x1, y1, z1), v(x1, y0, z1)])]  # +x
+
+
+def test_sphere_view_factor_matches_polygon_of_its_silhouette_for_a_far_sphere():
+    # a sphere straight above subtends the same cone as a disk of radius R at height √(D² - R²)
+    R, D = 0.3, 2.0
+    assert lm.view_factor_sphere(D, 1.0, R) == pytest.approx(lm.view_factor_disk(R, math.sqrt(D * D - R * R)),
+                                                             rel=1e-9)
+
+
+def test_irradiance_closed_forms():
+    assert lm.irradiance_uniform_sky(0.7) == pytest.approx(math.pi * 0.7)
+    assert lm.irradiance_sun(3.0, math.radians(60)) == pytest.approx(1.5)
+    assert lm.irradiance_point(100.0, 2.0, 1.0) == pytest.approx(100 / (16 * math.pi))
+    series = math.pi * 0.5 * sum(0.6 ** k for k in range(4))
+    assert lm.irradiance_enclosure(0.5, 0.6, 3) == pytest.approx(series)
+    assert lm.irradiance_enclosure(0.5, 0.6, 10_000) == pytest.approx(math.pi * 0.5 / 0.4)
+
+
+def test_resolution_for_density():
+    # 4 m² covering a quarter of the UV square at 10 texels/m: N² / 4 = 100 · 4
+    assert lm.resolution_for_density(4.0, 0.25, 10.0) == 40
+    assert lm.resolution_for_density(4.0, 0.25, 1000.0, cap=512) == 512
+    assert lm.resolution_for_density(16.0, 0.25, 10.0) == 2 * lm.resolution_for_density(4.0, 0.25, 10.0)
+
+
+def test_coverage_mask_of_a_triangle_and_its_area():
+    tri = np.array([[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]])
+    m = lm.coverage_mask(tri, 64, 64)
+    assert abs(m.mean() - 0.5) < 64 / 64 ** 2 + 1e-9
+    assert m[0, 0] and not m[63, 63]
+    assert lm.uv_area(tri) == pytest.approx(0.5)
+
+
+def test_dilation_grows_by_margin_and_keeps_covered_texels():
+    v = np.zeros((20, 20), np.float32)
+    m = np.zeros((20, 20), bool)
+    m[5:15, 5:15] = True
+    v[m] = np.arange(100, dtype=np.float32)
+    out, grown = lm.dilate(v, m, 2)
+    assert np.array_equal(out[m], v[m])
+    assert grown[3:17, 3:17].all() and not grown[2, 10] and not grown[10, 17]
+    assert out[3, 10] in v[5, 8:13] and out[10, 16] in v[8:13, 14]   # a nearest border value, no black
+    # a bilinear lookup straddling the chart border reads the border value, not black
+    uv = np.array([[10.5 / 20, 15.0 / 20]])
+    assert v[14, 8:13].min() <= lm.bilinear(out, uv)[0] <= v[14, 8:13].max()
+    assert lm.bilinear(np.where(m, v, 0), uv)[0] == pytest.approx(v[14, 10] / 2)   # undilated: half black
+
+
+def test_bilinear_reproduces_a_linear_ramp():
+    x = (np.arange(16) + 0.5) / 16
+    img = np.tile(3.0 * x, (8, 1))
+    uv = np.array([[0.3, 0.4], [0.71, 0.9]])
+    np.testing.assert_allclose(lm.bilinear(img, uv), 3.0 * uv[:, 0], rtol=1e-9)
+
+
+def test_binomial_sd_matches_simulated_ao():
+    rng = np.random.default_rng(1)
+    k, n = 0.3, 64
+    est = rng.binomial(n, k, size=20000) / n
+    assert np.std(est) == pytest.approx(lm.binomial_sd(k, n), rel=0.03)
+    assert lm.binomial_sd(0.5, 100) == pytest.approx(0.05)
+    assert lm.per_sample_variance_ao(np.full((4, 4), 0.5), np.ones((4, 4), bool)) == pytest.approx(0.25)
+
+
+def test_pair_variance_and_samples_for_error():
+    rng = np.random.default_rng(2)
+    sigma2, na, nb = 0.09, 16, 48
+    truth = rng.uniform(0, 1, (64, 64))
+    a = truth + rng.normal(0, math.sqrt(sigma2 / na), truth.shape)
+    b = truth + rng.normal(0, math.sqrt(sigma2 / nb), truth.shape)
+    est = lm.per_sample_variance_pair(a, b, na, nb, np.ones(truth.shape, bool))
+    assert est == pytest.approx(sigma2, rel=0.05)
+    n = lm.samples_for_error(est, 0.01)
+    assert lm.expected_error(est, n) <= 0.01 < lm.expected_error(est, n - 1)
+    comb = lm.combine([a, b], [na, nb])
+    assert lm.rms(comb, truth) == pytest.approx(math.sqrt(sigma2 / (na + nb)), rel=0.05)
+    with pytest.raises(ValueError):
+        lm.samples_for_error(1.0, 0.0)

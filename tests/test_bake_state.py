@@ -1,0 +1,214 @@
+"""The user's file comes back as it was; bad input fails with a clear message and changes nothing."""
+import json
+import os
+
+import bpy
+import numpy as np
+import pytest
+
+from addon import compat
+from addon.bake import BakeOptions, bake_lightmaps
+from addon.core import exr
+from addon.core.errors import InputError
+from addon.lab import scene as sc
+
+
+def user_file():
+    """A scene as a user leaves it: black metallic material, two UV layers, EEVEE, odd settings."""
+    scene = bpy.context.scene
+    scene.render.engine = compat.EEVEE
+    scene.cycles.samples = 7
+    scene.cycles.seed = 3
+    scene.cycles.diffuse_bounces = 2
+    scene.render.bake.margin = 5
+    world = bpy.data.worlds.new("W")
+    world.light_settings.distance = 2.5
+    scene.world = world
+    a = sc.box(scene, "A", 1.0)
+    b = sc.plane(scene, "B", 4.0)
+    c = sc.sphere(scene, "C", 0.3, location=(2, 0, 1), segments=8, rings=4)
+    m = bpy.data.materials.new("Black metal")
+    compat.ensure_use_nodes(m)
+    bsdf = m.node_tree.nodes.get("Principled BSDF")
+    bsdf.inputs["Base Color"].default_value = (0, 0, 0, 1)
+    bsdf.inputs["Metallic"].default_value = 1.0
+    a.data.materials.append(m)
+    a.data.uv_layers.new(name="First")
+    a.data.uv_layers.new(name="Second")
+    a.data.uv_layers.active_index = 1
+    a.data.uv_layers["First"].active_render = True
+    a.data.color_attributes.new("Col", "BYTE_COLOR", "CORNER")
+    img = bpy.data.images.new("User image", 8, 8)
+    vl = bpy.context.view_layer
+    c.select_set(True)
+    vl.objects.active = c
+    return scene, [a, b], img
+
+
+def snapshot(scene):
+    vl = bpy.context.view_layer
+    s = {
+        "engine": scene.render.engine,
+        "cycles": [getattr(scene.cycles, k) for k in ("samples", "seed", "diffuse_bounces", "max_bounces",
+                                                      "device", "use_denoising", "use_adaptive_sampling")],
+        "bake_margin": scene.render.bake.margin, "bake_target": scene.render.bake.target,
+        "world": scene.world.name if scene.world else None,
+        "distance": scene.world.light_settings.distance if scene.world else None,
+        "selected": sorted(o.name for o in vl.objects if o.select_get()),
+        "active": vl.objects.active.name if vl.objects.active else None,
+        "data": {k: sorted(x.name for x in getattr(bpy.data, k))
+                 for k in ("materials", "images", "worlds", "scenes", "node_groups", "meshes", "objects")},
+        "objects": {},
+    }
+    for o in scene.objects:
+        if o.type != "MESH":
+            continue
+        me = o.data
+        uv = {}
+        for layer in me.uv_layers:
+            a = np.zeros(len(me.loops) * 2)
+            layer.data.foreach_get("uv", a)
+            uv[layer.name] = a.round(6).tolist()
+        s["objects"][o.name] = {
+            "slots": [(sl.link, sl.material.name if sl.material else None) for sl in o.material_slots],
+            "uv": uv, "uv_active": me.uv_layers.active_index,
+            "uv_render": [l.name for l in me.uv_layers if l.active_render],
+            "colors": [c.name for c in me.color_attributes], "color_active": me.color_attributes.active_color_name,
+            "mode": o.mode}
+    return s
+
+
+@pytest.mark.both_versions
+def test_state_restored_after_success(tmp_path):
+    scene, objs, _ = user_file()
+    before = snapshot(scene)
+    rep = bake_lightmaps(objs, ["ao", "irradiance"], tmp_path,
+                         BakeOptions(resolution=16, samples=2, keep_products=False, denoise=True), scene=scene)
+    assert snapshot(scene) == before
+    assert set(rep["objects"]) == {"A", "B"}
+    # with the products kept only the "Lightmap" layer is new; the render layer and the active layer stay
+    bake_lightmaps(objs, ["ao"], tmp_path, BakeOptions(resolution=16, samples=1, overwrite=True), scene=scene)
+    after = snapshot(scene)
+    a = after["objects"]["A"]
+    assert list(a["uv"]) == ["First", "Second", "Lightmap"] and a["uv_render"] == ["First"] and a["uv_active"] == 1
+    for k in ("engine", "cycles", "selected", "active", "data", "distance", "bake_margin"):
+        assert after[k] == before[k]
+
+
+def test_black_metal_bakes_the_same_irradiance_as_white(tmp_path):
+    scene = sc.new_scene("T")
+    p = sc.plane(scene, "P", 2.0)
+    sc.world(scene, strength=0.5)
+    m = bpy.data.materials.new("Black metal")
+    compat.ensure_use_nodes(m)
+    bsdf = m.node_tree.nodes.get("Principled BSDF")
+    bsdf.inputs["Base Color"].default_value = (0, 0, 0, 1)
+    bsdf.inputs["Metallic"].default_value = 1.0
+    p.data.materials.append(m)
+    bake_lightmaps([p], ["irradiance"], tmp_path, BakeOptions(resolution=8, samples=2, bounces=0), scene=scene)
+    ch, _ = exr.read_exr(tmp_path / "P_irradiance.exr")
+    np.testing.assert_allclose(ch["R"], np.pi * 0.5, rtol=1e-4)
+    assert p.material_slots[0].material == m
+
+
+@pytest.mark.parametrize("error", [RuntimeError, KeyboardInterrupt])
+def test_state_restored_after_failure_and_interruption(tmp_path, error):
+    scene, objs, _ = user_file()
+    before = snapshot(scene)
+    calls = []
+
+    def on_step(message):
+        calls.append(message)
+        if len(calls) == 3:            # after UVs and the first map, in the middle of the run
+            raise error("injected")
+
+    with pytest.raises(error):
+        bake_lightmaps(objs, ["ao", "irradiance"], tmp_path, BakeOptions(resolution=16, samples=2),
+                       scene=scene, on_step=on_step)
+    assert snapshot(scene) == before
+    assert len(calls) == 3
+
+
+BAD = [
+    ("nothing", lambda o: ([], {}), "nothing selected"),
+    ("non-mesh", lambda o: ([o["lamp"]], {}), "is not a mesh"),
+    ("no faces", lambda o: ([o["edges"]], {}), "has no faces"),
+    ("uv layer", lambda o: ([o["A"]], {"uv_layer": "Nope"}), "has no UV layer 'Nope'"),
+    ("res 0", lambda o: ([o["A"]], {"resolution": 0}), "resolution must be between 1 and 16384"),
+    ("res big", lambda o: ([o["A"]], {"resolution": 16385}), "resolution must be between 1 and 16384"),
+    ("samples 0", lambda o: ([o["A"]], {"samples": 0}), "samples must be at least 1"),
+]
+
+
+def test_bad_input_fails_clearly_and_changes_nothing(tmp_path):
+    scene, objs, _ = user_file()
+    lamp = sc.light(scene, "Lamp", "POINT", 10.0)
+    me = bpy.data.meshes.new("Edges")
+    me.from_pydata([(0, 0, 0), (1, 0, 0)], [(0, 1)], [])
+    edges = bpy.data.objects.new("Edges", me)
+    scene.collection.objects.link(edges)
+    named = {"lamp": lamp, "edges": edges, "A": objs[0]}
+    before = snapshot(scene)
+    for label, make, message in BAD:
+        objects, kw = make(named)
+        with pytest.raises(InputError, match=message):
+            bake_lightmaps(objects, ["ao"], tmp_path / "x", BakeOptions(**kw), scene=scene)
+        assert snapshot(scene) == before, label
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    os.chmod(locked, 0o500)
+    try:
+        if not os.access(locked, os.W_OK):     # root ignores permissions
+            with pytest.raises(InputError, match="cannot be written"):
+                bake_lightmaps([objs[0]], ["ao"], locked / "maps", BakeOptions(resolution=8, samples=1), scene=scene)
+    finally:
+        os.chmod(locked, 0o700)
+    with pytest.raises(InputError, match="cannot be written|is a file"):
+        (tmp_path / "file").write_text("x")
+        bake_lightmaps([objs[0]], ["ao"], tmp_path / "file", BakeOptions(resolution=8, samples=1), scene=scene)
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "A_ao.exr").write_bytes(b"mine")
+    with pytest.raises(InputError, match="exists: pass --overwrite"):
+        bake_lightmaps([objs[0]], ["ao"], tmp_path / "out", BakeOptions(resolution=8, samples=1), scene=scene)
+    assert (tmp_path / "out" / "A_ao.exr").read_bytes() == b"mine"
+    assert snapshot(scene) == before
+    assert not (tmp_path / "x").exists()
+
+
+def test_operator_bakes_selected_meshes_and_reports_errors(tmp_path):
+    scene = bpy.context.scene
+    p = sc.plane(scene, "P", 2.0)
+    s = scene.illumination.lightmaps
+    s.out_dir = str(tmp_path)
+    s.resolution, s.samples, s.bake_irradiance = 8, 1, False
+    assert not bpy.ops.illumination.bake_lightmaps.poll()        # nothing selected
+    p.select_set(True)
+    bpy.context.view_layer.objects.active = p
+    assert bpy.ops.illumination.bake_lightmaps() == {"FINISHED"}
+    assert (tmp_path / "P_ao.exr").exists()
+    with pytest.raises(RuntimeError, match="exists: pass --overwrite"):
+        bpy.ops.illumination.bake_lightmaps()
+    assert p.select_get() and bpy.context.view_layer.objects.active == p
+
+
+def test_script_bakes_a_blend_without_modifying_it(tmp_path, script):
+    scene = bpy.context.scene
+    sc.plane(scene, "Floor", 4.0)
+    sc.box(scene, "Box", 1.0, location=(0, 0, 0.5))
+    blend = tmp_path / "s.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    data = blend.read_bytes()
+    out = tmp_path / "maps"
+    r = script("bake.py", blend, "--objects", "Floor", "Box", "--maps", "ao", "irradiance", "--out", out,
+               "--resolution", "16", "--samples", "4")
+    assert r.returncode == 0, r.stderr
+    assert "[bake" in r.stderr and "report:" in r.stdout
+    rep = json.loads((out / "bake_report.json").read_text())
+    assert set(rep["objects"]) == {"Floor", "Box"} and rep["objects"]["Box"]["irradiance"]["samples"] == 4
+    for k in ("file", "resolution", "samples", "seconds", "estimated_error"):
+        assert k in rep["objects"]["Floor"]["ao"]
+    assert blend.read_bytes() == data
+    r = script("bake.py", blend, "--objects", "Floor", "--out", out, "--samples", "0")
+    assert r.returncode == 2 and "samples must be at least 1" in r.stderr
+    r = script("bake.py", blend, "--objects", "Floor", "--out", out, "--resolution", "16")
+    assert r.returncode == 2 and "exists: pass --overwrite" in r.stderr.strip().splitlines()[-1]
