@@ -30,6 +30,13 @@ def _lightmaps(scene, out, quick):
     return demo_step(scene, os.path.join(out, "lightmaps"), quick)
 
 
+def _shadows(out, quick):
+    from .shadows import demo_step
+    result = demo_step(out, quick)
+    result["files"] = [result["report"]]
+    return result
+
+
 def run(out, quick=False, samples=32):
     """Build the demo scene, run every tool on it, write ``out/demo_report.json``; return a summary."""
     if samples <= 0:
@@ -38,6 +45,7 @@ def run(out, quick=False, samples=32):
     steps = [
         ("render", "render the shaded scene", lambda s: _render(s, out, quick, samples)),
         ("lightmaps", "bake AO and irradiance maps", lambda s: _lightmaps(s, out, quick)),
+        ("shadows", "compare shadow methods with ray-traced shadows", lambda s: _shadows(out, quick)),
     ]
     report = {"quick": quick, "blender": bpy.app.version_string, "steps": {}}
     lines = []

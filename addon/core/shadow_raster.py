@@ -1,0 +1,197 @@
+"""Screen-space helpers shared by the numpy shadow methods: triangle bounding boxes on the
+pixel grid, candidate (triangle, pixel) pairs in bounded chunks, ray-triangle hits, and a
+depth-tested triangle rasteriser.
+
+Pixel conventions are those of :mod:`core.camera`: pixel (0, 0) is the centre of the
+top-left pixel, x right, y down; ``proj`` is OpenGL clip space (Blender's calc_matrix_camera).
+"""
+import numpy as np
+
+#: Upper bound on (triangle, pixel) pairs examined at once (memory ~ 100 bytes each).
+CHUNK = 2_000_000
+
+
+def to_clip(points, world_to_view, proj):
+    """(..., 3) world points -> (..., 4) clip coordinates ``proj @ world_to_view @ [p, 1]``."""
+    m = proj @ world_to_view
+    p = np.asarray(points, dtype=np.float64)
+    return np.concatenate([p, np.ones(p.shape[:-1] + (1,))], -1) @ m.T
+
+
+def clip_to_pixels(clip, width, height):
+    """Clip coordinates -> pixel x, y (row 0 at the top) and NDC z; valid where w > 0."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ndc = clip[..., :3] / clip[..., 3:4]
+    x = (ndc[..., 0] + 1.0) * 0.5 * width - 0.5
+    y = (1.0 - ndc[..., 1]) * 0.5 * height - 0.5
+    return x, y, ndc[..., 2]
+
+
+def view_depth_to_ndc_z(depth, proj):
+    """Planar view depth d (> 0 in front, Cycles' Depth pass) -> NDC z of the same camera."""
+    z = -np.asarray(depth, dtype=np.float64)
+    return (proj[2, 2] * z + proj[2, 3]) / (proj[3, 2] * z + proj[3, 3])
+
+
+def triangle_boxes(tris, world_to_view, proj, width, height, near):
+    """Inclusive pixel boxes (x0, x1, y0, y1) of world triangles (T, 3, 3) on the screen.
+
+    A triangle wholly behind the near plane gets an empty box; one that crosses it gets the
+    whole screen (conservative: rays decide). Boxes are clipped to the image.
+    """
+    v = np.asarray(tris, np.float64) @ world_to_view[:3, :3].T + world_to_view[:3, 3]
+    depth = -v[..., 2]
+    clip = np.concatenate([v, np.ones(v.shape[:-1] + (1,))], -1) @ proj.T
+    x, y, _ = clip_to_pixels(clip, width, height)
+    behind = depth < near
+    all_behind, some_behind = behind.all(1), behind.any(1)
+    x0 = np.floor(np.where(behind, np.inf, x).min(1) + 0.5 - 1e-9)
+    x1 = np.ceil(np.where(behind, -np.inf, x).max(1) - 0.5 + 1e-9)
+    y0 = np.floor(np.where(behind, np.inf, y).min(1) + 0.5 - 1e-9)
+    y1 = np.ceil(np.where(behind, -np.inf, y).max(1) - 0.5 + 1e-9)
+    full = some_behind & ~all_behind
+    x0 = np.where(full, 0, x0)
+    y0 = np.where(full, 0, y0)
+    x1 = np.where(full, width - 1, x1)
+    y1 = np.where(full, height - 1, y1)
+    x0 = np.clip(np.nan_to_num(x0, nan=width), 0, width).astype(np.int64)
+    y0 = np.clip(np.nan_to_num(y0, nan=height), 0, height).astype(np.int64)
+    x1 = np.clip(np.nan_to_num(x1, nan=-1.0), -1, width - 1).astype(np.int64)
+    y1 = np.clip(np.nan_to_num(y1, nan=-1.0), -1, height - 1).astype(np.int64)
+    x1 = np.where(all_behind, -1, x1)
+    return x0, x1, y0, y1
+
+
+def candidates(boxes, chunk=CHUNK):
+    """Yield (tri, px, py) int arrays: every pixel of every triangle's box, at most ``chunk`` per batch."""
+    x0, x1, y0, y1 = boxes
+    bw = np.maximum(x1 - x0 + 1, 0)
+    bh = np.maximum(y1 - y0 + 1, 0)
+    counts = bw * bh
+    live = np.nonzero(counts)[0]
+    start = 0
+    while start < len(live):
+        cum = np.cumsum(counts[live[start:]])
+        stop = start + max(1, int(np.searchsorted(cum, chunk, side="right")))
+        idx = live[start:stop]
+        c = counts[idx]
+        tri = np.repeat(idx, c)
+        offsets = np.repeat(np.cumsum(c) - c, c)
+        local = np.arange(int(c.sum()), dtype=np.int64) - offsets
+        w = bw[tri]
+        yield tri, x0[tri] + local % w, y0[tri] + local // w
+        start = stop
+
+
+def span_candidates(tris, world_to_view, proj, width, height, near, chunk=CHUNK):
+    """Yield (tri, px, py): pixels along each row's span of each triangle, one pixel of margin.
+
+    Thin, long triangles (extruded shadow-volume sides) cover a small part of their bounding
+    box; walking spans row by row keeps the candidates near the covered pixels. Triangles that
+    cross the near plane cannot be projected and fall back to the whole screen.
+    """
+    tris = np.asarray(tris, np.float64)
+    boxes = triangle_boxes(tris, world_to_view, proj, width, height, near)
+    x0, x1, y0, y1 = boxes
+    v = tris @ world_to_view[:3, :3].T + world_to_view[:3, 3]
+    behind = (-v[..., 2] < near).any(1)
+    full = behind & (x1 >= x0)
+    if full.any():
+        idx = np.nonzero(full)[0]
+        for tri, px, py in candidates(tuple(b[idx] for b in boxes), chunk):
+            yield idx[tri], px, py
+    x, y, _ = clip_to_pixels(to_clip(tris, world_to_view, proj), width, height)
+    live = np.nonzero(~behind & (x1 >= x0) & (y1 >= y0))[0]
+    rows_per = (y1 - y0 + 1)[live]
+    start = 0
+    while start < len(live):
+        cum = np.cumsum(rows_per[start:])
+        stop = start + max(1, int(np.searchsorted(cum, chunk // 8, side="right")))
+        idx = live[start:stop]
+        c = rows_per[start:stop]
+        tri = np.repeat(idx, c)
+        row = y0[tri] + np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c)
+        xs, ys = x[tri], y[tri]
+        lo = np.full(len(tri), np.inf)
+        hi = np.full(len(tri), -np.inf)
+        for a, b in ((0, 1), (1, 2), (2, 0)):
+            ya, yb, xa, xb = ys[:, a], ys[:, b], xs[:, a], xs[:, b]
+            ymin, ymax = np.minimum(ya, yb) - 0.5, np.maximum(ya, yb) + 0.5
+            on = (row >= ymin) & (row <= ymax)
+            dy = yb - ya
+            with np.errstate(divide="ignore", invalid="ignore"):
+                f = np.clip(np.where(np.abs(dy) > 1e-12, (row - ya) / dy, 0.0), 0.0, 1.0)
+            xi = xa + f * (xb - xa)
+            # the edge's x over the row's height (row +- 0.5) bounds the span conservatively
+            with np.errstate(divide="ignore", invalid="ignore"):
+                slope = np.where(np.abs(dy) > 1e-12, np.abs((xb - xa) / dy) * 0.5, np.abs(xb - xa))
+            lo = np.where(on, np.minimum(lo, xi - slope), lo)
+            hi = np.where(on, np.maximum(hi, xi + slope), hi)
+        lo = np.maximum(np.floor(lo) - 1, x0[tri])
+        hi = np.minimum(np.ceil(hi) + 1, x1[tri])
+        n = np.where(np.isfinite(lo) & np.isfinite(hi), np.maximum(hi - lo + 1, 0), 0).astype(np.int64)
+        lo = np.where(n > 0, lo, 0).astype(np.int64)
+        keep = n > 0
+        tri, row, lo, n = tri[keep], row[keep], lo[keep], n[keep]
+        t2 = np.repeat(tri, n)
+        px = np.repeat(lo, n) + np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
+        yield t2, px, np.repeat(row, n)
+        start = stop
+
+
+def ray_triangle(origins, dirs, v0, v1, v2, eps=1e-12):
+    """Möller-Trumbore (1997): distance t along unit rays o + t d to triangles (v0, v1, v2); NaN on a miss.
+
+    Inclusive edges (u >= 0, v >= 0, u + v <= 1); t may be negative (caller filters).
+    """
+    e1 = v1 - v0
+    e2 = v2 - v0
+    p = np.cross(dirs, e2)
+    det = np.einsum("ij,ij->i", e1, p)
+    ok = np.abs(det) > eps
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    s = origins - v0
+    u = np.einsum("ij,ij->i", s, p) * inv
+    q = np.cross(s, e1)
+    v = np.einsum("ij,ij->i", dirs, q) * inv
+    t = np.einsum("ij,ij->i", e2, q) * inv
+    hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1)
+    return np.where(hit, t, np.nan)
+
+
+def rasterize_depth_tested(tris, world_to_view, proj, width, height, scene_depth, near=1e-4):
+    """Cover mask of world triangles (T, 3, 3) drawn with a LESS_EQUAL depth test against the scene.
+
+    Pixel centres inside a triangle (edges inclusive) whose interpolated NDC z (linear in screen
+    space for perspective and orthographic cameras) is <= the scene's NDC z pass. Triangles
+    touching the near plane are dropped (no clipping: the planar shadows this serves lie in front).
+    """
+    tris = np.asarray(tris, np.float64).reshape(-1, 3, 3)
+    cover = np.zeros((height, width), bool)
+    if len(tris) == 0:
+        return cover
+    v = tris @ world_to_view[:3, :3].T + world_to_view[:3, 3]
+    keep = (-v[..., 2] > near).all(1)
+    tris = tris[keep]
+    if len(tris) == 0:
+        return cover
+    clip = to_clip(tris, world_to_view, proj)
+    x, y, z = clip_to_pixels(clip, width, height)
+    scene_z = view_depth_to_ndc_z(scene_depth, proj)
+    boxes = triangle_boxes(tris, world_to_view, proj, width, height, near)
+    area = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
+    for tri, px, py in candidates(boxes):
+        a = area[tri]
+        good = np.abs(a) > 1e-12
+        tri, px, py, a = tri[good], px[good], py[good], a[good]
+        xs, ys = x[tri], y[tri]
+        w0 = (xs[:, 1] - px) * (ys[:, 2] - py) - (xs[:, 2] - px) * (ys[:, 1] - py)
+        w1 = (xs[:, 2] - px) * (ys[:, 0] - py) - (xs[:, 0] - px) * (ys[:, 2] - py)
+        b0, b1 = w0 / a, w1 / a
+        b2 = 1.0 - b0 - b1
+        inside = (b0 >= -1e-9) & (b1 >= -1e-9) & (b2 >= -1e-9)
+        zs = z[tri]
+        frag = b0 * zs[:, 0] + b1 * zs[:, 1] + b2 * zs[:, 2]
+        ok = inside & (frag <= scene_z[py, px])
+        cover[py[ok], px[ok]] = True
+    return cover

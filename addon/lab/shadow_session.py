@@ -1,0 +1,359 @@
+"""The bpy side of the shadow lab: a private render scene, the ray-traced reference, light-view
+depth maps, EEVEE and Workbench masks, and the occluders' triangles -- all on one pixel grid.
+
+The user's scene is never rendered or edited directly: a temporary scene links the same objects
+(minus every other light), gets its own camera settings, passes and a white diffuse material
+override, and is removed afterwards. The light's radius, spot blend and shadow switch are set
+for the lab and restored on exit, also after an error.
+"""
+import math
+import time
+
+import bpy
+import numpy as np
+from mathutils import Vector
+
+from .. import compat
+from ..core import camera as cam
+from ..core import shadow_map, shadow_metrics
+from ..core.errors import ILError, InputError
+from . import render
+
+#: Sky pixels carry a huge depth in Cycles' Depth pass.
+SKY_DEPTH = 1e8
+
+
+class LightInfo:
+    """The light under test as numbers: kind, position, direction, homogeneous form, E⊥."""
+
+    def __init__(self, obj):
+        if obj.type != "LIGHT":
+            raise InputError(f"'{obj.name}' is not a light")
+        kind = obj.data.type
+        if kind not in {"SUN", "POINT", "SPOT"}:
+            raise InputError(f"light '{obj.name}' is a {kind.lower()} light: the shadow lab takes point, spot and sun lights")
+        self.obj, self.kind = obj, kind
+        m = obj.matrix_world
+        self.position = np.array(m.translation, np.float64)
+        d = np.array(m.to_3x3() @ Vector((0.0, 0.0, -1.0)), np.float64)
+        self.direction = d / np.linalg.norm(d)
+        self.h = np.append(-self.direction, 0.0) if kind == "SUN" else np.append(self.position, 1.0)
+        self.spot_cos = math.cos(obj.data.spot_size / 2) if kind == "SPOT" else None
+        self.colour = float(np.mean(obj.data.color))
+        self.energy = float(obj.data.energy)
+
+    def to_light(self, points):
+        """Unit vectors from points toward the light, and distances (inf for the sun)."""
+        p = np.asarray(points, np.float64)
+        if self.kind == "SUN":
+            return np.broadcast_to(-self.direction, p.shape).copy(), np.full(p.shape[:-1], np.inf)
+        v = self.position - p
+        dist = np.linalg.norm(v, axis=-1)
+        return v / np.maximum(dist, 1e-12)[..., None], dist
+
+    def irradiance_normal(self, points):
+        """E⊥ in W/m²: sun strength, or P/(4π d²) for point and spot (REFERENCE.md §1), times colour."""
+        _, dist = self.to_light(points)
+        if self.kind == "SUN":
+            return np.full(dist.shape, self.energy * self.colour)
+        return self.energy * self.colour / (4 * math.pi * dist ** 2)
+
+    def reach(self, points, normals):
+        """True where the light can reach at all: facing it (n·l > 0) and, for a spot, inside the cone."""
+        l, _ = self.to_light(points)
+        ok = np.einsum("...i,...i->...", normals, l) > 0
+        if self.kind == "SPOT":
+            ok &= np.einsum("...i,...i->...", -l, self.direction) > self.spot_cos
+        return ok
+
+
+class Session:
+    """``with Session(scene, "Light", 128) as s:`` -- the reference and every method's inputs."""
+
+    def __init__(self, scene, light_name, resolution=128, samples=1):
+        if light_name not in scene.objects:
+            raise InputError(f"no light named '{light_name}' in scene '{scene.name}'")
+        if scene.camera is None:
+            raise InputError(f"scene '{scene.name}' has no camera")
+        if resolution < 8 or resolution > 8192:
+            raise InputError(f"--resolution must be between 8 and 8192, got {resolution}")
+        if samples < 1:
+            raise InputError(f"samples must be positive, got {samples}")
+        self.user_scene = scene
+        scene.view_layers[0].update()
+        self.light = LightInfo(scene.objects[light_name])
+        self.resolution, self.samples = int(resolution), int(samples)
+        self.tmp = None
+        self._made = []
+        self._saved_light = None
+
+    # -- set-up and tear-down -------------------------------------------------------------
+    def __enter__(self):
+        try:
+            self._open()
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+    def _open(self):
+        user, data = self.user_scene, self.light.obj.data
+        self._saved_light = {k: getattr(data, k) for k in ("shadow_soft_size", "angle", "spot_blend",
+                                                            "use_shadow") if hasattr(data, k)}
+        if data.type in {"POINT", "SPOT"}:
+            data.shadow_soft_size = 0.0
+        if data.type == "SUN":
+            data.angle = 0.0
+        if data.type == "SPOT":
+            data.spot_blend = 0.0
+        data.use_shadow = True
+        tmp = bpy.data.scenes.new("IL Shadow Lab")
+        self.tmp = tmp
+        for obj in user.objects:
+            if obj.hide_render or (obj.type == "LIGHT" and obj != self.light.obj):
+                continue
+            tmp.collection.objects.link(obj)
+        tmp.camera = user.camera
+        rx, ry = user.render.resolution_x, user.render.resolution_y
+        self.width = self.resolution
+        self.height = max(1, round(self.resolution * ry / rx))
+        tmp.render.pixel_aspect_x = user.render.pixel_aspect_x
+        tmp.render.pixel_aspect_y = user.render.pixel_aspect_y
+        tmp.view_settings.view_transform = "Standard"
+        mat = _white_diffuse()
+        self._made.append(mat)
+        tmp.view_layers[0].material_override = mat
+        self.casters = [o for o in tmp.objects if o.type == "MESH"]
+        if not self.casters:
+            raise InputError(f"scene '{user.name}' has no visible mesh")
+
+    def close(self):
+        if self.tmp is not None:
+            for obj in list(self.tmp.objects):
+                if obj.get("_il_shadow_lab"):
+                    data = obj.data
+                    bpy.data.objects.remove(obj)
+                    bpy.data.cameras.remove(data)
+            bpy.data.scenes.remove(self.tmp)
+            self.tmp = None
+        for block in self._made:
+            bpy.data.materials.remove(block)
+        self._made = []
+        if self._saved_light is not None:
+            for k, v in self._saved_light.items():
+                setattr(self.light.obj.data, k, v)
+            self._saved_light = None
+
+    # -- renders ----------------------------------------------------------------------------
+    def _render(self, engine, camera, width, height, passes):
+        tmp = self.tmp
+        tmp.camera = camera
+        tmp.render.resolution_x, tmp.render.resolution_y = width, height
+        tmp.render.resolution_percentage = 100
+        tmp.render.engine = engine
+        vl = tmp.view_layers[0]
+        for name in ("use_pass_z", "use_pass_position", "use_pass_normal", "use_pass_diffuse_direct"):
+            setattr(vl, name, name in passes)
+        return render.render_layers(tmp)
+
+    def render_reference(self):
+        """Cycles, radius-0 light, ``samples`` samples through pixel centres (filter width 0.01 px).
+
+        Sets ``position``, ``normal``, ``depth``, ``receiver``, ``reach``, the camera rays and
+        ``reference`` (the hard ray-traced mask); returns the seconds it took.
+        """
+        t = time.perf_counter()
+        tmp = self.tmp
+        render.cycles_cpu(tmp, self.samples)
+        tmp.cycles.filter_width = 0.01
+        tmp.cycles.max_bounces = 0
+        p = self._render(compat.CYCLES, self.user_scene.camera, self.width, self.height,
+                         {"use_pass_z", "use_pass_position", "use_pass_normal", "use_pass_diffuse_direct"})
+        self.depth = np.asarray(p["Depth"], np.float64)
+        self.receiver = np.isfinite(self.depth) & (self.depth < SKY_DEPTH)
+        self.position = np.asarray(p["Position"][..., :3], np.float64)
+        n = np.asarray(p["Normal"][..., :3], np.float64)
+        self.normal = n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12)
+        self.to_light, _ = self.light.to_light(self.position)
+        self.reach = self.receiver & self.light.reach(self.position, self.normal)
+        self.world_to_view, self.proj, _, _ = render.camera_matrices(self.tmp, self.user_scene.camera)
+        self.origins, self.dirs = cam.pixel_rays(self.world_to_view, self.proj, self.width, self.height)
+        self.near = self.user_scene.camera.data.clip_start
+        unshadowed = shadow_metrics.unshadowed_diffuse(
+            self.normal, self.to_light, self.light.irradiance_normal(self.position))
+        direct = _pass(p, "Diffuse Direct", "DiffDir")
+        self.reference = self.reach & shadow_metrics.lit_from_pass(direct, unshadowed, self.receiver)
+        return time.perf_counter() - t
+
+    def _light_camera(self, name, location, rotation, ortho_scale=None, angle=None, near=1e-3, far=1e4):
+        data = bpy.data.cameras.new(name)
+        if ortho_scale is not None:
+            data.type = "ORTHO"
+            data.ortho_scale = ortho_scale
+        else:
+            data.lens_unit = "FOV"
+            data.angle = angle
+        data.sensor_fit = "AUTO"
+        data.clip_start, data.clip_end = near, far
+        obj = bpy.data.objects.new(name, data)
+        obj["_il_shadow_lab"] = True
+        obj.location = location
+        obj.rotation_euler = rotation
+        self.tmp.collection.objects.link(obj)
+        return obj
+
+    def _scene_radius(self):
+        pts = np.array([list(o.matrix_world @ Vector(c)) for o in self.casters for c in o.bound_box])
+        centre = (pts.min(0) + pts.max(0)) / 2
+        return centre, float(np.linalg.norm(pts - centre, axis=1).max())
+
+    def light_cameras(self):
+        """Cameras at the light: a fitted orthographic one (sun), the spot cone, or six cube faces."""
+        light = self.light
+        rot = light.obj.matrix_world.to_euler()
+        if light.kind == "SUN":
+            centre, radius = self._scene_radius()
+            rot_m = np.array(light.obj.matrix_world.to_3x3().normalized())
+            pts = self.position[self.receiver] @ rot_m          # receiver points in the light's frame
+            lo, hi = pts.min(0)[:2], pts.max(0)[:2]
+            mid = rot_m @ np.array([*(lo + hi) / 2, 0.0])
+            mid = mid - rot_m[:, 2] * (rot_m[:, 2] @ mid) + rot_m[:, 2] * (rot_m[:, 2] @ centre)
+            loc = mid - self.light.direction * (radius + 1.0)
+            scale = float(max(hi - lo)) * 1.02 + 1e-3
+            return [self._light_camera("IL Sun Map", loc, rot, ortho_scale=scale, far=2 * radius + 4.0)]
+        if light.kind == "SPOT":
+            return [self._light_camera("IL Spot Map", light.position, rot, angle=light.obj.data.spot_size)]
+        faces = []
+        for i, axis in enumerate(((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1))):
+            rot = Vector(axis).to_track_quat("-Z", "Y" if axis[1] == 0 else "Z").to_euler()
+            faces.append(self._light_camera(f"IL Cube {i}", light.position, rot, angle=math.pi / 2))
+        return faces
+
+    def depth_maps(self, size):
+        """Light-view depth maps rendered by Cycles (1 sample through texel centres); returns (maps, seconds)."""
+        if size < 2 or size > 16384:
+            raise InputError(f"--shadowmap-size must be between 2 and 16384, got {size}")
+        t = time.perf_counter()
+        maps = []
+        cams = self.light_cameras()
+        try:
+            tmp = self.tmp
+            render.cycles_cpu(tmp, 1)
+            tmp.cycles.filter_width = 0.01
+            tmp.cycles.max_bounces = 0
+            for c in cams:
+                p = self._render(compat.CYCLES, c, size, size, {"use_pass_z"})
+                w2v, proj, _, _ = render.camera_matrices(tmp, c)
+                maps.append(shadow_map.DepthMap(p["Depth"], w2v, proj))
+        finally:
+            for c in cams:
+                data = c.data
+                bpy.data.objects.remove(c)
+                bpy.data.cameras.remove(data)
+        return maps, time.perf_counter() - t
+
+    def triangles(self, obj):
+        """World-space (V, 3) vertices and (T, 3) triangles of an object's evaluated mesh."""
+        depsgraph = self.tmp.view_layers[0].depsgraph
+        self.tmp.view_layers[0].update()
+        ev = obj.evaluated_get(depsgraph)
+        me = ev.to_mesh()
+        try:
+            me.calc_loop_triangles()
+            v = np.empty(len(me.vertices) * 3, np.float64)
+            me.vertices.foreach_get("co", v)
+            t = np.empty(len(me.loop_triangles) * 3, np.int64)
+            me.loop_triangles.foreach_get("vertices", t)
+        finally:
+            ev.to_mesh_clear()
+        m = np.array(obj.matrix_world, np.float64)
+        v = v.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
+        if np.linalg.det(m[:3, :3]) < 0:
+            t = t.reshape(-1, 3)[:, ::-1].reshape(-1)
+        return v, t.reshape(-1, 3)
+
+    def engine_mask(self, engine):
+        """EEVEE or Workbench's own shadow: (lit mask, seconds) from two renders, shadows on and off.
+
+        A pixel is lit where the shadowed render keeps at least half the unshadowed value.
+        """
+        t = time.perf_counter()
+        tmp = self.tmp
+        cam_obj = self.user_scene.camera
+        if engine == "eevee":
+            eng, passes = compat.EEVEE, {"use_pass_diffuse_direct"}
+            tmp.eevee.taa_render_samples = 1
+            tmp.render.filter_size = 0.01
+            if hasattr(self.light.obj.data, "use_shadow_jitter"):
+                self.light.obj.data.use_shadow_jitter = False
+            key = ("Diffuse Direct", "DiffDir")
+        elif engine == "workbench":
+            if self.light.kind != "SUN":
+                raise InputError("Workbench draws shadows for one directional light only: use a sun light")
+            eng, passes, key = compat.WORKBENCH, set(), ("Combined",)
+            disp = tmp.display
+            disp.render_aa = "OFF"
+            disp.shading.light = "STUDIO"
+            disp.shading.color_type = "SINGLE"
+            disp.shading.single_color = (0.8, 0.8, 0.8)
+            disp.shading.shadow_intensity = 1.0
+            disp.shadow_shift = 0.0
+            disp.shadow_focus = 0.0
+            disp.light_direction = compat_workbench_direction(self.light.direction)
+        else:
+            raise InputError(f"unknown engine method '{engine}'")
+        vl = tmp.view_layers[0]
+        override = vl.material_override
+        if engine == "workbench":
+            vl.material_override = None     # the override blacks out Workbench's shadow pass
+        vals = []
+        for shadows in (True, False):
+            if engine == "eevee":
+                self.light.obj.data.use_shadow = shadows
+            else:
+                tmp.display.shading.show_shadows = shadows
+            p = self._render(eng, cam_obj, self.width, self.height, passes)
+            vals.append(np.asarray(_pass(p, *key), np.float64)[..., :3].mean(-1))
+        self.light.obj.data.use_shadow = True
+        vl.material_override = override
+        on, off = vals
+        if engine == "workbench" and not np.any(on[self.receiver] > 0):
+            raise ILError("Workbench returned a black image with shadows on (no stencil buffer in this GL context)")
+        lit = self.reach & (off > 0) & (on >= shadow_metrics.LIT_FRACTION * off)
+        return lit, time.perf_counter() - t
+
+
+def _pass(passes, *names):
+    """The first of ``names`` present (5.0 writes "Diffuse Direct" where 4.5 writes "DiffDir")."""
+    for n in names:
+        if n in passes:
+            return passes[n]
+    raise ILError(f"the render has no {names[0]} pass (got {', '.join(passes)})")
+
+
+def _white_diffuse():
+    """A white Lambertian material (Diffuse BSDF, colour 1, roughness 0) for the material override."""
+    mat = bpy.data.materials.new("IL Shadow Lab White")
+    compat.ensure_use_nodes(mat)
+    nodes = mat.node_tree.nodes
+    nodes.clear()
+    out = nodes.new("ShaderNodeOutputMaterial")
+    bsdf = nodes.new("ShaderNodeBsdfDiffuse")
+    bsdf.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    bsdf.inputs["Roughness"].default_value = 0.0
+    mat.node_tree.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    mat.diffuse_color = (1.0, 1.0, 1.0, 1.0)
+    return mat
+
+
+def compat_workbench_direction(direction):
+    """scene.display.light_direction for a sun shining along ``direction`` (world space, unit)."""
+    # Workbench turns the setting L into the world direction of travel (-L.x, L.z, -L.y)
+    # (workbench_shadow.cc), so L = (-D.x, -D.z, D.y).
+    d = np.asarray(direction, np.float64)
+    return (float(-d[0]), float(-d[2]), float(d[1]))
+

@@ -1,0 +1,171 @@
+"""Sweeps of the shadow lab: each failure pushed along one parameter, as tables and charts.
+
+sweeps(out_dir, quick) -> {"tables": {name: [rows]}, "charts": [png paths], "figures": {...}}
+"""
+import os
+import time
+
+import numpy as np
+
+from ..core import charts, shadow_metrics, shadow_volume
+from ..core.fileio import write_json
+from ..progress import Progress
+from . import shadow_scenes
+from .shadow_session import Session
+
+
+def _score(s, mask):
+    return shadow_metrics.confusion(mask, s.reference, s.receiver)
+
+
+def _session_scene(name, light, res, **kw):
+    scene = shadow_scenes.build(name, light, (res, res), **kw)
+    return scene
+
+
+def sweeps(out_dir, quick=False):
+    """Run every shadow sweep; write CSV tables and PNG charts into ``out_dir``; return what was made."""
+    from . import shadows as lab
+    os.makedirs(out_dir, exist_ok=True)
+    res = 64 if quick else 256
+    sizes = [32, 64, 128, 256, 512, 1024] if quick else [128, 256, 512, 1024, 2048, 4096]
+    biases = [0.0, 1e-3, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0] if quick else \
+        [0.0, 3e-4, 1e-3, 3e-3, 0.01, 0.03, 0.05, 0.1, 0.2, 0.3, 0.5, 1.0, 2.0, 3.0]
+    pcfs = [1, 3, 5] if quick else [1, 3, 5, 7, 9]
+    segs = [(16, 8), (32, 16), (64, 32)] if quick else [(16, 8), (32, 16), (64, 32), (128, 64), (256, 128)]
+    tables, chart_paths, figures = {}, [], {}
+    base = dict(lab.DEFAULTS)
+    with Progress("shadow sweeps", 6) as progress:
+        progress.step("shadow-map resolution")
+        scene = _session_scene("sphere", "sun", res)
+        rows = []
+        try:
+            with Session(scene, scene["il_shadow_light"], res) as s:
+                s.render_reference()
+                for n in sizes:
+                    maps, render_s = s.depth_maps(n)
+                    mask, lookup_s = lab.shadowmap_mask(s, maps, base)
+                    rows.append(dict(size=n, **_score(s, mask), render_seconds=render_s, lookup_seconds=lookup_s))
+                progress.step("PCF kernel size")
+                maps, _ = s.depth_maps(256 if quick else 512)
+                pcf_rows = []
+                for k in pcfs:
+                    mask, lookup_s = lab.shadowmap_mask(s, maps, dict(base, pcf=k))
+                    pcf_rows.append(dict(pcf=k, map_size=maps[0].size, **_score(s, mask), lookup_seconds=lookup_s))
+        finally:
+            lab.discard_scene(scene)
+        tables["shadowmap_resolution"] = rows
+        tables["shadowmap_pcf"] = pcf_rows
+        x = [r["size"] for r in rows]
+        chart_paths.append(charts.line_chart(
+            os.path.join(out_dir, "shadowmap_resolution_error.png"),
+            {"error": (x, [r["error"] for r in rows]), "false shadow": (x, [r["false_shadow"] for r in rows]),
+             "false light": (x, [r["false_light"] for r in rows])},
+            "Shadow map: error against resolution (sphere, sun)", "shadow-map size N (N x N texels)",
+            "misclassified fraction of receiver pixels", logx=True))
+        chart_paths.append(charts.line_chart(
+            os.path.join(out_dir, "shadowmap_resolution_time.png"),
+            {"depth render (Cycles)": (x, [r["render_seconds"] for r in rows]),
+             "numpy lookup": (x, [r["lookup_seconds"] for r in rows])},
+            "Shadow map: time against resolution", "shadow-map size N", "seconds", logx=True, logy=True))
+        chart_paths.append(charts.line_chart(
+            os.path.join(out_dir, "shadowmap_pcf.png"),
+            {"error": ([r["pcf"] for r in pcf_rows], [r["error"] for r in pcf_rows])},
+            "Shadow map: PCF kernel size", "PCF kernel K (K x K texels)", "misclassified fraction"))
+        figures["shadowmap_error_by_size"] = {r["size"]: r["error"] for r in rows}
+
+        progress.step("bias sweep (acne to peter-panning)")
+        scene = _session_scene("acne", "sun", res)
+        rows = []
+        try:
+            with Session(scene, scene["il_shadow_light"], res) as s:
+                s.render_reference()
+                maps, _ = s.depth_maps(256 if quick else 1024)
+                for b in biases:
+                    mask, _ = lab.shadowmap_mask(s, maps, dict(base, bias=b, slope_bias=0.0))
+                    rows.append(dict(bias=b, slope_bias=0.0, map_size=maps[0].size, **_score(s, mask)))
+        finally:
+            lab.discard_scene(scene)
+        tables["shadowmap_bias"] = rows
+        best = min(rows, key=lambda r: r["error"])
+        xb = [max(r["bias"], 1e-4) for r in rows]
+        chart_paths.append(charts.line_chart(
+            os.path.join(out_dir, "shadowmap_bias.png"),
+            {"false shadow (acne)": (xb, [r["false_shadow"] for r in rows]),
+             "false light (peter-panning)": (xb, [r["false_light"] for r in rows]),
+             "error": (xb, [r["error"] for r in rows])},
+            "Shadow map: constant bias (box, grazing sun; bias 0 drawn at 1e-4)", "constant bias (m)",
+            "fraction of receiver pixels", logx=True,
+            marks={f"best bias {best['bias']:g} m": (max(best["bias"], 1e-4), best["error"])}))
+        figures["best_bias"] = best["bias"]
+        figures["bias_ends"] = {"acne_false_shadow": rows[0]["false_shadow"], "panning_false_light": rows[-1]["false_light"]}
+
+        progress.step("shadow-volume cost against triangle count")
+        rows = []
+        for u, v in segs:
+            scene = _session_scene("sphere", "sun", res, segments=u, rings=v)
+            try:
+                with Session(scene, scene["il_shadow_light"], res) as s:
+                    s.render_reference()
+                    t = time.perf_counter()
+                    volume, info = lab.volume_inputs(s)
+                    mask = lab.volume_mask(s, volume, "zfail")
+                    rows.append(dict(**info, seconds=time.perf_counter() - t, **_score(s, mask)))
+            finally:
+                lab.discard_scene(scene)
+        for r in rows:
+            r.pop("skipped_open_meshes", None)
+        tables["volume_cost"] = rows
+        chart_paths.append(charts.line_chart(
+            os.path.join(out_dir, "volume_cost.png"),
+            {"z-fail stencil (numpy)": ([r["occluder_triangles"] for r in rows], [r["seconds"] for r in rows])},
+            f"Shadow volumes: cost against occluder triangles ({res}x{res} frame)", "occluder triangles",
+            "seconds", logx=True, logy=True))
+
+        progress.step("planar shadows on planar and stepped receivers")
+        rows = []
+        for name in ("sphere", "stairs"):
+            scene = _session_scene(name, "sun", res)
+            try:
+                with Session(scene, scene["il_shadow_light"], res) as s:
+                    s.render_reference()
+                    mask, _, _ = lab.run_method(s, "planar", base)
+                    rows.append(dict(scene=name, receiver="planar" if name == "sphere" else "stairs", **_score(s, mask)))
+            finally:
+                lab.discard_scene(scene)
+        tables["planar_receivers"] = rows
+        chart_paths.append(_bar(os.path.join(out_dir, "planar_receivers.png"), rows, "scene",
+                                "Planar shadows: planar floor vs stairs"))
+
+        progress.step("z-pass against z-fail, camera outside and inside a volume")
+        rows = []
+        for name in ("sphere", "inside"):
+            scene = _session_scene(name, "sun", res)
+            try:
+                with Session(scene, scene["il_shadow_light"], res) as s:
+                    s.render_reference()
+                    volume, _ = lab.volume_inputs(s)
+                    for mode in ("zpass", "zfail"):
+                        rows.append(dict(scene=name, camera="inside" if name == "inside" else "outside", mode=mode,
+                                         **_score(s, lab.volume_mask(s, volume, mode))))
+            finally:
+                lab.discard_scene(scene)
+        tables["zpass_zfail"] = rows
+        chart_paths.append(_bar(os.path.join(out_dir, "zpass_zfail.png"), rows, ("camera", "mode"),
+                                "Shadow volumes: z-pass vs z-fail"))
+    for name, t in tables.items():
+        charts.write_csv(os.path.join(out_dir, f"{name}.csv"), t)
+    write_json(os.path.join(out_dir, "shadow_sweeps.json"), {"tables": tables, "figures": figures})
+    return {"tables": tables, "charts": chart_paths, "figures": figures}
+
+
+def _bar(path, rows, key, title):
+    """Grouped bars of false shadow / false light per row (matplotlib, the charts module's look)."""
+    plt = charts._pyplot()
+    labels = [" ".join(str(r[k]) for k in key) if isinstance(key, tuple) else str(r[key]) for r in rows]
+    x = np.arange(len(rows))
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    ax.bar(x - 0.2, [r["false_shadow"] for r in rows], 0.4, label="false shadow")
+    ax.bar(x + 0.2, [r["false_light"] for r in rows], 0.4, label="false light")
+    ax.set_xticks(x, labels)
+    return charts._finish(fig, ax, path, title, "case", "fraction of receiver pixels", False, False)

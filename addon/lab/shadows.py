@@ -1,0 +1,214 @@
+"""The shadow lab: every method's mask on the ray-traced reference's pixel grid, scored and written.
+
+    report = compare(scene, "Light", ["raytraced", "shadowmap", "volume_zfail"], out)
+
+writes ``<out>/<method>_mask.png`` (white lit, black shadow), ``<out>/<method>_error.png`` (greys
+agree, red false shadow, blue false light; see core.shadow_metrics.COLOURS) and
+``<out>/shadows_report.json`` (DESIGN.md). :func:`sweeps` and :func:`demo_step` serve the bench
+and the demo job.
+"""
+import os
+import time
+
+import bpy
+import numpy as np
+
+from ..core import imageio, shadow_map, shadow_metrics, shadow_planar, shadow_volume
+from ..core.errors import InputError
+from ..core.fileio import write_json
+from ..progress import Progress
+from . import shadow_scenes
+from .shadow_session import Session
+
+METHODS = ("raytraced", "planar", "shadowmap", "volume_zpass", "volume_zfail", "eevee", "workbench")
+
+#: Defaults shared by the script, the panel and the sweeps.
+DEFAULTS = {"resolution": 128, "shadowmap_size": 1024, "bias": 0.01, "slope_bias": 2.0, "pcf": 1,
+            "offset": 1e-3, "samples": 1, "receiver": None}
+
+
+def parse_methods(methods):
+    """"a,b" or ["a", "b"] -> validated list in the given order (duplicates dropped)."""
+    if isinstance(methods, str):
+        methods = [m.strip() for m in methods.split(",") if m.strip()]
+    out = []
+    for m in methods:
+        if m not in METHODS:
+            raise InputError(f"unknown shadow method '{m}' (choose from {', '.join(METHODS)})")
+        if m not in out:
+            out.append(m)
+    if not out:
+        raise InputError("no shadow method given")
+    return out
+
+
+def check_params(params):
+    """Merge with DEFAULTS and validate the numbers; return the merged dict."""
+    p = dict(DEFAULTS, **{k: v for k, v in params.items() if v is not None})
+    shadow_map.check_pcf(p["pcf"])
+    if p["bias"] < 0 or p["slope_bias"] < 0:
+        raise InputError("--bias and --slope-bias must be >= 0")
+    if p["shadowmap_size"] < 2 or p["shadowmap_size"] > 16384:
+        raise InputError(f"--shadowmap-size must be between 2 and 16384, got {p['shadowmap_size']}")
+    return p
+
+
+# -- methods ------------------------------------------------------------------------------------
+def _planar(s, p):
+    name = p["receiver"] or s.user_scene.get("il_shadow_receiver", "Floor")
+    if name not in s.user_scene.objects or s.user_scene.objects[name].type != "MESH":
+        raise InputError(f"no mesh named '{name}' to receive planar shadows (give --receiver NAME)")
+    receiver = s.user_scene.objects[name]
+    v, t = s.triangles(receiver)
+    tri = v[t]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    big = int(np.argmax(np.linalg.norm(n, axis=1)))
+    plane = shadow_planar.plane_from_point_normal(tri[big, 0], n[big])
+    casters = [o for o in s.casters if o != receiver]
+    tris = np.concatenate([v_[t_] for v_, t_ in (s.triangles(o) for o in casters)]) if casters else np.zeros((0, 3, 3))
+    cover = shadow_planar.planar_shadow_mask(tris, plane, s.light.h, s.world_to_view, s.proj,
+                                             s.width, s.height, s.depth, offset=p["offset"])
+    return s.reach & ~cover, {"receiver": name, "offset": p["offset"], "plane": [round(float(x), 6) for x in plane]}
+
+
+def shadowmap_mask(s, maps, p):
+    """Lit mask from depth maps with the bias and PCF of ``p``; returns (mask, lookup seconds)."""
+    t = time.perf_counter()
+    r = s.receiver
+    lit = np.zeros(r.shape)
+    lit[r] = shadow_map.lit_fraction(maps, s.position[r], s.normal[r], s.to_light[r],
+                                     p["bias"], p["slope_bias"], p["pcf"])
+    return s.reach & (lit >= 0.5), time.perf_counter() - t
+
+
+def _shadowmap(s, p):
+    maps, render_s = s.depth_maps(p["shadowmap_size"])
+    mask, lookup_s = shadowmap_mask(s, maps, p)
+    kind = {"SUN": "orthographic", "SPOT": "perspective", "POINT": "cube (6 faces)"}[s.light.kind]
+    return mask, {"size": p["shadowmap_size"], "bias": p["bias"], "slope_bias": p["slope_bias"], "pcf": p["pcf"],
+                  "projection": kind, "render_seconds": render_s, "lookup_seconds": lookup_s}
+
+
+def volume_inputs(s):
+    """Closed casters' volume triangles; open meshes are skipped (documented fallback) and listed."""
+    vols, skipped, tris, sil = [], [], 0, 0
+    _, radius = s._scene_radius()
+    distance = 1e3 * max(1.0, radius)
+    for o in s.casters:
+        v, t = s.triangles(o)
+        if not shadow_volume.is_closed(t):
+            skipped.append(o.name)
+            continue
+        vt, ns = shadow_volume.volume_triangles(v, t, s.light.h, distance, o.name)
+        vols.append(vt)
+        tris += len(t)
+        sil += ns
+    if not vols:
+        raise InputError("shadow volumes need at least one closed mesh; open meshes found: " + ", ".join(skipped))
+    return np.concatenate(vols), {"occluder_triangles": tris, "silhouette_edges": sil,
+                                  "volume_triangles": int(sum(len(x) for x in vols)), "skipped_open_meshes": skipped}
+
+
+def volume_mask(s, volume, mode):
+    tau = shadow_volume.surface_distance(s.position, s.origins, s.dirs)
+    count = shadow_volume.stencil(volume, s.origins, s.dirs, tau, s.world_to_view, s.proj,
+                                  s.width, s.height, s.near, s.receiver, mode)
+    return s.reach & (count == 0)
+
+
+def _volume(mode):
+    def run(s, p):
+        volume, info = volume_inputs(s)
+        return volume_mask(s, volume, mode), dict(info, mode=mode)
+    return run
+
+
+def _engine(name):
+    def run(s, p):
+        mask, _ = s.engine_mask(name)
+        return mask, {"engine": name}
+    return run
+
+
+_RUN = {"planar": _planar, "shadowmap": _shadowmap, "volume_zpass": _volume("zpass"),
+        "volume_zfail": _volume("zfail"), "eevee": _engine("eevee"), "workbench": _engine("workbench")}
+
+
+def run_method(s, method, p):
+    """(mask, seconds, params) of one method in an open :class:`Session` with its reference rendered."""
+    if method == "raytraced":
+        return s.reference, s.reference_seconds, {"samples": s.samples, "engine": "cycles", "light_radius": 0.0}
+    t = time.perf_counter()
+    mask, info = _RUN[method](s, p)
+    return mask, time.perf_counter() - t, info
+
+
+# -- the comparison ---------------------------------------------------------------------------------
+def compare(scene, light, methods, out, **params):
+    """Run ``methods`` on ``scene`` lit by the light named ``light``; write images and the report; return it."""
+    methods = parse_methods(methods)
+    p = check_params(params)
+    os.makedirs(out, exist_ok=True)
+    report = {"scene": scene.name, "light": light, "reference": {}, "methods": {}}
+    with Progress("shadows", len(methods) + 1) as progress, Session(scene, light, p["resolution"], p["samples"]) as s:
+        progress.step("ray-traced reference (Cycles, radius-0 light)")
+        s.reference_seconds = s.render_reference()
+        report["reference"] = {"engine": "cycles", "samples": s.samples, "seconds": s.reference_seconds,
+                               "resolution": [s.width, s.height], "light_type": s.light.kind.lower(),
+                               "receiver_pixels": int(s.receiver.sum()),
+                               "shadowed_fraction": float(1 - s.reference[s.receiver].mean()),
+                               "mask": os.path.join(out, "raytraced_mask.png")}
+        imageio.write_png(os.path.join(out, "raytraced_mask.png"), shadow_metrics.mask_image(s.reference))
+        for m in methods:
+            progress.step(m)
+            mask, seconds, info = run_method(s, m, p)
+            entry = shadow_metrics.confusion(mask, s.reference, s.receiver)
+            entry.update(seconds=seconds, params=info,
+                         mask=os.path.join(out, f"{m}_mask.png"), error_image=os.path.join(out, f"{m}_error.png"))
+            imageio.write_png(entry["mask"], shadow_metrics.mask_image(mask))
+            imageio.write_png(entry["error_image"], shadow_metrics.error_image(mask, s.reference, s.receiver))
+            report["methods"][m] = entry
+    report["report"] = os.path.join(out, "shadows_report.json")
+    write_json(report["report"], report)
+    return report
+
+
+def discard_scene(scene):
+    """Remove a lab-built scene with its objects and their data."""
+    objs = list(scene.objects)
+    bpy.data.scenes.remove(scene)
+    for o in objs:
+        data = o.data
+        bpy.data.objects.remove(o)
+        if data is None or data.users:
+            continue
+        for kind, coll in ((bpy.types.Mesh, bpy.data.meshes), (bpy.types.Light, bpy.data.lights),
+                           (bpy.types.Camera, bpy.data.cameras)):
+            if isinstance(data, kind):
+                coll.remove(data)
+                break
+    for w in [w for w in bpy.data.worlds if w.users == 0]:
+        bpy.data.worlds.remove(w)
+
+
+def compare_builtin(name, light_kind, methods, out, keep=False, **params):
+    """Build the built-in scene ``name`` with a ``light_kind`` light, compare, remove it unless ``keep``."""
+    p = check_params(params)
+    scene = shadow_scenes.build(name, light_kind, (p["resolution"], p["resolution"]))
+    try:
+        return compare(scene, scene["il_shadow_light"], methods, out, **params)
+    finally:
+        if not keep:
+            discard_scene(scene)
+
+
+def demo_step(out, quick=True):
+    """The demo's shadow step: the sphere scene under a sun, a few methods; returns figures for its report."""
+    methods = ["raytraced", "planar", "shadowmap", "volume_zpass", "volume_zfail"]
+    rep = compare_builtin("sphere", "sun", methods, os.path.join(out, "shadows"),
+                          resolution=96 if quick else 256, shadowmap_size=512 if quick else 2048)
+    return {"report": rep["report"],
+            "methods": {m: {"error": e["error"], "seconds": e["seconds"]} for m, e in rep["methods"].items()}}
+
+
+from .shadow_sweeps import sweeps  # noqa: E402,F401  (the sweep logic lives beside the comparison)

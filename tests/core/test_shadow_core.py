@@ -1,0 +1,169 @@
+"""Shadow methods in numpy against closed forms (no bpy): planar projection, volumes, maps, metrics."""
+import math
+
+import numpy as np
+import pytest
+
+from addon.core import camera, shadow_map, shadow_metrics, shadow_planar, shadow_volume
+from addon.core.errors import InputError
+
+
+def _look_down(eye, width=48, height=48, fov=math.radians(60), ortho=None):
+    """A camera at ``eye`` looking straight down -Z (world_to_view, proj) with Blender's conventions."""
+    w2v = np.eye(4)
+    w2v[:3, 3] = -np.asarray(eye, float)            # view axes = world axes: looking down -Z
+    n, f = 0.01, 100.0
+    if ortho:
+        proj = np.diag([2 / ortho, 2 / ortho, -2 / (f - n), 1.0])
+        proj[2, 3] = -(f + n) / (f - n)
+    else:
+        t = 1 / math.tan(fov / 2)
+        proj = np.array([[t, 0, 0, 0], [0, t, 0, 0], [0, 0, -(f + n) / (f - n), -2 * f * n / (f - n)], [0, 0, -1, 0]])
+    return w2v, proj, width, height
+
+
+def _cube(lo, hi):
+    """Closed, outward-wound box (8 vertices, 12 triangles)."""
+    x0, y0, z0 = lo
+    x1, y1, z1 = hi
+    v = np.array([[x0, y0, z0], [x1, y0, z0], [x1, y1, z0], [x0, y1, z0],
+                  [x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1]], float)
+    t = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
+                  [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
+    return v, t
+
+
+def _floor_rays(w2v, proj, w, h):
+    """Camera rays, their hits on the floor z = 0 and the distances to them."""
+    o, d = camera.pixel_rays(w2v, proj, w, h)
+    t = -o[..., 2] / d[..., 2]
+    return o, d, o + t[..., None] * d
+
+
+def test_planar_projection_lands_on_the_plane_along_the_light_ray():
+    plane = shadow_planar.plane_from_point_normal((0, 0, 0.5), (0, 0, 2))
+    light = np.array([1.0, 2.0, 5.0, 1.0])
+    s = shadow_planar.projection_matrix(plane, light)
+    p = np.array([[0.3, -0.2, 1.5], [-1.0, 0.4, 2.0]])
+    q, _ = shadow_planar.project(p, s)
+    np.testing.assert_allclose(q[:, 2], 0.5, atol=1e-12)
+    # closed form: q = L + (p - L) * (L_z - 0.5) / (L_z - p_z)
+    expect = light[:3] + (p - light[:3]) * ((light[2] - 0.5) / (light[2] - p[:, 2]))[:, None]
+    np.testing.assert_allclose(q, expect, atol=1e-12)
+    sun = np.array([0.0, 0.6, 0.8, 0.0])                      # toward the light, w = 0
+    q, _ = shadow_planar.project(p, shadow_planar.projection_matrix(plane, sun))
+    np.testing.assert_allclose(q, p - (p[:, 2:] - 0.5) / 0.8 * sun[:3], atol=1e-12)
+
+
+def test_planar_mask_covers_the_projected_square_only():
+    w2v, proj, w, h = _look_down((0, 0, 6), 64, 64)
+    o, d, hit = _floor_rays(w2v, proj, w, h)
+    depth = np.full((h, w), 6.0)                               # planar view depth of the floor
+    v, t = _cube((-0.5, -0.5, 1.0), (0.5, 0.5, 1.2))
+    cover = shadow_planar.planar_shadow_mask(v[t], shadow_planar.plane_from_point_normal((0, 0, 0), (0, 0, 1)),
+                                             np.array([0, 0, 1.0, 0]), w2v, proj, w, h, depth)
+    inside = (np.abs(hit[..., 0]) < 0.5) & (np.abs(hit[..., 1]) < 0.5)
+    edge = (np.abs(np.abs(hit[..., 0]) - 0.5) < 0.06) | (np.abs(np.abs(hit[..., 1]) - 0.5) < 0.06)
+    assert np.array_equal(cover[~edge], inside[~edge]) and inside.sum() > 50
+    hidden = shadow_planar.planar_shadow_mask(v[t], shadow_planar.plane_from_point_normal((0, 0, 0), (0, 0, 1)),
+                                              np.array([0, 0, 1.0, 0]), w2v, proj, w, h, depth - 0.5)
+    assert not hidden.any()                                    # a raised receiver hides the shadow (stairs)
+
+
+def test_open_mesh_is_rejected_for_shadow_volumes():
+    v, t = _cube((0, 0, 0), (1, 1, 1))
+    with pytest.raises(InputError, match="not a closed mesh"):
+        shadow_volume.volume_triangles(v, t[:-1], np.array([0, 0, 1.0, 0]), 10.0, name="Lid")
+    assert shadow_volume.is_closed(t) and not shadow_volume.is_closed(t[2:])
+
+
+def test_cube_silhouette_under_overhead_sun_is_its_four_top_edges():
+    v, t = _cube((0, 0, 0), (1, 1, 1))
+    nb = shadow_volume.edge_neighbours(t)
+    facing = shadow_volume.light_facing(v, t, np.array([0, 0, 1.0, 0]))
+    sil = shadow_volume.silhouette(t, nb, facing)
+    assert len(sil) == 4 and np.allclose(v[sil][..., 2], 1.0)
+
+
+@pytest.mark.parametrize("eye, zpass_ok", [((0.2, 0.1, 6.0), True), ((0.1, 0.05, 0.5), False)])
+def test_stencil_counts_match_the_analytic_shadow(eye, zpass_ok):
+    """Box at z in [1, 2] under a sun tilted in x: the floor shadow is the box's top square sheared."""
+    w2v, proj, w, h = _look_down(eye, 40, 40, fov=math.radians(100) if eye[2] < 1 else math.radians(60))
+    o, d, hit = _floor_rays(w2v, proj, w, h)
+    tau = shadow_volume.surface_distance(hit, o, d)
+    v, t = _cube((-0.6, -0.6, 1.0), (0.6, 0.6, 2.0))
+    to_sun = np.array([0.3, 0.0, 1.0]) / np.linalg.norm([0.3, 0.0, 1.0])
+    vol, nsil = shadow_volume.volume_triangles(v, t, np.append(to_sun, 0.0), 100.0)
+    assert nsil == 6
+    # analytic: floor point p is shadowed iff p + s * to_sun hits the box for some s
+    s_lo, s_hi = 1.0 / to_sun[2], 2.0 / to_sun[2]
+    xs = hit[..., 0][..., None] + np.linspace(s_lo, s_hi, 201) * to_sun[0]
+    truth = (np.abs(hit[..., 1]) < 0.6) & (np.abs(xs) < 0.6).any(-1)
+    for mode in ("zpass", "zfail"):
+        shadow = shadow_volume.stencil(vol, o, d, tau, w2v, proj, w, h, near=0.01, mode=mode) != 0
+        wrong = np.mean(shadow != truth)
+        if mode == "zfail" or zpass_ok:
+            assert wrong < 0.01, (mode, wrong)
+        else:
+            assert wrong > 0.3, (mode, wrong)                  # the camera sits inside the volume
+
+
+def _plane_map(size, tilt):
+    """Orthographic depth map (looking down from z = 10) of the plane z = tilt * x."""
+    w2v, proj, _, _ = _look_down((0, 0, 10), ortho=4.0)
+    o, d = camera.pixel_rays(w2v, proj, size, size)
+    x = o[..., 0]
+    return shadow_map.DepthMap(10 - tilt * x, w2v, proj)
+
+
+def test_shadow_map_acne_needs_slope_bias_and_constant_bias_cures_it():
+    tilt = 1.0
+    m = _plane_map(64, tilt)
+    rng = np.random.default_rng(3)
+    p = np.column_stack([rng.uniform(-1.5, 1.5, 4000), rng.uniform(-1.5, 1.5, 4000), np.zeros(4000)])
+    p[:, 2] = tilt * p[:, 0]
+    n = np.tile(np.array([-tilt, 0, 1]) / math.hypot(tilt, 1), (len(p), 1))
+    up = np.tile([0.0, 0.0, 1.0], (len(p), 1))
+    no_bias = shadow_map.lit_fraction([m], p, n, up, 0.0, 0.0, 1)
+    # half the points sit below their texel centre's depth: acne on about 50 %
+    assert 0.35 < np.mean(no_bias < 0.5) < 0.65
+    # half a texel (4/64 m) times tan 45° is the worst depth error: slope bias 0.5 texel cures it
+    assert np.all(shadow_map.lit_fraction([m], p, n, up, 0.0, 0.51, 1) == 1.0)
+    assert np.all(shadow_map.lit_fraction([m], p, n, up, 0.5 * 4 / 64 * tilt + 1e-9, 0.0, 3) >= 0.5)
+
+
+def test_pcf_kernel_must_be_odd_and_positive():
+    for k in (0, 2, -1, 1.5):
+        with pytest.raises(InputError):
+            shadow_map.check_pcf(k)
+    assert shadow_map.check_pcf(5) == 5
+
+
+def test_pcf_averages_the_neighbourhood():
+    depth = np.full((9, 9), 5.0)
+    depth[:, :4] = 1.0                                        # occluder over the left columns
+    x = np.array([4.0, 3.0, 6.0])
+    frac = shadow_map.pcf_lookup(depth, x, np.full(3, 4.0), np.full(3, 4.0), 0.0, 3)
+    np.testing.assert_allclose(frac, [2 / 3, 1 / 3, 1.0])
+
+
+def test_confusion_splits_false_shadow_and_false_light():
+    ref = np.array([[1, 1, 0, 0]], bool)
+    mask = np.array([[1, 0, 1, 0]], bool)
+    rec = np.array([[1, 1, 1, 1]], bool)
+    c = shadow_metrics.confusion(mask, ref, rec)
+    assert c == {"error": 0.5, "false_shadow": 0.25, "false_light": 0.25, "receiver_pixels": 4}
+    img = shadow_metrics.error_image(mask, ref, rec)
+    assert tuple(img[0, 1]) == shadow_metrics.COLOURS["false_shadow"]
+    assert tuple(img[0, 2]) == shadow_metrics.COLOURS["false_light"]
+    with pytest.raises(InputError, match="pixel grid"):
+        shadow_metrics.confusion(mask[:, :3], ref, rec)
+
+
+def test_reference_threshold_is_half_the_unshadowed_value():
+    n = np.array([[0, 0, 1.0]] * 3)
+    l = np.array([[0, 0, 1.0]] * 3)
+    u = shadow_metrics.unshadowed_diffuse(n, l, 3.0)
+    np.testing.assert_allclose(u, 3 / np.pi)
+    lit = shadow_metrics.lit_from_pass(np.array([3 / np.pi, 0.0, 0.49 * 3 / np.pi]), u, np.ones(3, bool))
+    assert lit.tolist() == [True, False, False]

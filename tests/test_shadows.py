@@ -1,0 +1,168 @@
+"""Shadow lab end to end: every method's mask against Cycles' hard ray-traced mask on the same pixels."""
+import json
+import os
+
+import bpy
+import numpy as np
+import pytest
+
+from addon.core import imageio, shadow_metrics
+from addon.core.errors import InputError
+from addon.lab import shadow_scenes, shadows
+from addon.lab.shadow_session import Session
+
+RES = 80
+
+
+def _session(name, light="sun", res=RES):
+    scene = shadow_scenes.build(name, light, (res, res))
+    return scene, Session(scene, scene["il_shadow_light"], res)
+
+
+def _score(s, mask):
+    return shadow_metrics.confusion(mask, s.reference, s.receiver)
+
+
+@pytest.mark.both_versions
+def test_sphere_scene_volumes_and_planar_match_the_reference_and_masks_are_pixel_aligned(tmp_path):
+    rep = shadows.compare_builtin("sphere", "sun", "raytraced,planar,volume_zfail,volume_zpass", tmp_path,
+                                  resolution=RES)
+    m = rep["methods"]
+    assert rep["reference"]["shadowed_fraction"] > 0.03          # the floor shadow and the dark side exist
+    assert m["volume_zfail"]["error"] <= 0.005
+    assert m["volume_zpass"]["error"] <= 0.005                   # camera outside every volume
+    assert m["planar"]["error"] <= 0.005
+    assert m["raytraced"]["error"] == 0.0
+    ref = imageio.decode_png((tmp_path / "raytraced_mask.png").read_bytes())
+    vol = imageio.decode_png((tmp_path / "volume_zfail_mask.png").read_bytes())
+    assert ref.shape == vol.shape == (RES, RES)
+    receiver = np.ones_like(ref, bool)
+    aligned = shadow_metrics.confusion(vol > 127, ref > 127, receiver)["error"]
+    for axis in (0, 1):                                           # a one-pixel shift is caught
+        shifted = shadow_metrics.confusion(np.roll(vol > 127, 1, axis=axis), ref > 127, receiver)["error"]
+        assert shifted > aligned + 0.005, (axis, shifted, aligned)
+    report = json.loads((tmp_path / "shadows_report.json").read_text())
+    for entry in report["methods"].values():
+        assert {"error", "false_shadow", "false_light", "seconds", "params"} <= set(entry)
+        assert entry["seconds"] >= 0
+    assert os.path.exists(tmp_path / "planar_error.png")
+    assert "IL Shadows sphere" not in bpy.data.scenes and "IL Shadow Lab" not in bpy.data.scenes
+
+
+def test_camera_inside_a_volume_breaks_zpass_not_zfail():
+    scene, s = _session("inside")
+    with s:
+        s.render_reference()
+        volume, info = shadows.volume_inputs(s)
+        zpass = _score(s, shadows.volume_mask(s, volume, "zpass"))
+        zfail = _score(s, shadows.volume_mask(s, volume, "zfail"))
+    assert 0.2 < 1 - s.reference[s.receiver].mean() < 0.9         # both shadow and light in view
+    assert zfail["error"] <= 0.005
+    assert zpass["error"] > 0.2
+
+
+def test_planar_shadows_fail_on_stairs():
+    scene, s = _session("stairs")
+    with s:
+        s.render_reference()
+        planar = _score(s, shadows.run_method(s, "planar", shadows.check_params({}))[0])
+        volume = _score(s, shadows.volume_mask(s, shadows.volume_inputs(s)[0], "zfail"))
+    assert volume["error"] <= 0.005
+    assert planar["false_light"] > 0.01                          # the shadow hides under the raised steps
+
+
+def test_shadow_map_error_falls_with_resolution_and_point_light_cube_map_works():
+    scene, s = _session("sphere", "point")
+    p = shadows.check_params({})
+    with s:
+        s.render_reference()
+        errors = []
+        for size in (16, 64, 256):
+            maps, _ = s.depth_maps(size)
+            assert len(maps) == 6
+            errors.append(_score(s, shadows.shadowmap_mask(s, maps, p)[0])["error"])
+    assert errors[0] > errors[1] > errors[2]
+    assert errors[2] <= 0.01
+
+
+def test_bias_sweep_shows_acne_then_peter_panning():
+    scene, s = _session("acne")
+    with s:
+        s.render_reference()
+        maps, _ = s.depth_maps(256)
+        rows = {b: _score(s, shadows.shadowmap_mask(s, maps, shadows.check_params({"bias": b, "slope_bias": 0.0}))[0])
+                for b in (0.0, 0.1, 3.0)}
+    assert rows[0.0]["false_shadow"] > 0.2                        # acne: the lit floor shadows itself
+    assert rows[3.0]["false_light"] > 0.02                        # peter-panning: the shadow lets go
+    assert rows[0.1]["error"] < min(rows[0.0]["error"], rows[3.0]["error"]) / 2
+
+
+def test_volumes_skip_open_meshes_and_fail_without_a_closed_one():
+    scene = shadow_scenes.build("sphere", "sun", (32, 32))
+    bpy.data.objects.remove(scene.objects["Sphere"])
+    with Session(scene, scene["il_shadow_light"], 32) as s:
+        s.render_reference()
+        with pytest.raises(InputError, match="closed mesh"):
+            shadows.volume_inputs(s)
+
+
+def test_workbench_sun_shadows_are_close_to_the_reference(tmp_path):
+    rep = shadows.compare_builtin("sphere", "sun", "workbench", tmp_path, resolution=64)
+    wb, shadowed = rep["methods"]["workbench"], rep["reference"]["shadowed_fraction"]
+    assert wb["error"] < 0.06                                     # stencil shadows, own terminator handling
+    assert wb["false_light"] < 0.5 * shadowed                     # it does draw the sun's shadow
+    with pytest.raises(InputError, match="sun"):
+        shadows.compare_builtin("sphere", "point", "workbench", tmp_path, resolution=32)
+
+
+@pytest.mark.eevee
+def test_eevee_virtual_shadow_maps_match_the_reference(tmp_path):
+    rep = shadows.compare_builtin("sphere", "point", "eevee", tmp_path, resolution=64)
+    assert rep["methods"]["eevee"]["error"] < 0.01
+
+
+@pytest.mark.both_versions
+def test_panel_operators_build_a_scene_and_write_the_report(tmp_path):
+    user = bpy.context.scene
+    st = user.illumination.shadows
+    st.scene_name, st.resolution, st.output = "plate", 48, str(tmp_path)
+    st.methods = {"shadowmap", "volume_zfail"}
+    st.shadowmap_size = 256
+    assert bpy.ops.illumination.build_shadow_scene() == {"FINISHED"}
+    scene = bpy.data.scenes[-1] if bpy.context.scene == user else bpy.context.scene
+    with bpy.context.temp_override(scene=scene):
+        assert bpy.ops.illumination.run_shadow_comparison() == {"FINISHED"}
+    report = scene.illumination.shadows.last_report
+    assert report == str(tmp_path / "shadows_report.json") and os.path.exists(report)
+    methods = json.loads(open(report).read())["methods"]
+    assert set(methods) == {"raytraced", "shadowmap", "volume_zfail"}
+    assert methods["volume_zfail"]["error"] <= 0.005
+
+
+def test_script_errors_are_clear(script, tmp_path):
+    r = script("shadows.py", "--scene", "sphere", "--methods", "raytraced,magic", "--out", tmp_path)
+    assert r.returncode == 2 and "unknown shadow method 'magic'" in r.stderr
+    r = script("shadows.py", "--scene", "teapot", "--out", tmp_path)
+    assert r.returncode == 2 and "unknown shadow scene 'teapot'" in r.stderr
+    scene = shadow_scenes.build("sphere", "sun", (32, 32))
+    blend = tmp_path / "no_light.blend"
+    bpy.data.objects.remove(scene.objects[scene["il_shadow_light"]])
+    bpy.context.window_manager  # noqa: B018 - keep the context alive for the save
+    for s in list(bpy.data.scenes):
+        if s != scene:
+            bpy.data.scenes.remove(s)
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    r = script("shadows.py", blend, "--light", "Sun", "--methods", "shadowmap", "--out", tmp_path / "o")
+    assert r.returncode == 2 and "no light named 'Sun'" in r.stderr
+
+
+def test_script_writes_masks_and_report(script, tmp_path):
+    r = script("shadows.py", "--scene", "plate", "--methods", "raytraced,shadowmap,volume_zfail", "--resolution", 48,
+               "--shadowmap-size", 256, "--pcf", 3, "--out", tmp_path)
+    assert r.returncode == 0, r.stderr
+    report = json.loads((tmp_path / "shadows_report.json").read_text())
+    assert report["methods"]["shadowmap"]["params"]["pcf"] == 3
+    for m in ("raytraced", "shadowmap", "volume_zfail"):
+        img = imageio.decode_png((tmp_path / f"{m}_mask.png").read_bytes())
+        assert img.shape == (48, 48) and set(np.unique(img)) <= {0, 255}
+        assert (tmp_path / f"{m}_error.png").exists()
