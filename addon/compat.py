@@ -83,3 +83,12 @@ def remove_compositor(scene, tree):
 
 #: Name of the Object Index render pass in the multilayer EXR (renamed in 5.0).
 OBJECT_INDEX_PASS = "Object Index" if IS_5 else "IndexOB"
+
+
+#: Name of the ambient-occlusion pass in a multilayer EXR (and render_layers' dict).
+AO_PASS = "Ambient Occlusion" if IS_5 else "AO"
+
+
+def eevee_ao_distance_owner(scene, view_layer):
+    """``(owner, attribute)`` of EEVEE's AO distance (see set_eevee_ao_distance), to save and restore it."""
+    return (view_layer.eevee, "ambient_occlusion_distance") if IS_5 else (scene.eevee, "gtao_distance")

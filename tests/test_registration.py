@@ -7,7 +7,8 @@ import addon
 pytestmark = pytest.mark.both_versions
 
 OPERATORS = ("build_demo_scene",)
-PANELS = ("IL_PT_main", "IL_PT_shading", "IL_PT_lightmaps", "IL_PT_comparisons", "IL_PT_shadows", "IL_PT_ssao")
+PANELS = ("IL_PT_main", "IL_PT_shading", "IL_PT_lightmaps", "IL_PT_envmap", "IL_PT_comparisons", "IL_PT_shadows",
+          "IL_PT_ssao")
 
 
 def _registered_panels():
@@ -23,7 +24,7 @@ def test_settings_group_and_sections(addon_registered):
     assert bpy.types.IL_PT_main.bl_space_type == "VIEW_3D"
     parents = {p: getattr(bpy.types, p).bl_parent_id for p in PANELS[1:]}
     assert parents == {"IL_PT_shading": "IL_PT_main", "IL_PT_lightmaps": "IL_PT_main",
-                       "IL_PT_comparisons": "IL_PT_main", "IL_PT_shadows": "IL_PT_comparisons",
+                       "IL_PT_envmap": "IL_PT_main", "IL_PT_comparisons": "IL_PT_main", "IL_PT_shadows": "IL_PT_comparisons",
                        "IL_PT_ssao": "IL_PT_comparisons"}
 
 

@@ -25,6 +25,11 @@ def _render(scene, out, quick, samples):
             "files": [path, os.path.join(out, "demo_render.png")]}
 
 
+def _shading(scene, out, quick):
+    from .shading_bench import demo_step
+    return demo_step(scene, out, quick)
+
+
 def _lightmaps(scene, out, quick):
     from ..bake.bench import demo_step
     return demo_step(scene, os.path.join(out, "lightmaps"), quick)
@@ -43,6 +48,7 @@ def run(out, quick=False, samples=32):
         raise InputError(f"--samples must be positive, got {samples}")
     os.makedirs(out, exist_ok=True)
     steps = [
+        ("shading", "assign Phong, Oren-Nayar and Cook-Torrance", lambda s: _shading(s, out, quick)),
         ("render", "render the shaded scene", lambda s: _render(s, out, quick, samples)),
         ("lightmaps", "bake AO and irradiance maps", lambda s: _lightmaps(s, out, quick)),
         ("shadows", "compare shadow methods with ray-traced shadows", lambda s: _shadows(out, quick)),

@@ -41,6 +41,7 @@ def render_layers(scene, camera=None):
             compat.set_multilayer_exr(settings)
             r.filepath = path
             r.use_file_extension = False
+            scene.view_layers[0].update()  # drivers of a scene that is not the window's are stale otherwise
             bpy.ops.render.render(write_still=True, scene=scene.name)
         finally:
             r.filepath, r.use_file_extension = saved

@@ -1,0 +1,336 @@
+"""Irradiance environment maps in Blender: the world's environment (or a file) -> E(n) EXR, node group.
+
+Core maths in ``addon.core.envmap``; this module reads the world, writes files
+and builds the node group "IL Irradiance Env" (ambient term of seed 003:
+c_diff · k_A · E(n)/π, REFERENCE.md §1).
+"""
+import os
+import time
+
+import bpy
+import numpy as np
+
+from .. import compat
+from ..core import envmap as core
+from ..core import exr
+from ..core.errors import ILError, InputError
+from ..core.fileio import write_json
+
+GROUP = "IL Irradiance Env"
+IMAGE = "IL Irradiance"
+EXR_NAME = "irradiance_latlong.exr"
+REPORT = "envmap_report.json"
+
+
+def image_pixels(image):
+    """A Blender image's float RGB (H, W, 3), row 0 at the top (Blender stores the bottom row first)."""
+    w, h = image.size
+    if w == 0 or h == 0:
+        raise InputError(f"image '{image.name}' has no pixels (missing file?)")
+    px = np.empty(w * h * image.channels, np.float32)
+    image.pixels.foreach_get(px)
+    px = px.reshape(h, w, image.channels)
+    rgb = px[..., :3] if image.channels >= 3 else np.repeat(px[..., :1], 3, axis=-1)
+    return np.flipud(rgb).astype(np.float32)
+
+
+def world_environment(scene):
+    """L(l) of the scene's world: (H, W, 3) lat-long = Environment Texture image × Background Strength.
+
+    Supports the usual set-up Environment Texture -> Background.Color (a Mapping
+    node or other nodes in between are refused rather than silently ignored).
+    """
+    world = scene.world
+    if world is None or world.node_tree is None:
+        raise InputError(f"scene '{scene.name}' has no world with nodes")
+    env_nodes = [n for n in world.node_tree.nodes if n.bl_idname == "ShaderNodeTexEnvironment"]
+    if not env_nodes:
+        raise InputError(f"world '{world.name}' has no Environment Texture node")
+    node = env_nodes[0]
+    if node.image is None:
+        raise InputError(f"the Environment Texture of world '{world.name}' has no image")
+    if node.projection != "EQUIRECTANGULAR":
+        raise InputError("only equirectangular environment textures are supported")
+    if node.inputs["Vector"].is_linked:
+        raise InputError("the Environment Texture has a Vector input (Mapping): remove it or use --env FILE")
+    strength = 1.0
+    for link in node.outputs["Color"].links:
+        if link.to_node.bl_idname == "ShaderNodeBackground":
+            strength = float(link.to_node.inputs["Strength"].default_value)
+            break
+    else:
+        raise InputError("the Environment Texture must feed a Background node's Color directly")
+    env = image_pixels(node.image) * strength
+    core.check_latlong(env, node.image.name)
+    return env, f"world '{world.name}' image '{node.image.name}' × {strength:g}"
+
+
+def compute(env, method="sh9", width=64):
+    """(irradiance map (width/2, width, 3), sh9 (9, 3), seconds)."""
+    t = time.perf_counter()
+    emap, coeffs = core.irradiance_map(env, method, width)
+    return emap, coeffs, time.perf_counter() - t
+
+
+def write_outputs(out, emap, coeffs, method, seconds, source):
+    """``<out>/irradiance_latlong.exr`` (R, G, B = E in W/m²) and ``<out>/envmap_report.json``; returns paths."""
+    os.makedirs(out, exist_ok=True)
+    path = os.path.join(out, EXR_NAME)
+    exr.write_exr(path, {c: emap[..., k] for k, c in enumerate("RGB")},
+                  {"il:quantity": "irradiance E(n) for the normal n of each lat-long direction",
+                   "il:units": "W/m^2", "il:method": method, "il:layout": "Blender equirectangular, top row = +Z",
+                   "il:source": source, "il:blender_version": bpy.app.version_string})
+    report = os.path.join(out, REPORT)
+    write_json(report, {"method": method, "seconds": round(seconds, 6), "source": source,
+                        "width": int(emap.shape[1]), "height": int(emap.shape[0]),
+                        "sh9": [[float(v) for v in row] for row in coeffs]})
+    return path, report
+
+
+def run(out, scene=None, env_file=None, method="sh9", width=64):
+    """Environment from ``env_file`` or the scene's world -> files in ``out``; returns a summary dict."""
+    if env_file:
+        env, source = core.read_latlong(env_file), os.path.abspath(env_file)
+    else:
+        env, source = world_environment(scene or bpy.context.scene)
+    emap, coeffs, seconds = compute(env, method, width)
+    path, report = write_outputs(out, emap, coeffs, method, seconds, source)
+    return {"file": path, "report": report, "seconds": seconds, "map": emap, "sh9": coeffs, "source": source}
+
+
+# ----------------------------------------------------------------------------- node group
+
+
+def load_irradiance_image(path):
+    """The irradiance EXR as the Blender image "IL Irradiance" (reloaded if it exists), linear."""
+    img = bpy.data.images.get(IMAGE)
+    if img is not None and bpy.path.abspath(img.filepath) == os.path.abspath(path):
+        img.reload()
+    else:
+        img = bpy.data.images.load(os.path.abspath(path), check_existing=False)
+        img.name = IMAGE
+    try:
+        img.colorspace_settings.name = "Linear Rec.709"
+    except TypeError:
+        pass
+    return img
+
+
+def _socket(tree, name, in_out, kind, default=None):
+    s = tree.interface.new_socket(name=name, in_out=in_out, socket_type=kind)
+    if default is not None:
+        s.default_value = default
+    return s
+
+
+def ensure_node_group(image):
+    """Node group "IL Irradiance Env" (rebuilt each time): inputs "Diffuse Color" (c_diff), "AO" (k_A, 1 = open),
+    "Strength"; outputs "Color" = c_diff · k_A · E(n)/π · Strength (radiance) and "Emission" (that as a shader).
+
+    E(n) is looked up in the irradiance lat-long ``image`` by the world-space shading normal.
+    """
+    group = bpy.data.node_groups.get(GROUP)
+    if group is None:
+        group = bpy.data.node_groups.new(GROUP, "ShaderNodeTree")
+    group.nodes.clear()
+    group.interface.clear()
+    _socket(group, "Diffuse Color", "INPUT", "NodeSocketColor", (0.8, 0.8, 0.8, 1.0))
+    ao = _socket(group, "AO", "INPUT", "NodeSocketFloat", 1.0)
+    ao.min_value, ao.max_value = 0.0, 1.0
+    _socket(group, "Strength", "INPUT", "NodeSocketFloat", 1.0)
+    _socket(group, "Color", "OUTPUT", "NodeSocketColor")
+    _socket(group, "Emission", "OUTPUT", "NodeSocketShader")
+    n, L = group.nodes, group.links
+    gin, gout = n.new("NodeGroupInput"), n.new("NodeGroupOutput")
+    geo = n.new("ShaderNodeNewGeometry")
+    tex = n.new("ShaderNodeTexEnvironment")
+    tex.image = image
+    tex.interpolation = "Linear"
+    L.new(geo.outputs["Normal"], tex.inputs["Vector"])
+    scale = n.new("ShaderNodeMath")
+    scale.operation = "MULTIPLY"
+    L.new(gin.outputs["AO"], scale.inputs[0])
+    L.new(gin.outputs["Strength"], scale.inputs[1])
+    scale2 = n.new("ShaderNodeMath")
+    scale2.operation = "MULTIPLY"
+    L.new(scale.outputs[0], scale2.inputs[0])
+    scale2.inputs[1].default_value = 1.0 / np.pi
+    mix1 = n.new("ShaderNodeVectorMath")
+    mix1.operation = "MULTIPLY"
+    L.new(tex.outputs["Color"], mix1.inputs[0])
+    L.new(gin.outputs["Diffuse Color"], mix1.inputs[1])
+    mix2 = n.new("ShaderNodeVectorMath")
+    mix2.operation = "SCALE"
+    L.new(mix1.outputs["Vector"], mix2.inputs[0])
+    L.new(scale2.outputs[0], mix2.inputs["Scale"])
+    em = n.new("ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 1.0
+    L.new(mix2.outputs["Vector"], em.inputs["Color"])
+    L.new(mix2.outputs["Vector"], gout.inputs["Color"])
+    L.new(em.outputs["Emission"], gout.inputs["Emission"])
+    for k, node in enumerate((gin, geo, tex, scale, scale2, mix1, mix2, em, gout)):
+        node.location = (200 * k, 0)
+    return group
+
+
+def irradiance_material(name, group, diffuse=(0.8, 0.8, 0.8), ao_image=None, uv_layer=""):
+    """A material whose surface is the group's "Emission"; with ``ao_image`` the baked AO (its Y/R channel,
+    read through UV layer ``uv_layer``) drives "AO" (k_A)."""
+    mat = bpy.data.materials.new(name)
+    compat.ensure_use_nodes(mat)
+    nt = mat.node_tree
+    nt.nodes.clear()
+    g = nt.nodes.new("ShaderNodeGroup")
+    g.node_tree = group
+    g.inputs["Diffuse Color"].default_value = (*diffuse, 1.0)
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    nt.links.new(g.outputs["Emission"], out.inputs["Surface"])
+    if ao_image is not None:
+        uv = nt.nodes.new("ShaderNodeUVMap")
+        uv.uv_map = uv_layer
+        tex = nt.nodes.new("ShaderNodeTexImage")
+        tex.image = ao_image
+        try:
+            ao_image.colorspace_settings.name = "Non-Color"
+        except TypeError:
+            pass
+        nt.links.new(uv.outputs["UV"], tex.inputs["Vector"])
+        nt.links.new(tex.outputs["Color"], g.inputs["AO"])
+    return mat
+
+
+# ----------------------------------------------------------------------------- Cycles comparison
+
+
+def set_world_environment(scene, image, strength=1.0):
+    """A world with Environment Texture(image) -> Background(strength) (a new world; the old one is kept)."""
+    w = bpy.data.worlds.new(f"{scene.name} IL Env")
+    compat.ensure_use_nodes(w)
+    nt = w.node_tree
+    bg = nt.nodes.get("Background") or nt.nodes.new("ShaderNodeBackground")
+    tex = nt.nodes.new("ShaderNodeTexEnvironment")
+    tex.image = image
+    nt.links.new(tex.outputs["Color"], bg.inputs["Color"])
+    bg.inputs["Strength"].default_value = strength
+    scene.world = w
+    return w
+
+
+def cycles_sphere_irradiance(scene, sphere, samples=64, out=None):
+    """Cycles irradiance bake (E = π × DIFFUSE bake) at the vertices of ``sphere`` through the light-map
+    pipeline (addon.bake, vertex target); returns (E (V, 3), world normals (V, 3), seconds)."""
+    import tempfile
+    from ..bake import BakeOptions, bake_lightmaps
+    t = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="il_env_bake_") as tmp:
+        folder = out or tmp
+        report = bake_lightmaps([sphere], ["irradiance"], folder,
+                                BakeOptions(target="vertex", samples=samples, bounces=0, overwrite=True),
+                                scene=scene)
+        ch, _ = exr.read_exr(report["objects"][sphere.name]["irradiance"]["file"])
+        E = np.stack([ch["R"][0], ch["G"][0], ch["B"][0]], axis=-1)
+    mw = np.array(sphere.matrix_world.to_3x3().inverted().transposed())
+    nrm = np.empty(len(sphere.data.vertices) * 3, np.float32)
+    sphere.data.vertices.foreach_get("normal", nrm)
+    nrm = nrm.reshape(-1, 3) @ mw.T
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    if len(E) != len(nrm):
+        raise ILError(f"vertex bake returned {len(E)} values for {len(nrm)} vertices")
+    return E, nrm, time.perf_counter() - t
+
+
+# ----------------------------------------------------------------------------- benchmark sweeps
+
+
+def _sharp_env(h, w, radius_deg=10.0, power=40.0):
+    d = core.latlong_directions(h, w)
+    env = core.linear_sky(h, w, 0.5, 0.2)
+    axis = np.array([0.5, 0.5, 0.7071]) / np.linalg.norm([0.5, 0.5, 0.7071])
+    return env + power * (d @ axis > np.cos(np.radians(radius_deg)))[..., None] * np.array([1.0, 0.8, 0.6])
+
+
+def sweeps(out_dir, quick=False):
+    """Speed and accuracy of the irradiance maps and of radiosity, for the project bench.
+
+    Returns {"tables": {name: rows}, "charts": [png paths], "figures": {name: value}}.
+    """
+    from ..core import charts as ch
+    from . import radiosity as lrad
+    from ..core import radiosity as rcore
+    os.makedirs(out_dir, exist_ok=True)
+    tables, figs, pngs = {}, {}, []
+
+    # SH9 timing on a 1024x512 environment (best of 3), brute force for scale
+    env = _sharp_env(512, 1024)
+    best = min(_timed(lambda: core.irradiance_map_sh9(env, 64)) for _ in range(3))
+    figs["sh9_1024x512_seconds"] = best
+    n64 = core.latlong_directions(32, 64)
+    tb = _timed(lambda: core.irradiance_brute(env, n64, max_width=256))
+    figs["brute_1024x512_seconds"] = tb
+
+    # accuracy of SH9 against brute force as the light gets sharper
+    rows = []
+    small = _sharp_env(128, 256, 1.0, 0.0)
+    for r in ((5, 20, 60) if quick else (2, 5, 10, 20, 40, 60, 90)):
+        e = _sharp_env(128, 256, r, 40.0)
+        ref = core.irradiance_brute(e, n64)
+        ts = _timed(lambda: core.irradiance_map_sh9(e, 64))
+        sh = core.irradiance_map_sh9(e, 64)
+        rows.append({"light_radius_deg": r, "sh9_rel_rms": float(np.sqrt(np.mean((sh - ref) ** 2)) / np.mean(ref)),
+                     "sh9_rel_max": float(np.max(np.abs(sh - ref)) / np.max(ref)), "sh9_seconds": ts})
+    del small
+    tables["envmap_sh9_accuracy"] = rows
+    pngs.append(ch.line_chart(os.path.join(out_dir, "envmap_sh9_accuracy.png"),
+                              {"relative RMS": ([r["light_radius_deg"] for r in rows], [r["sh9_rel_rms"] for r in rows]),
+                               "max / max E": ([r["light_radius_deg"] for r in rows], [r["sh9_rel_max"] for r in rows])},
+                              "Nine SH coefficients vs brute-force E(n)", "light radius (degrees)", "error", logy=True))
+
+    # brute force: speed against accuracy as the environment is box-filtered
+    rows = []
+    ref = core.irradiance_brute(env, n64, max_width=512)
+    for mw in ((32, 64, 128) if quick else (16, 32, 64, 128, 256)):
+        t = _timed(lambda: core.irradiance_brute(env, n64, max_width=mw))
+        e = core.irradiance_brute(env, n64, max_width=mw)
+        rows.append({"max_width": mw, "seconds": t, "rel_rms": float(np.sqrt(np.mean((e - ref) ** 2)) / np.mean(ref))})
+    tables["envmap_brute_speed"] = rows
+    pngs.append(ch.scatter_chart(os.path.join(out_dir, "envmap_brute_speed.png"),
+                                 {f"{r['max_width']} px": (r["seconds"], max(r["rel_rms"], 1e-9)) for r in rows},
+                                 "Brute-force E(n): speed vs accuracy", "seconds", "relative RMS vs 512 px", logx=True,
+                                 logy=True))
+
+    # radiosity: cost against patches (visibility by BVH rays, form factors, solve)
+    rows, last = [], None
+    meshes = rcore.cornell_box()
+    for edge in ((0.5, 0.25) if quick else (0.5, 0.25, 0.125)):
+        r = lrad.solve_scene(meshes, edge, "gauss_seidel", 1e-6)
+        t = r["timings"]
+        rows.append({"max_edge": edge, "patches": len(r["patches"]), "visibility_s": t["visibility"],
+                     "form_factors_s": t["form_factors"], "solve_s": t["solve"], "total_s": t["total"]})
+        last = r
+    tables["radiosity_cost"] = rows
+    pngs.append(ch.line_chart(os.path.join(out_dir, "radiosity_cost.png"),
+                              {k: ([r["patches"] for r in rows], [r[k] for r in rows])
+                               for k in ("visibility_s", "form_factors_s", "solve_s", "total_s")},
+                              "Radiosity cost (Cornell box)", "patches", "seconds", logx=True, logy=True))
+    big = rows[-1]
+    figs["radiosity_patches"] = big["patches"]
+    figs["radiosity_seconds"] = big["total_s"]
+    sols = lrad.convergence(last["F"], last["patches"], 1e-6)
+    pngs.append(lrad.convergence_chart(os.path.join(out_dir, "radiosity_convergence.png"), sols, len(last["patches"])))
+    tables["radiosity_solvers"] = [{"solver": s, "patches": len(last["patches"]), "iterations": so.iterations,
+                                    "seconds": so.seconds, "final_residual": so.residuals[-1]} for s, so in sols.items()]
+    tables["targets"] = [
+        {"measure": "SH9 irradiance of 1024x512, seconds", "value": figs["sh9_1024x512_seconds"], "target": "<= 0.2"},
+        {"measure": "brute-force E of 1024x512 (64x32 map), seconds", "value": tb, "target": "-"},
+        {"measure": f"radiosity of {big['patches']} patches incl. visibility, s", "value": big["total_s"],
+         "target": "<= 30" if big["patches"] >= 2000 else "-"},
+    ]
+    for name, rows_ in tables.items():
+        ch.write_csv(os.path.join(out_dir, f"{name}.csv"), rows_)
+    return {"tables": tables, "charts": pngs, "figures": figs}
+
+
+def _timed(fn):
+    t = time.perf_counter()
+    fn()
+    return time.perf_counter() - t

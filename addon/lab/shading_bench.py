@@ -1,0 +1,440 @@
+"""Shading models measured: node groups against their numpy twins, against Blender's closures, and their cost.
+
+- :func:`render_group_sweep` renders spheres shaded by one node group with fixed inputs
+  (orthographic camera, 1 sample, Normal pass): every pixel is one (n, l, v) triple.
+- :func:`sweeps` is the benchmark (``scripts/brdf_compare.py`` and the project-wide bench call it).
+- :func:`demo_step` shades the demo scene with the three models.
+"""
+import os
+import time
+
+import bpy
+import numpy as np
+
+from .. import compat
+from ..core import brdf, charts
+from ..core.errors import InputError
+from ..nodes import groups, material
+from ..progress import Progress
+from . import render, scene as sc
+
+V_ORTHO = np.array([0.0, -1.0, 0.0])  # toward the viewer of the sweep camera (which looks along +Y)
+
+
+# -- scenes -----------------------------------------------------------------------------------------
+
+def sphere_grid(name, count, size=96, segments=64, rings=32):
+    """A scene with ``count`` unit spheres in a grid, an orthographic camera looking along +Y, black world."""
+    cols = int(np.ceil(np.sqrt(count)))
+    rows = int(np.ceil(count / cols))
+    scene = sc.new_scene(name, (size * cols // max(cols, rows), size * rows // max(cols, rows)))
+    spheres = []
+    for k in range(count):
+        r, c = divmod(k, cols)
+        obj = sc.sphere(scene, f"{name} S{k}", 1.0, location=(2.2 * c, 0.0, -2.2 * r), segments=segments,
+                        rings=rings)
+        obj.pass_index = k + 1
+        spheres.append(obj)
+    center = (2.2 * (cols - 1) / 2, -10.0, -2.2 * (rows - 1) / 2)
+    sc.camera(scene, f"{name} Cam", center, target=(center[0], 0.0, center[2]),
+              ortho_scale=2.2 * max(cols, rows))
+    sc.world(scene, strength=0.0)
+    vl = scene.view_layers[0]
+    vl.use_pass_normal = True
+    vl.use_pass_object_index = True
+    vl.use_pass_position = True
+    return scene, spheres
+
+
+def group_material(name, group_name, inputs, output="Emission"):
+    """A material whose surface is the node group's ``output`` with constant ``inputs``."""
+    mat = bpy.data.materials.new(name)
+    compat.ensure_use_nodes(mat)
+    nt = mat.node_tree
+    nt.nodes.clear()
+    node = nt.nodes.new("ShaderNodeGroup")
+    node.node_tree = groups.ensure_group(group_name)
+    set_inputs(node, inputs)
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    nt.links.new(node.outputs[output], out.inputs["Surface"])
+    return mat
+
+
+def set_inputs(node, inputs):
+    for key, value in inputs.items():
+        socket = node.inputs[key]
+        if isinstance(value, (tuple, list)) and len(socket.default_value) == 4 and len(value) == 3:
+            value = (*value, 1.0)
+        socket.default_value = value
+
+
+def closure_material(name, kind, color=(1.0, 1.0, 1.0), roughness=0.0, distribution="GGX"):
+    """A material with one of Blender's BSDFs: 'DIFFUSE', 'GLOSSY' or 'PRINCIPLED'."""
+    mat = bpy.data.materials.new(name)
+    compat.ensure_use_nodes(mat)
+    nt = mat.node_tree
+    nt.nodes.clear()
+    node = nt.nodes.new({"DIFFUSE": "ShaderNodeBsdfDiffuse", "GLOSSY": "ShaderNodeBsdfGlossy",
+                         "PRINCIPLED": "ShaderNodeBsdfPrincipled"}[kind])
+    node.inputs["Color" if kind != "PRINCIPLED" else "Base Color"].default_value = (*color, 1.0)
+    node.inputs["Roughness"].default_value = roughness
+    if kind == "GLOSSY":
+        node.distribution = distribution
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    nt.links.new(node.outputs[0], out.inputs["Surface"])
+    return mat
+
+
+def assign(obj, mat):
+    obj.data.materials.clear()
+    obj.data.materials.append(mat)
+
+
+def render_pixels(scene, samples=1, seed=0, bounces=0):
+    """Render (direct light only by default: the models are local); return per-object pixel data
+    {pass_index: {"n", "p", "L"}} (background dropped)."""
+    render.cycles_cpu(scene, samples=samples, seed=seed)
+    scene.cycles.filter_width = 0.01
+    scene.cycles.max_bounces = bounces
+    # drivers of a scene that is not the window's scene are not evaluated by the render itself
+    scene.view_layers[0].update()
+    passes = render.render_layers(scene)
+    index = np.rint(passes[compat.OBJECT_INDEX_PASS]).astype(int)
+    out = {}
+    for k in np.unique(index):
+        if k <= 0:
+            continue
+        m = index == k
+        out[int(k)] = {"n": passes["Normal"][..., :3][m].astype(float),
+                       "p": passes["Position"][..., :3][m].astype(float),
+                       "L": passes["Combined"][..., :3][m].astype(float)}
+    return out
+
+
+def render_group_sweep(group_name, cases, size=96):
+    """Render one sphere per case (dict of group inputs); return [{"n", "v", "L", "inputs"}] per case."""
+    scene, spheres = sphere_grid("IL sweep", len(cases), size)
+    mats = []
+    try:
+        for k, (obj, inputs) in enumerate(zip(spheres, cases)):
+            mats.append(group_material(f"IL sweep {k}", group_name, inputs))
+            assign(obj, mats[-1])
+        pix = render_pixels(scene)
+    finally:
+        _remove_scene(scene, mats)
+    return [dict(pix.get(k + 1, {"n": np.zeros((0, 3)), "p": np.zeros((0, 3)), "L": np.zeros((0, 3))}),
+                 v=V_ORTHO, inputs=inputs) for k, inputs in enumerate(cases)]
+
+
+def _remove_scene(scene, mats=()):
+    objs = list(scene.objects)
+    datas = [o.data for o in objs]
+    worlds = [scene.world] if scene.world else []
+    bpy.data.scenes.remove(scene)
+    for o in objs:
+        bpy.data.objects.remove(o)
+    for d in datas:
+        if d is None or d.users:
+            continue
+        for kind, coll in ((bpy.types.Mesh, bpy.data.meshes), (bpy.types.Light, bpy.data.lights),
+                           (bpy.types.Camera, bpy.data.cameras)):
+            if isinstance(d, kind):
+                coll.remove(d)
+                break
+    for w in worlds:
+        if w.users == 0:
+            bpy.data.worlds.remove(w)
+    for m in mats:
+        if m.users == 0:
+            bpy.data.materials.remove(m)
+
+
+# -- twins of the group inputs ----------------------------------------------------------------------
+
+def _rgb(x):
+    return np.asarray(x, float)[:3] if np.ndim(x) else float(x)
+
+
+def twin(group_name, n, v, inputs):
+    """The numpy twin of ``group_name`` evaluated with the group's ``inputs`` (missing ones at defaults)."""
+    spec = {name: default for name, _, default, *_ in groups.INPUTS[group_name]}
+    spec.update(inputs)
+    p = {k: _rgb(val) for k, val in spec.items()}
+    l, I = p["Light Vector"], p["Light Color"]
+    if group_name in (groups.PHONG, groups.BLINN_PHONG):
+        fn = brdf.phong if group_name == groups.PHONG else brdf.blinn_phong
+        return fn(n, l, v, I, ka=p["Ka"], ambient_light=p["Ambient Light"], kd=p["Kd"], ks=p["Ks"],
+                  shininess=p["Shininess"], emission=p["Emission Color"], normalized=p["Normalized"])
+    if group_name == groups.OREN_NAYAR:
+        return brdf.oren_nayar(n, l, v, I, albedo=p["Albedo"], sigma=p["Sigma"])
+    if group_name == groups.COOK_TORRANCE:
+        return brdf.cook_torrance(n, l, v, I, kd=p["Kd"], ks=p["Ks"], F0=p["F0"], roughness=p["Roughness"],
+                                  distribution=p["Distribution"], geometry=p["Geometry"])
+    raise InputError(f"no twin for '{group_name}'")
+
+
+#: Light vectors of the sweep: frontal, oblique, grazing (l perpendicular to v), behind the sphere.
+SWEEP_LIGHTS = [(0.0, -1.0, 0.0), (2.0, -1.0, 1.5), (1.0, 0.0, 0.0), (-0.3, 1.0, 0.4)]
+
+SWEEP_CASES = {
+    groups.PHONG: [dict(Shininess=20.0, Ks=0.6), dict(Shininess=5.0, Ks=0.4, Normalized=1.0)],
+    groups.BLINN_PHONG: [dict(Shininess=40.0, Ks=0.6), dict(Shininess=10.0, Ks=0.4, Normalized=1.0)],
+    groups.OREN_NAYAR: [dict(Sigma=0.0), dict(Sigma=0.5), dict(Sigma=1.2)],
+    groups.COOK_TORRANCE: [dict(Roughness=0.3, Distribution=0.0, Geometry=0.0, F0=0.2),
+                           dict(Roughness=0.2, Distribution=1.0, Geometry=1.0, F0=0.9),
+                           dict(Roughness=0.5, Distribution=0.0, Geometry=1.0, F0=0.04),
+                           dict(Roughness=0.4, Distribution=1.0, Geometry=0.0, F0=0.5)],
+}
+
+
+def sweep_cases(group_name):
+    """Every parameter set of SWEEP_CASES crossed with every SWEEP_LIGHTS vector (colour 0.9, 0.7, 0.5)."""
+    return [dict(case, **{"Light Vector": l, "Light Color": (0.9, 0.7, 0.5)})
+            for case in SWEEP_CASES[group_name] for l in SWEEP_LIGHTS]
+
+
+def node_vs_twin(group_name, size=96):
+    """Max |node - twin| over every pixel of every case, and the peak twin value."""
+    results = render_group_sweep(group_name, sweep_cases(group_name), size)
+    err, peak, count = 0.0, 0.0, 0
+    for r in results:
+        ref = twin(group_name, r["n"], r["v"], r["inputs"])
+        err = max(err, float(np.max(np.abs(r["L"] - ref), initial=0.0)))
+        peak = max(peak, float(np.max(ref, initial=0.0)))
+        count += len(ref)
+    return {"group": group_name, "pixels": count, "max_abs_error": err, "peak": peak,
+            "relative_error": err / peak if peak else 0.0}
+
+
+# -- against Blender's closures ---------------------------------------------------------------------
+
+def _lit_sphere_scene(name, count, size, sun_rotation):
+    scene, spheres = sphere_grid(name, count, size, segments=96, rings=48)
+    sun = sc.light(scene, f"{name} Sun", "SUN", np.pi, rotation=sun_rotation)
+    if hasattr(sun.data, "use_shadow"):
+        sun.data.use_shadow = False  # IL materials do not shadow: compare shading, not the terminator
+    return scene, spheres, sun
+
+
+def closure_comparison(kind, values, size=64, samples=16):
+    """Render spheres with Blender's Diffuse ('OREN_NAYAR') or Glossy GGX ('COOK_TORRANCE') BSDF at roughness
+    ``values`` and the IL group (assigned with the same sun, physical units) at the matching parameter.
+
+    IL Oren-Nayar uses sigma = roughness (radians); IL Cook-Torrance uses F0 = 1, k_d = 0, alpha = roughness^2.
+    Returns rows and per-value pixel data for charts.
+    """
+    # sun from the upper left front: l = (-0.5, -0.5, 0.707); v = (0, -1, 0)
+    rot = sc.deg(45, 0, 225)
+    scene, spheres, sun = _lit_sphere_scene(f"IL closures {kind}", len(values), size, rot)
+    blender, il = [], []
+    try:
+        for k, val in enumerate(values):
+            if kind == "OREN_NAYAR":
+                blender.append(closure_material(f"B{k}", "DIFFUSE", roughness=val))
+                params = {"Albedo": (1.0, 1.0, 1.0), "Sigma": float(val)}
+            else:
+                blender.append(closure_material(f"B{k}", "GLOSSY", roughness=val, distribution="GGX"))
+                params = {"Kd": (0.0, 0.0, 0.0), "Ks": 1.0, "F0": 1.0, "Roughness": float(val) ** 2,
+                          "Distribution": 1.0, "Geometry": 1.0}
+            il.append(material.assign_shading_model(scene, [spheres[k], sun], kind, lights="SELECTED",
+                                                    params=params, name=f"IL{k}")[0])
+        pix_il = render_pixels(scene, samples=samples)
+        for obj, mat in zip(spheres, blender):
+            assign(obj, mat)
+        pix_b = render_pixels(scene, samples=samples)  # same seed and pixels: only the shading differs
+    finally:
+        _remove_scene(scene, blender + il)
+    l = -np.array(_sun_direction(rot))
+    rows, data = [], []
+    for k, val in enumerate(values):
+        b, i = pix_b[k + 1], pix_il[k + 1]
+        lb, li = b["L"].mean(-1), i["L"].mean(-1)
+        diff = lb - li
+        peak = float(max(lb.max(initial=0), li.max(initial=0), 1e-12))
+        rms = float(np.sqrt(np.mean(diff ** 2)))
+        rows.append({"model": kind, "blender_roughness": float(val), "pixels": int(len(lb)),
+                     "rms_difference": rms, "peak": peak, "relative_rms": rms / peak,
+                     "mean_blender": float(lb.mean()), "mean_il": float(li.mean())})
+        data.append({"value": val, "n_blender": b["n"], "L_blender": lb, "n_il": i["n"], "L_il": li})
+    return rows, data, l
+
+
+def _sun_direction(rot):
+    from mathutils import Euler, Vector
+    return tuple(Euler(rot, "XYZ").to_matrix() @ Vector((0, 0, -1)))
+
+
+def best_sigma(n, L, l, v=V_ORTHO):
+    """The IL Oren-Nayar sigma whose twin best fits radiance ``L`` (white albedo, I = 1) in least squares."""
+    sigmas = np.linspace(0.0, 3.0, 301)
+    errs = [np.mean((brdf.oren_nayar(n, l, v, np.ones(3), np.ones(3), s)[:, 0] - L) ** 2) for s in sigmas]
+    k = int(np.argmin(errs))
+    return float(sigmas[k]), float(np.sqrt(errs[k]))
+
+
+# -- cost ---------------------------------------------------------------------------------------------
+
+def render_cost(size=128, samples=32):
+    """Seconds of one Cycles render with IL Cook-Torrance vs Principled BSDF, same scene and samples."""
+    scene = sc.new_scene("IL cost", (size, size))
+    sc.plane(scene, "Cost Floor", 8.0)
+    ball = sc.sphere(scene, "Cost Ball", 0.8, location=(0, 0, 0.8))
+    sc.light(scene, "Cost Sun", "SUN", 3.0, rotation=sc.deg(40, 0, 30))
+    sc.light(scene, "Cost Key", "POINT", 300.0, location=(2.0, -3.0, 3.5))
+    sc.camera(scene, "Cost Cam", (0.0, -5.0, 3.0), target=(0, 0, 0.6))
+    sc.world(scene, strength=0.2)
+    objs = [o for o in scene.objects if o.type == "MESH"]
+    mats = []
+    try:
+        il, _ = material.assign_shading_model(scene, objs, "COOK_TORRANCE",
+                                              params={"Roughness": 0.3, "Kd": (0.5, 0.5, 0.5)})
+        mats.append(il)
+        principled = closure_material("Cost Principled", "PRINCIPLED", (0.5, 0.5, 0.5), 0.5)
+        mats.append(principled)
+        render.cycles_cpu(scene, samples=samples)
+        times = {}
+        for label, mat in (("il_cook_torrance", il), ("principled", principled)):
+            for o in objs:
+                assign(o, mat)
+            t = time.perf_counter()
+            render.render_layers(scene)
+            times[label] = time.perf_counter() - t
+    finally:
+        _remove_scene(scene, mats)
+    return {"size": size, "samples": samples, "seconds_il": times["il_cook_torrance"],
+            "seconds_principled": times["principled"],
+            "ratio_il_over_principled": times["il_cook_torrance"] / times["principled"]}
+
+
+# -- charts of the twins ------------------------------------------------------------------------------
+
+def twin_charts(out_dir):
+    """Radiance of each model in the plane of incidence against the view angle, for several incidence angles."""
+    paths = []
+    tv = np.radians(np.linspace(-89, 89, 179))
+    v = np.stack([np.sin(tv), np.zeros_like(tv), np.cos(tv)], -1)
+    N = np.array([0.0, 0.0, 1.0])
+    one = np.ones(3)
+    models = {
+        "phong": lambda l: brdf.phong(N, l, v, one, kd=(0.5,) * 3, ks=0.5, shininess=20.0),
+        "phong_normalized": lambda l: brdf.phong(N, l, v, one, kd=(0.5,) * 3, ks=0.5, shininess=20.0,
+                                                 normalized=1.0),
+        "blinn_phong": lambda l: brdf.blinn_phong(N, l, v, one, kd=(0.5,) * 3, ks=0.5, shininess=20.0),
+        "oren_nayar_sigma0.5": lambda l: brdf.oren_nayar(N, l, v, one, one, 0.5),
+        "cook_torrance_ggx": lambda l: brdf.cook_torrance(N, l, v, one, kd=(0.2,) * 3, ks=1.0, F0=0.04,
+                                                          roughness=0.3),
+        "cook_torrance_beckmann": lambda l: brdf.cook_torrance(N, l, v, one, kd=(0.2,) * 3, ks=1.0, F0=0.04,
+                                                               roughness=0.3, distribution=0.0, geometry=0.0),
+    }
+    for name, fn in models.items():
+        series = {}
+        for ti in (0, 30, 60, 80):
+            l = brdf.direction(np.radians(ti), np.pi)
+            series[f"incidence {ti} deg"] = (np.degrees(tv), fn(l)[:, 0])
+        paths.append(charts.line_chart(os.path.join(out_dir, f"brdf_{name}.png"), series,
+                                       f"{name}: radiance in the plane of incidence (I = 1)",
+                                       "view angle (deg, + = mirror side)", "radiance L / I"))
+    return paths
+
+
+def _profile_chart(path, data, l, title, label_fn):
+    """Mean radiance over the sphere's pixels binned by the angle between n and l (3 degree bins)."""
+    series = {}
+    edges = np.arange(0.0, 93.0, 3.0)
+    for d in data:
+        for who in ("blender", "il"):
+            n, L = d[f"n_{who}"], d[f"L_{who}"]
+            ang = np.degrees(np.arccos(np.clip(n @ np.asarray(l), -1.0, 1.0)))
+            k = np.digitize(ang, edges) - 1
+            mids, means = [], []
+            for b in range(len(edges) - 1):
+                m = k == b
+                if np.any(m):
+                    mids.append((edges[b] + edges[b + 1]) / 2)
+                    means.append(float(np.mean(L[m])))
+            series[label_fn(d["value"], who)] = (np.array(mids), np.array(means))
+    return charts.line_chart(path, series, title, "angle between n and l (deg)",
+                             "mean radiance over the bin (W m^-2 sr^-1)")
+
+
+def sweeps(out_dir, quick=False):
+    """The shading benchmark: node-vs-twin errors, node-vs-Blender-closure differences, render cost.
+
+    Returns {"tables": {name: [rows]}, "charts": [png paths], "figures": {...}}.
+    """
+    os.makedirs(out_dir, exist_ok=True)
+    groups.add_node_groups()
+    size = 64 if quick else 128
+    steps = ["twin charts", "node groups vs twins", "Oren-Nayar vs Diffuse BSDF",
+             "Cook-Torrance vs Glossy BSDF", "render cost"]
+    tables, chart_paths, figures = {}, [], {}
+    with Progress("shading", len(steps)) as progress:
+        progress.step(steps[0])
+        chart_paths += twin_charts(out_dir)
+
+        progress.step(steps[1])
+        rows = []
+        for name in (groups.PHONG, groups.BLINN_PHONG, groups.OREN_NAYAR, groups.COOK_TORRANCE):
+            t = time.perf_counter()
+            row = node_vs_twin(name, size=48 if quick else 96)
+            row["seconds"] = time.perf_counter() - t
+            rows.append(row)
+        tables["shading_node_vs_twin"] = rows
+        figures["node_vs_twin_max_relative_error"] = max(r["relative_error"] for r in rows)
+
+        progress.step(steps[2])
+        values = (0.0, 0.5, 1.0) if quick else (0.0, 0.25, 0.5, 0.75, 1.0)
+        on_rows, on_data, l = closure_comparison("OREN_NAYAR", values, size=size, samples=8 if quick else 32)
+        for row, d in zip(on_rows, on_data):
+            sigma, rms = best_sigma(d["n_blender"], d["L_blender"], l)
+            row["best_fit_sigma"], row["best_fit_rms"] = sigma, rms
+        tables["shading_oren_nayar_vs_diffuse"] = on_rows
+        chart_paths.append(_profile_chart(os.path.join(out_dir, "oren_nayar_vs_diffuse.png"), on_data, l,
+                                          "IL Oren-Nayar (sigma = r) vs Diffuse BSDF (roughness r)",
+                                          lambda r, who: f"{'Blender' if who == 'blender' else 'IL'} r={r:g}"))
+        figures["oren_nayar_sigma0_relative_rms"] = on_rows[0]["relative_rms"]
+
+        progress.step(steps[3])
+        values = (0.2, 0.5) if quick else (0.1, 0.2, 0.3, 0.5, 0.7)
+        ct_rows, ct_data, l = closure_comparison("COOK_TORRANCE", values, size=size, samples=8 if quick else 32)
+        tables["shading_cook_torrance_vs_glossy"] = ct_rows
+        chart_paths.append(_profile_chart(os.path.join(out_dir, "cook_torrance_vs_glossy.png"), ct_data, l,
+                                          "IL Cook-Torrance (GGX, Smith, F=1, alpha=r^2) vs Glossy GGX (r)",
+                                          lambda r, who: f"{'Blender' if who == 'blender' else 'IL'} r={r:g}"))
+        figures["cook_torrance_vs_glossy_max_relative_rms"] = max(r["relative_rms"] for r in ct_rows)
+
+        progress.step(steps[4])
+        cost = render_cost(size=64 if quick else 256, samples=8 if quick else 64)
+        tables["shading_render_cost"] = [cost]
+        figures["render_time_ratio_il_ct_over_principled"] = cost["ratio_il_over_principled"]
+    for name, rows in tables.items():
+        charts.write_csv(os.path.join(out_dir, f"{name}.csv"), rows)
+    return {"tables": tables, "charts": chart_paths, "figures": figures}
+
+
+# -- demo ---------------------------------------------------------------------------------------------
+
+DEMO_MODELS = {"Box": ("PHONG", {"Kd": (0.8, 0.3, 0.2), "Ks": 0.5, "Shininess": 40.0}),
+               "Torus": ("OREN_NAYAR", {"Albedo": (0.3, 0.6, 0.8), "Sigma": 0.6}),
+               "Sphere": ("COOK_TORRANCE", {"Kd": (0.1, 0.1, 0.1), "F0": 0.9, "Roughness": 0.25})}
+
+
+def demo_step(scene, out, quick=False):
+    """Shade the demo scene: Phong on "Box", Oren-Nayar on "Torus", Cook-Torrance on "Sphere".
+
+    Returns figures for the demo report: {"seconds", "materials": {object: material}, "lights", "warnings"}.
+    """
+    t = time.perf_counter()
+    groups.add_node_groups()
+    mats, warnings = {}, []
+    for obj_name, (model, params) in DEMO_MODELS.items():
+        obj = scene.objects.get(obj_name)
+        if obj is None:
+            raise InputError(f"the demo scene has no object '{obj_name}'")
+        mat, w = material.assign_shading_model(scene, [obj], model, params=params,
+                                               name=f"IL {material.MODEL_LABELS[model]} ({obj_name})")
+        mats[obj_name] = mat.name
+        warnings += w
+    lights = [o.name for o in material.scene_lights(scene)]
+    return {"seconds": time.perf_counter() - t, "materials": mats, "lights": lights, "warnings": warnings,
+            "models": {k: v[0] for k, v in DEMO_MODELS.items()}}

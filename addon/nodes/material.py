@@ -1,0 +1,306 @@
+"""Materials that sum a shading model over the scene's lights, each light linked by drivers.
+
+A material built here holds, left to right:
+- a frame "Parameters" with one Value or RGB node per model input (what the panel edits),
+  fanned out to every light's model node, and a frame "Attenuation" (Physical, C1, C2, C3,
+  Spot Exponent) fanned out to every "IL Light" node;
+- one frame per light: an "IL Light" node whose Position, Direction, Color, Power and
+  Spot Cutoff are driven by the light object (moving or editing the light updates the
+  shading), feeding the model's node group;
+- the sum of the per-light radiances (superposition) into one Emission shader.
+Ambient and emission terms enter once (first light only). Without lights the material
+still works: one model node with a black light, i.e. ambient and emission only.
+"""
+import bpy
+
+from .. import compat
+from ..core.errors import InputError
+from ..core.lights import TYPES
+from . import groups
+
+MODEL_LABELS = {"PHONG": "Phong", "BLINN_PHONG": "Blinn-Phong", "OREN_NAYAR": "Oren-Nayar",
+                "COOK_TORRANCE": "Cook-Torrance"}
+ONCE_ONLY = {"Ka": 0.0, "Emission Color": (0.0, 0.0, 0.0, 1.0)}
+ATTENUATION_INPUTS = ("Physical", "C1", "C2", "C3", "Spot Exponent")
+DRIVER_PREFIX = 'nodes["IL Light:'
+
+#: -Z axis of the world rotation (Euler XYZ: R = Rz Ry Rx), the way a light points; simple expressions only.
+DIRECTION_EXPR = ("-(cos(z)*sin(y)*cos(x) + sin(z)*sin(x))",
+                  "-(sin(z)*sin(y)*cos(x) - cos(z)*sin(x))",
+                  "-(cos(y)*cos(x))")
+
+
+def model_parameters(model):
+    """[(name, socket type, default)] of the model's parameters (every input but the light's two)."""
+    return [(n, t, d) for n, t, d, *_ in groups.INPUTS[groups.MODEL_GROUPS[model]]
+            if n not in ("Light Vector", "Light Color")]
+
+
+def light_type(obj):
+    """The IL Light "Type" of a Blender light (a sun with the custom property il_hemi is a hemisphere)."""
+    kind = obj.data.type
+    if kind == "SUN" and obj.data.get("il_hemi"):
+        return TYPES["HEMI"]
+    return {"POINT": TYPES["POINT"], "SPOT": TYPES["SPOT"], "SUN": TYPES["SUN"]}.get(kind)
+
+
+def scene_lights(scene, mode="ALL", selected=()):
+    """Light objects to link: every renderable light of the scene, or the selected ones."""
+    pool = selected if mode == "SELECTED" else scene.objects
+    return [o for o in pool if o.type == "LIGHT" and not o.hide_render and o.name in scene.objects]
+
+
+# -- drivers ----------------------------------------------------------------------------------------
+
+def _driver(socket, index, expression, variables):
+    fcurve = socket.driver_add("default_value", index) if index is not None else socket.driver_add("default_value")
+    drv = fcurve.driver
+    drv.type = "SCRIPTED"
+    for var in list(drv.variables):
+        drv.variables.remove(var)
+    for name, setup in variables:
+        var = drv.variables.new()
+        var.name = name
+        setup(var)
+    drv.expression = expression
+    return fcurve
+
+
+def _transform(obj, kind):
+    def setup(var):
+        var.type = "TRANSFORMS"
+        t = var.targets[0]
+        t.id = obj
+        t.transform_type = kind
+        t.transform_space = "WORLD_SPACE"
+        if kind.startswith("ROT"):
+            t.rotation_mode = "XYZ"
+    return setup
+
+
+def _prop(light_data, path):
+    def setup(var):
+        var.type = "SINGLE_PROP"
+        t = var.targets[0]
+        t.id_type = "LIGHT"
+        t.id = light_data
+        t.data_path = path
+    return setup
+
+
+def link_light(node, obj):
+    """Drive ``node`` (an "IL Light" group node) from the light object ``obj``."""
+    data = obj.data
+    pos, dirn = node.inputs["Position"], node.inputs["Direction"]
+    for k, axis in enumerate("XYZ"):
+        _driver(pos, k, "p", [("p", _transform(obj, f"LOC_{axis}"))])
+        _driver(dirn, k, DIRECTION_EXPR[k], [(a, _transform(obj, f"ROT_{a.upper()}")) for a in "xyz"])
+        _driver(node.inputs["Color"], k, "c", [("c", _prop(data, f"color[{k}]"))])
+    _driver(node.inputs["Power"], None, "e", [("e", _prop(data, "energy"))])
+    if data.type == "SPOT":
+        _driver(node.inputs["Spot Cutoff"], None, "s / 2", [("s", _prop(data, "spot_size"))])
+    node.inputs["Type"].default_value = float(light_type(obj))
+    ground = data.get("il_ground_color")
+    if ground is not None:
+        node.inputs["Ground Color"].default_value = (*list(ground)[:3], 1.0)
+
+
+def _remove_il_drivers(tree):
+    ad = tree.animation_data
+    if ad is None:
+        return
+    for fc in list(ad.drivers):
+        if fc.data_path.startswith(DRIVER_PREFIX):
+            ad.drivers.remove(fc)
+
+
+# -- material ---------------------------------------------------------------------------------------
+
+def read_parameters(mat):
+    """{name: value} of the material's "Parameters" and "Attenuation" nodes."""
+    out = {}
+    for node in mat.node_tree.nodes:
+        name = node.get("il_param")
+        if name:
+            value = node.outputs[0].default_value
+            out[name] = tuple(value) if hasattr(value, "__len__") else float(value)
+    return out
+
+
+def parameter_nodes(mat):
+    """The nodes the panel edits, in socket order: [(name, node)]."""
+    if mat is None or not mat.get("il_model") or mat.node_tree is None:
+        return []
+    nodes = {n.get("il_param"): n for n in mat.node_tree.nodes if n.get("il_param")}
+    order = [n for n, *_ in model_parameters(mat["il_model"])] + list(ATTENUATION_INPUTS)
+    return [(name, nodes[name]) for name in order if name in nodes]
+
+
+def _hub(nodes, frame, name, value, color, y):
+    node = nodes.new("ShaderNodeRGB" if color else "ShaderNodeValue")
+    node.name = node.label = name
+    node["il_param"] = name
+    node.parent = frame
+    node.location = (-1100, y)
+    v = value if not color else (tuple(value) + (1.0,) * 4)[:4]
+    node.outputs[0].default_value = v
+    return node
+
+
+def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficients=(1.0, 0.0, 1.0), params=None):
+    """(Re)build ``mat``'s tree: parameters, one IL Light + model node per light, their sum."""
+    if model not in groups.MODEL_GROUPS:
+        raise InputError(f"unknown shading model '{model}' (one of {', '.join(groups.MODEL_GROUPS)})")
+    if attenuation not in ("PHYSICAL", "EMPIRICAL"):
+        raise InputError(f"attenuation must be PHYSICAL or EMPIRICAL, got '{attenuation}'")
+    params = dict(params or {})
+    model_group = groups.ensure_group(groups.MODEL_GROUPS[model])
+    light_group = groups.ensure_group(groups.LIGHT)
+    compat.ensure_use_nodes(mat)
+    tree = mat.node_tree
+    _remove_il_drivers(tree)
+    tree.nodes.clear()
+    nodes, links = tree.nodes, tree.links
+
+    frame = nodes.new("NodeFrame")
+    frame.name = frame.label = "Parameters"
+    hub = {}
+    y = 300
+    for name, stype, default in model_parameters(model):
+        color = stype == groups.C
+        hub[name] = _hub(nodes, frame, name, params.get(name, default), color, y)
+        y -= 200 if color else 110
+    att_frame = nodes.new("NodeFrame")
+    att_frame.name = att_frame.label = "Attenuation"
+    c1, c2, c3 = coefficients
+    att_values = {"Physical": params.get("Physical", 1.0 if attenuation == "PHYSICAL" else 0.0),
+                  "C1": params.get("C1", c1), "C2": params.get("C2", c2), "C3": params.get("C3", c3),
+                  "Spot Exponent": params.get("Spot Exponent", 0.0)}
+    for name in ATTENUATION_INPUTS:
+        hub[name] = _hub(nodes, att_frame, name, att_values[name], False, y)
+        y -= 110
+
+    outputs = []
+    for k, obj in enumerate(light_objects or [None]):
+        label = obj.name if obj is not None else "no lights (ambient and emission only)"
+        lframe = nodes.new("NodeFrame")
+        lframe.name = lframe.label = f"Light: {label}"
+        model_node = nodes.new("ShaderNodeGroup")
+        model_node.node_tree = model_group
+        model_node.name = f"{model_group.name}: {label}"
+        model_node.parent = lframe
+        model_node.location = (-300, 300 - 420 * k)
+        for name, *_ in model_parameters(model):
+            if k > 0 and name in ONCE_ONLY:
+                model_node.inputs[name].default_value = ONCE_ONLY[name]
+            else:
+                links.new(hub[name].outputs[0], model_node.inputs[name])
+        if obj is None:
+            model_node.inputs["Light Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+        else:
+            light_node = nodes.new("ShaderNodeGroup")
+            light_node.node_tree = light_group
+            light_node.name = f"IL Light: {obj.name}"
+            light_node["il_light"] = obj.name
+            light_node.parent = lframe
+            light_node.location = (-600, 300 - 420 * k)
+            for name in ATTENUATION_INPUTS:
+                links.new(hub[name].outputs[0], light_node.inputs[name])
+            links.new(light_node.outputs["Light Vector"], model_node.inputs["Light Vector"])
+            links.new(light_node.outputs["Light Color"], model_node.inputs["Light Color"])
+            link_light(light_node, obj)
+        outputs.append(model_node.outputs["Color"])
+
+    total = outputs[0]
+    for k, socket in enumerate(outputs[1:]):
+        add = nodes.new("ShaderNodeVectorMath")
+        add.operation = "ADD"
+        add.label = "sum over lights"
+        add.location = (0, 300 - 200 * k)
+        links.new(total, add.inputs[0])
+        links.new(socket, add.inputs[1])
+        total = add.outputs[0]
+    emission = nodes.new("ShaderNodeEmission")
+    emission.location = (250, 300)
+    links.new(total, emission.inputs["Color"])
+    out = nodes.new("ShaderNodeOutputMaterial")
+    out.location = (450, 300)
+    links.new(emission.outputs[0], out.inputs["Surface"])
+    mat["il_model"] = model
+    mat["il_attenuation"] = attenuation
+    mat["il_version"] = groups.GROUP_VERSION
+    return mat
+
+
+def assign_shading_model(scene, objects, model, lights="ALL", attenuation="PHYSICAL",
+                         coefficients=(1.0, 0.0, 1.0), params=None, name=None):
+    """Give every mesh in ``objects`` one new material summing ``model`` over the lights.
+
+    ``objects`` is the selection: meshes get the material, lights in it are the ones linked
+    when ``lights`` is "SELECTED". Returns (material, warnings). Raises InputError (and changes
+    nothing) without a mesh or with an object that is neither a mesh nor a light.
+    """
+    if model not in groups.MODEL_GROUPS:
+        raise InputError(f"unknown shading model '{model}' (one of {', '.join(groups.MODEL_GROUPS)})")
+    if lights not in ("ALL", "SELECTED"):
+        raise InputError(f"lights must be ALL or SELECTED, got '{lights}'")
+    objects = list(objects)
+    others = [o.name for o in objects if o.type not in ("MESH", "LIGHT")]
+    if others:
+        raise InputError(f"cannot shade {', '.join(others)}: not a mesh (select mesh objects)")
+    meshes = [o for o in objects if o.type == "MESH"]
+    if not meshes:
+        raise InputError("nothing to shade: select at least one mesh object")
+    warnings = []
+    linked = []
+    for obj in scene_lights(scene, lights, objects):
+        if light_type(obj) is None:
+            warnings.append(f"{obj.data.type.lower()} light '{obj.name}' is not supported and was skipped")
+        else:
+            linked.append(obj)
+    if not linked:
+        warnings.append("no lights to link: the material shows ambient and emission only "
+                        "(add lights, then Relink Lights)")
+    mat = bpy.data.materials.new(name or f"IL {MODEL_LABELS[model]}")
+    try:
+        build_material(mat, model, linked, attenuation, coefficients, params)
+    except Exception:
+        bpy.data.materials.remove(mat)
+        raise
+    mat["il_lights_mode"] = lights
+    mat["il_light_names"] = [o.name for o in linked]
+    for obj in meshes:
+        slots = obj.data.materials
+        if len(slots) == 0:
+            slots.append(mat)
+        else:
+            for i in range(len(slots)):
+                slots[i] = mat
+    return mat, warnings
+
+
+def il_materials():
+    return [m for m in bpy.data.materials if m.get("il_model") and m.node_tree is not None]
+
+
+def relink_lights(scene, materials=None):
+    """Rebuild the light part of IL materials for the scene's current lights; returns (count, warnings).
+
+    "ALL" materials follow every light of ``scene``; "SELECTED" ones keep the lights they had that
+    still exist. Parameters are kept.
+    """
+    warnings, count = [], 0
+    for mat in (il_materials() if materials is None else materials):
+        if mat.get("il_lights_mode") == "SELECTED":
+            names = [n for n in mat.get("il_light_names", []) if n in scene.objects]
+            candidates = [scene.objects[n] for n in names]
+        else:
+            candidates = scene_lights(scene, "ALL")
+        linked = [o for o in candidates if o.type == "LIGHT" and light_type(o) is not None]
+        params = read_parameters(mat)
+        build_material(mat, mat["il_model"], linked, mat.get("il_attenuation", "PHYSICAL"), params=params)
+        mat["il_light_names"] = [o.name for o in linked]
+        if not linked:
+            warnings.append(f"material '{mat.name}' has no lights: ambient and emission only")
+        count += 1
+    return count, warnings

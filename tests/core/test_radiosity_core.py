@@ -1,0 +1,184 @@
+"""Radiosity (seed 004) against closed forms: form factors, solvers, subdivision. No bpy."""
+import numpy as np
+import pytest
+
+from addon.core import radiosity as R
+from addon.core.errors import InputError
+
+H = 1.0
+CUBE = [[(-H, -H, -H), (H, -H, -H), (H, H, -H), (-H, H, -H)],   # inward-facing faces of a closed cube
+        [(-H, -H, H), (-H, H, H), (H, H, H), (H, -H, H)],
+        [(-H, -H, -H), (-H, H, -H), (-H, H, H), (-H, -H, H)],
+        [(H, -H, -H), (H, -H, H), (H, H, H), (H, H, -H)],
+        [(-H, -H, -H), (-H, -H, H), (H, -H, H), (H, -H, -H)],
+        [(-H, H, -H), (H, H, -H), (H, H, H), (-H, H, H)]]
+
+
+def cube(n, rho=0.5, le=1.0):
+    meshes = [{"name": f"f{k}", "vertices": np.array(q), "faces": [(0, 1, 2, 3)], "rho": rho, "emission": le}
+              for k, q in enumerate(CUBE)]
+    return R.subdivide_to_size(R.patches_from_meshes(meshes), 2 * H / n + 1e-9)
+
+
+def plates(n, c=1.0):
+    m = [{"name": "a", "vertices": np.array([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]), "faces": [(0, 1, 2, 3)],
+          "rho": 0.5, "emission": 1.0},
+         {"name": "b", "vertices": np.array([(0, 0, c), (0, 1, c), (1, 1, c), (1, 0, c)]), "faces": [(0, 1, 2, 3)],
+          "rho": 0.5, "emission": 0.0}]
+    return R.subdivide_to_size(R.patches_from_meshes(m), 1.0 / n + 1e-9)
+
+
+def parallel_plates_exact(X, Y):
+    """Howell catalog C-11: directly opposed parallel rectangles a x b at distance c, X = a/c, Y = b/c."""
+    return 2 / (np.pi * X * Y) * (
+        np.log(np.sqrt((1 + X * X) * (1 + Y * Y) / (1 + X * X + Y * Y)))
+        + X * np.sqrt(1 + Y * Y) * np.arctan(X / np.sqrt(1 + Y * Y))
+        + Y * np.sqrt(1 + X * X) * np.arctan(Y / np.sqrt(1 + X * X)) - X * np.arctan(X) - Y * np.arctan(Y))
+
+
+def test_point_to_polygon_matches_disk_and_corner_rectangle():
+    # parallel square a x b above a point at one corner, height c (REFERENCE.md §3, Howell B-3)
+    a, b, c = 1.0, 2.0, 0.7
+    poly = np.array([[[0, 0, c], [0, b, c], [a, b, c], [a, 0, c]]])
+    X, Y = a / c, b / c
+    exact = (X / np.sqrt(1 + X * X) * np.arctan(Y / np.sqrt(1 + X * X))
+             + Y / np.sqrt(1 + Y * Y) * np.arctan(X / np.sqrt(1 + Y * Y))) / (2 * np.pi)
+    ff = R.point_polygon_form_factors(np.zeros((1, 3)), np.array([[0, 0, 1.0]]), poly)
+    assert ff[0, 0] == pytest.approx(exact, rel=1e-12)
+    # a polygon facing away emits nothing toward the point
+    assert R.point_polygon_form_factors(np.zeros((1, 3)), np.array([[0, 0, 1.0]]), poly[:, ::-1])[0, 0] == 0
+
+
+def test_horizon_clipping_half_plane():
+    """A huge wall through the point, standing on its tangent plane, clipped half below: F -> 1/2 (REFERENCE §3)."""
+    L = 1e4
+    wall = np.array([[[1e-3, -L, -L], [1e-3, -L, L], [1e-3, L, L], [1e-3, L, -L]]])   # facing -X, toward the point
+    ff = R.point_polygon_form_factors(np.zeros((1, 3)), np.array([[0, 0, 1.0]]), wall)
+    assert ff[0, 0] == pytest.approx(0.5, abs=1e-3)
+
+
+def test_rows_of_a_closed_scene_sum_to_one():
+    p = cube(4)
+    F = R.form_factors(p)
+    assert np.allclose(F.sum(axis=1), 1.0, atol=1e-12)
+    assert np.all(np.diag(F) == 0) and np.all(F >= 0)
+
+
+def test_reciprocity_improves_with_quadrature():
+    p = cube(4)
+    errs = []
+    for q in (1, 3):
+        AF = p.area[:, None] * R.form_factors(p, quadrature=q)
+        errs.append(np.max(np.abs(AF - AF.T)) / np.max(AF))
+    assert errs[1] < 0.01 and errs[1] < errs[0] / 5
+    # far-apart small patches: reciprocity already with one point
+    pl = plates(2, c=20.0)
+    AF = pl.area[:, None] * R.form_factors(pl)
+    assert np.allclose(AF, AF.T, rtol=1e-3, atol=0)
+
+
+@pytest.mark.parametrize("n,tol", [(4, 0.012), (8, 0.003)])
+def test_parallel_plates_against_analytic(n, tol):
+    p = plates(n)
+    F = R.form_factors(p)
+    a, b = p.owner == 0, p.owner == 1
+    total = (p.area[a, None] * F[np.ix_(a, b)]).sum() / p.area[a].sum()
+    assert total == pytest.approx(parallel_plates_exact(1.0, 1.0), rel=tol)
+    assert parallel_plates_exact(1.0, 1.0) == pytest.approx(0.19982, abs=1e-5)
+
+
+def test_visibility_matrix_blocks_plates():
+    p = plates(2)
+    blocker = R.patches_from_meshes([{"name": "blk", "vertices": np.array([(-1, -1, .5), (2, -1, .5), (2, 2, .5), (-1, 2, .5)]),
+                                      "faces": [(0, 1, 2, 3)], "rho": 0.5, "emission": 0.0}])
+    both = R.Patches(np.concatenate([p.corners, blocker.corners]), np.concatenate([p.rho, blocker.rho]),
+                     np.concatenate([p.emission, blocker.emission]), np.r_[p.owner, 2],
+                     np.r_[p.is_tri, blocker.is_tri], np.r_[p.source, 0])
+    V = R.visibility_numpy(both)
+    a, b = np.flatnonzero(both.owner == 0), np.flatnonzero(both.owner == 1)
+    assert np.all(V[np.ix_(a, b)] == 0)               # the blocker hides the plates from each other
+    assert np.all(V[np.ix_(b, [len(both) - 1])] == 1)  # the upper plate sees the blocker's top side
+    assert np.all(V[np.ix_(a, [len(both) - 1])] == 0)  # the lower plate is behind it
+    F = R.form_factors(both, V)
+    assert np.all(F[np.ix_(a, b)] == 0) and np.all(F[b, -1] > 0) and np.all(F[a, -1] == 0)
+
+
+@pytest.mark.parametrize("solver", ["jacobi", "gauss_seidel", "progressive", "direct"])
+def test_closed_enclosure_b_equals_e_over_one_minus_rho(solver):
+    rho, le = 0.6, 2.0
+    p = cube(3, rho=rho, le=le)
+    F = R.form_factors(p)
+    sol = R.solve(F, p.rho, p.emission, p.area, solver, tol=1e-9)
+    assert np.allclose(sol.B, np.pi * le / (1 - rho), rtol=1e-6)
+    assert np.allclose(R.irradiance(F, sol.B), np.pi * le / (1 - rho), rtol=1e-6)
+
+
+def test_jacobi_k_iterations_are_k_bounces():
+    rho, le, K = 0.6, 1.0, 3
+    p = cube(2, rho=rho, le=le)
+    sol = R.solve_jacobi(R.form_factors(p), p.rho, p.emission, tol=0, max_iter=K)
+    assert np.allclose(sol.B, np.pi * le * (1 - rho ** (K + 1)) / (1 - rho), rtol=1e-9)
+
+
+def test_solvers_agree_on_cornell_and_slow_down_as_rho_grows():
+    p = R.cornell_patches(max_edge=0.6)
+    F = R.form_factors(p, R.visibility_numpy(p))
+    ref = R.solve_direct(F, p.rho, p.emission).B
+    for s in R.SOLVERS:
+        sol = R.solve(F, p.rho, p.emission, p.area, s, tol=1e-7)
+        assert sol.converged
+        assert np.allclose(sol.B, ref, rtol=1e-4, atol=1e-6 * ref.max()), s
+        assert sol.residuals[-1] < 1e-7
+    iters = {s: [] for s in R.SOLVERS}
+    for rho in (0.3, 0.7, 0.95):
+        r = np.where(p.rho > 0, rho, 0.0)
+        for s in R.SOLVERS:
+            iters[s].append(R.solve(F, r, p.emission, p.area, s, tol=1e-6).iterations)
+    for s, it in iters.items():
+        assert it[0] < it[1] < it[2], (s, it)
+    assert all(g < j for g, j in zip(iters["gauss_seidel"], iters["jacobi"]))
+
+
+def test_adaptive_subdivision_refines_only_where_light_changes():
+    p = R.cornell_patches(max_edge=0.6)
+    F = R.form_factors(p, R.visibility_numpy(p))
+    B = R.solve_direct(F, p.rho, p.emission).B
+    mask = R.refine_mask(p, R.irradiance(F, B), threshold=0.3)
+    assert 0 < mask.sum() < len(p)
+    # the patches next to the light change fastest; a uniform white wall far from it does not refine entirely
+    H = R.irradiance(F, B) @ [0.2126, 0.7152, 0.0722]
+    assert H[mask].std() > 0
+    new, parent = R.split(p, mask)
+    assert len(new) == len(p) + 3 * mask.sum()
+    assert np.allclose(np.bincount(parent, weights=new.area, minlength=len(p)), p.area)
+
+
+def test_split_preserves_area_and_triangles():
+    m = [{"name": "t", "vertices": np.array([(0, 0, 0), (2, 0, 0), (0, 1, 0)]), "faces": [(0, 1, 2)]}]
+    p = R.patches_from_meshes(m)
+    q = R.subdivide_to_size(p, 0.3)
+    assert q.is_tri.all() and q.area.sum() == pytest.approx(1.0)
+    assert R.longest_edge(q.corners).max() <= 0.3
+
+
+def test_atlas_round_trip_and_vertex_average():
+    p = R.cornell_patches(max_edge=1.0)
+    values = np.random.default_rng(0).random((len(p), 3))
+    atlas = R.make_atlas(len(p), cell=4, gutter=2)
+    img = R.paint_atlas(atlas, values, p.is_tri)
+    assert np.allclose(R.atlas_means(atlas, img[..., :3], p.is_tri), values, atol=1e-6)
+    uv = R.atlas_uvs(atlas, p.is_tri)
+    assert uv.min() >= 0 and uv.max() <= 1
+    corner, pos, idx = R.vertex_average(p, np.ones((len(p), 3)) * 2.0)
+    assert np.allclose(corner, 2.0) and np.allclose(pos[idx], p.corners)
+
+
+def test_bad_inputs():
+    with pytest.raises(InputError):
+        R.patches_from_meshes([])
+    with pytest.raises(InputError, match="rho"):
+        R.patches_from_meshes([{"vertices": np.eye(3), "faces": [(0, 1, 2)], "rho": 1.0}])
+    with pytest.raises(InputError, match="emits"):
+        R.solve_jacobi(np.zeros((2, 2)), np.zeros((2, 3)), np.zeros((2, 3)))
+    with pytest.raises(InputError, match="solver"):
+        R.solve(np.zeros((1, 1)), np.zeros((1, 3)), np.ones((1, 3)), np.ones(1), "magic")

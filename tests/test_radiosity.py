@@ -1,0 +1,103 @@
+"""Radiosity in Blender: BVH visibility, the Cornell box against Cycles, outputs, script and operator."""
+import json
+
+import bpy
+import numpy as np
+import pytest
+
+from addon.core import exr
+from addon.core import radiosity as R
+from addon.lab import radiosity as L
+
+
+@pytest.mark.both_versions
+def test_bvh_visibility_equals_numpy_rays():
+    p = R.cornell_patches(max_edge=0.6)
+    V = L.visibility_bvh(p)
+    Vn = R.visibility_numpy(p)
+    assert np.array_equal(V, V.T)
+    assert np.mean(V != Vn) < 0.002       # rays grazing shared edges may differ
+    assert 0 < V.sum() < len(p) ** 2
+
+
+def test_cornell_run_against_cycles_and_outputs(tmp_path):
+    r = L.run(str(tmp_path), cornell=True, max_edge=0.5, samples=32, solver="gauss_seidel")
+    rep = json.loads((tmp_path / "radiosity_report.json").read_text())
+    assert rep["patches"] == len(r["patches"]) and rep["solver"] == "gauss_seidel" and rep["iterations"] > 1
+    # the bake and the solution agree on the mean irradiance within a few percent, patch by patch within 25%
+    H, Hc = r["H"], r["cycles"]
+    ok = np.isfinite(Hc).all(axis=1)
+    assert ok.sum() == np.sum(r["patches"].rho.max(axis=1) > 0)
+    assert abs(np.mean(H[ok]) / np.mean(Hc[ok]) - 1) < 0.06
+    assert rep["relative_rms_vs_cycles"] < 0.2
+    assert rep["rms_vs_cycles"] == pytest.approx(np.sqrt(np.mean((H[ok] - Hc[ok]) ** 2)))
+    # light map = the solution painted per patch; vertex colours on a new object
+    ch, hdr = exr.read_exr(tmp_path / "Floor_radiosity.exr")
+    assert hdr["il:units"] == "W/m^2"
+    floor = r["patches"].owner == r["patches"].names.index("Floor")
+    img = np.stack([ch[c] for c in "RGB"], -1)
+    atlas = R.make_atlas(int(floor.sum()))
+    assert np.allclose(R.atlas_means(atlas, img, r["patches"].is_tri[floor]), H[floor], rtol=1e-5)
+    obj = bpy.data.objects["Floor radiosity"]
+    col = obj.data.color_attributes[L.ATTRIBUTE]
+    c = np.empty(len(col.data) * 4, np.float32)
+    col.data.foreach_get("color", c)
+    c = c.reshape(-1, 4)[:, :3]
+    assert H[floor].min() - 1e-6 <= c.min() and c.max() <= H[floor].max() + 1e-6
+    assert (tmp_path / "radiosity_convergence.png").exists()
+    # the bake left the original objects renderable and no temporary images behind
+    assert not bpy.data.objects["Floor"].hide_render
+    assert not any(i.name.startswith("IL bake") for i in bpy.data.images)
+
+
+def test_closed_emissive_box_in_blender_gives_e_over_one_minus_rho():
+    """A user-style scene read from bpy data: a closed box whose every face emits L_e and reflects rho."""
+    from addon.lab import scene as S
+    sc = bpy.context.scene
+    box = S.box(sc, "Room", 2.0)
+    from addon import compat
+    mat = bpy.data.materials.new("glow")
+    compat.ensure_use_nodes(mat)
+    nt = mat.node_tree
+    nt.nodes.clear()
+    p = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    p.inputs["Base Color"].default_value = (0.5, 0.5, 0.5, 1)
+    p.inputs["Emission Color"].default_value = (1, 1, 1, 1)
+    p.inputs["Emission Strength"].default_value = 2.0
+    box.data.materials.append(mat)
+    meshes, used = L.meshes_from_scene(sc)
+    assert [o.name for o in used] == ["Room"]
+    patches = R.subdivide_to_size(R.patches_from_meshes(meshes), 0.5)
+    # the cube's faces point outward: turn them inward to make a closed room
+    assert patches.normal[0] @ patches.center[0] > 0
+    patches = R.Patches(patches.corners[:, ::-1], patches.rho, patches.emission, patches.owner,
+                            patches.is_tri, patches.source, patches.names)
+    F = R.form_factors(patches, L.visibility_bvh(patches))
+    B = R.solve_jacobi(F, patches.rho, patches.emission, tol=1e-9).B
+    assert np.allclose(B, np.pi * 2.0 / (1 - 0.5), rtol=1e-3)
+
+
+def test_script_errors_and_help(script, tmp_path):
+    assert script("radiosity.py", "--help").returncode == 0
+    bad = script("radiosity.py", "--scene", "cornell", "--out", tmp_path, "--max-edge", "-1")
+    assert bad.returncode == 2 and "--max-edge" in bad.stderr.strip().splitlines()[-1]
+    bad = script("radiosity.py", "--scene", "kitchen", "--out", tmp_path)
+    assert bad.returncode == 2
+
+
+def test_script_cornell_without_bake(script, tmp_path):
+    proc = script("radiosity.py", "--scene", "cornell", "--out", tmp_path, "--max-edge", "1.0",
+                  "--solver", "progressive", "--no-compare")
+    assert proc.returncode == 0, proc.stderr
+    rep = json.loads((tmp_path / "radiosity_report.json").read_text())
+    assert rep["solver"] == "progressive" and rep["rms_vs_cycles"] is None and rep["patches"] > 0
+    assert (tmp_path / "Floor_radiosity.exr").exists()
+
+
+def test_operators(tmp_path):
+    assert bpy.ops.illumination.build_cornell_box() == {"FINISHED"}
+    sc = bpy.data.scenes["IL Cornell"]
+    with bpy.context.temp_override(scene=sc):
+        assert bpy.ops.illumination.radiosity(out_dir=str(tmp_path), max_edge=1.0, samples=0) == {"FINISHED"}
+    assert (tmp_path / "radiosity_report.json").exists()
+    assert "IL Radiosity" in bpy.data.collections

@@ -1,0 +1,218 @@
+"""Shading operators, node groups, light linking by drivers, bad input (bpy)."""
+import bpy
+import numpy as np
+import pytest
+from mathutils import Vector
+
+from addon import compat
+from addon.core import brdf, lights as twin_lights
+from addon.lab import render, scene as sc
+from addon.nodes import groups, material
+
+CONTRACT = {
+    "IL Phong": ["Light Vector", "Light Color", "Ka", "Ambient Light", "Kd", "Ks", "Shininess", "Emission Color",
+                 "Normalized"],
+    "IL Blinn-Phong": ["Light Vector", "Light Color", "Ka", "Ambient Light", "Kd", "Ks", "Shininess",
+                       "Emission Color", "Normalized"],
+    "IL Oren-Nayar": ["Light Vector", "Light Color", "Albedo", "Sigma"],
+    "IL Cook-Torrance": ["Light Vector", "Light Color", "Kd", "Ks", "F0", "Roughness", "Distribution", "Geometry"],
+}
+
+
+def _sockets(tree, in_out):
+    return [i.name for i in tree.interface.items_tree if i.item_type == "SOCKET" and i.in_out == in_out]
+
+
+@pytest.mark.both_versions
+def test_add_node_groups_is_idempotent_and_updates_older_groups():
+    assert bpy.ops.illumination.add_node_groups() == {"FINISHED"}
+    for name, inputs in CONTRACT.items():
+        tree = bpy.data.node_groups[name]
+        assert _sockets(tree, "INPUT") == inputs
+        assert _sockets(tree, "OUTPUT") == ["Color", "Emission"]
+        assert any(n.bl_idname == "NodeFrame" and n.label for n in tree.nodes)  # tidy: labelled frames
+    assert _sockets(bpy.data.node_groups["IL Light"], "OUTPUT") == ["Light Vector", "Light Color"]
+    count = len(bpy.data.node_groups)
+    assert groups.add_node_groups()["current"] == list(groups.BUILDERS)
+    assert len(bpy.data.node_groups) == count
+    # a group left by an older version: wrong version, a missing socket, an extra socket, contents gone
+    old = bpy.data.node_groups["IL Oren-Nayar"]
+    mat = bpy.data.materials.new("user")
+    compat.ensure_use_nodes(mat)
+    node = mat.node_tree.nodes.new("ShaderNodeGroup")
+    node.node_tree = old
+    node.inputs["Albedo"].default_value = (0.1, 0.2, 0.3, 1.0)
+    rgb = mat.node_tree.nodes.new("ShaderNodeRGB")
+    mat.node_tree.links.new(rgb.outputs[0], node.inputs["Albedo"])
+    old["il_version"] = 0
+    old.interface.remove(next(i for i in old.interface.items_tree if getattr(i, "name", "") == "Sigma"))
+    old.interface.new_socket("Legacy", in_out="INPUT", socket_type="NodeSocketFloat")
+    old.nodes.clear()
+    result = bpy.ops.illumination.add_node_groups()
+    assert result == {"FINISHED"}
+    assert bpy.data.node_groups["IL Oren-Nayar"] == old and len(bpy.data.node_groups) == count
+    assert _sockets(old, "INPUT") == CONTRACT["IL Oren-Nayar"] and old["il_version"] == groups.GROUP_VERSION
+    assert len(old.nodes) > 20
+    assert node.inputs["Albedo"].is_linked  # the user's material kept its link
+
+
+def _camera_view(scene):
+    return np.array(scene.camera.matrix_world.to_3x3() @ Vector((0, 0, 1)))
+
+
+def _twin_sum(objs, p, n, v, model, **kw):
+    total = 0.0
+    for o in objs:
+        d = np.array(o.matrix_world.to_3x3() @ Vector((0, 0, -1)))
+        kind = "HEMI" if o.data.get("il_hemi") else o.data.type
+        lv, I = twin_lights.light(kind, p, n, position=np.array(o.matrix_world.translation), direction=d,
+                                  color=np.array(o.data.color), power=o.data.energy,
+                                  cutoff=getattr(o.data, "spot_size", 1.0) / 2, **kw.pop("light", {}))
+        total = total + model(n, lv, v, I, **kw)
+    return total
+
+
+def _scene_with_ball(size=32):
+    scene = bpy.context.scene
+    render.cycles_cpu(scene, samples=1)
+    scene.cycles.filter_width = 0.01
+    scene.cycles.max_bounces = 0
+    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    ball = sc.sphere(scene, "Ball", 1.0, segments=48, rings=24)
+    sc.camera(scene, "Cam", (0, -10, 0), target=(0, 0, 0), ortho_scale=2.2)
+    sc.world(scene, 0.0)
+    vl = scene.view_layers[0]
+    vl.use_pass_normal = vl.use_pass_position = True
+    return scene, ball
+
+
+def _pixels(scene):
+    passes = render.render_layers(scene)
+    hit = np.linalg.norm(passes["Normal"], axis=-1) > 0.5
+    return (passes["Position"][hit].astype(float), passes["Normal"][hit].astype(float),
+            passes["Combined"][..., :3][hit].astype(float))
+
+
+@pytest.mark.both_versions
+def test_drivers_follow_moved_and_recoloured_light():
+    scene, ball = _scene_with_ball()
+    key = sc.light(scene, "Key", "POINT", 150.0, location=(1.5, -2.5, 1.0), color=(1.0, 0.8, 0.6))
+    spot = sc.light(scene, "Spot", "SPOT", 200.0, location=(-2.0, -2.0, 0.5))
+    sc.look_at(spot, (0, 0, 0))
+    spot.data.spot_size = 1.2
+    sun = sc.light(scene, "Sun", "SUN", 2.0, rotation=sc.deg(30, 10, 20))
+    ball.select_set(True)
+    bpy.context.view_layer.objects.active = ball
+    assert bpy.ops.illumination.assign_shading_model(model="PHONG") == {"FINISHED"}
+    mat = ball.active_material
+    params = material.read_parameters(mat)
+    drivers = mat.node_tree.animation_data.drivers
+    assert len(drivers) >= 3 * 10 and all(fc.driver.is_simple_expression and fc.driver.is_valid for fc in drivers)
+    v = _camera_view(scene)
+    kw = dict(ka=params["Ka"], ambient_light=params["Ambient Light"][:3], kd=params["Kd"][:3], ks=params["Ks"],
+              shininess=params["Shininess"])
+    objs = [key, spot, sun]
+    for step in range(2):
+        p, n, L = _pixels(scene)
+        ref = _twin_sum(objs, p, n, v, brdf.phong, **kw) - params["Ka"] * np.array(params["Ambient Light"][:3]) * 2
+        assert np.max(np.abs(L - ref)) <= 1e-4 * np.max(ref), step
+        key.location = (-1.0, -3.0, -0.5)  # move and re-colour, then render again
+        key.data.color = (0.2, 0.3, 1.0)
+        key.data.energy = 400.0
+        spot.data.spot_size = 0.6
+        sun.rotation_euler = sc.deg(70, -20, 40)
+    assert np.max(L[:, 2] - L[:, 0]) > 0.05  # blue light now dominates somewhere
+
+
+@pytest.mark.both_versions
+def test_bad_input_reports_and_changes_nothing():
+    scene = bpy.context.scene
+    cube = sc.box(scene, "Cube", 1.0)
+    cam = sc.camera(scene, "Cam", (0, -5, 0))
+    mats = len(bpy.data.materials)
+    with pytest.raises(RuntimeError, match="select at least one mesh"):
+        bpy.ops.illumination.assign_shading_model(model="OREN_NAYAR")
+    cam.select_set(True)
+    cube.select_set(True)
+    with pytest.raises(RuntimeError, match="Cam.*not a mesh"):
+        bpy.ops.illumination.assign_shading_model(model="OREN_NAYAR")
+    assert len(bpy.data.materials) == mats and len(cube.data.materials) == 0
+    cam.select_set(False)
+    # no lights: a valid material with ambient and emission only, and a warning
+    res = bpy.ops.illumination.assign_shading_model(model="PHONG")
+    assert res == {"FINISHED"} and cube.active_material.get("il_model") == "PHONG"
+    _, w = material.assign_shading_model(scene, [cube], "COOK_TORRANCE")
+    assert any("no lights" in x for x in w)
+
+
+def test_scene_without_lights_renders_ambient_and_emission_then_relinks_and_survives_deletion():
+    scene, ball = _scene_with_ball(16)
+    mat, warnings = material.assign_shading_model(scene, [ball], "PHONG", params={
+        "Ka": 0.5, "Ambient Light": (0.2, 0.4, 0.6), "Emission Color": (0.1, 0.0, 0.0)})
+    assert warnings
+    _, _, L = _pixels(scene)
+    np.testing.assert_allclose(L, np.broadcast_to([0.2, 0.2, 0.3], L.shape), atol=1e-6)
+    key = sc.light(scene, "Key", "POINT", 100.0, location=(0, -3, 0))
+    assert bpy.ops.illumination.relink_lights() == {"FINISHED"}
+    assert mat["il_light_names"] == ["Key"] and material.read_parameters(mat)["Ka"] == pytest.approx(0.5)
+    p, n, L = _pixels(scene)
+    assert L.max() > 0.3 + 0.1
+    bpy.data.objects.remove(key)  # deleting a linked light leaves a file that still renders
+    p, n, L2 = _pixels(scene)
+    assert np.all(np.isfinite(L2))
+    material.relink_lights(scene)
+    _, _, L3 = _pixels(scene)
+    np.testing.assert_allclose(L3, np.broadcast_to([0.2, 0.2, 0.3], L3.shape), atol=1e-6)
+
+
+def test_il_light_types_and_empirical_attenuation_match_twins():
+    scene, ball = _scene_with_ball(32)
+    spot = sc.light(scene, "Spot", "SPOT", 300.0, location=(0.5, -2.5, 1.5), color=(0.4, 1.0, 0.6))
+    sc.look_at(spot, (0, 0, 0.2))
+    spot.data.spot_size = 0.9
+    hemi = sc.light(scene, "Hemi", "SUN", 1.5, rotation=sc.deg(20, 0, 0), color=(0.5, 0.7, 1.0))
+    hemi.data["il_hemi"] = True
+    hemi.data["il_ground_color"] = (0.3, 0.2, 0.1)
+    c = (0.5, 0.3, 0.2)
+    mat, _ = material.assign_shading_model(scene, [ball], "OREN_NAYAR", attenuation="EMPIRICAL", coefficients=c,
+                                           params={"Albedo": (0.9, 0.8, 0.7), "Sigma": 0.4, "Spot Exponent": 3.0})
+    p, n, L = _pixels(scene)
+    v = _camera_view(scene)
+    lv, I = twin_lights.spot_light(p, np.array(spot.matrix_world.translation),
+                                   np.array(spot.matrix_world.to_3x3() @ Vector((0, 0, -1))), spot.data.color,
+                                   300.0, 0.45, 3.0, physical=0.0, c1=c[0], c2=c[1], c3=c[2])
+    ref = brdf.oren_nayar(n, lv, v, I, (0.9, 0.8, 0.7), 0.4)
+    lv, I = twin_lights.hemi_light(n, np.array(hemi.matrix_world.to_3x3() @ Vector((0, 0, -1))),
+                                   hemi.data.color, (0.3, 0.2, 0.1), 1.5)
+    ref = ref + brdf.oren_nayar(n, lv, v, I, (0.9, 0.8, 0.7), 0.4)
+    assert np.count_nonzero(ref[:, 1] > ref[:, 1].max() * 0.5) > 20  # the spot cone lights part of the ball
+    assert np.max(np.abs(L - ref)) <= 1e-4 * np.max(ref)
+
+
+def test_demo_step_shades_the_demo_scene():
+    from addon.lab import demo, shading_bench
+    scene = demo.build_demo_scene(new_scene=True, resolution=(32, 24))
+    figures = shading_bench.demo_step(scene, "/nonexistent", quick=True)
+    assert figures["models"] == {"Box": "PHONG", "Torus": "OREN_NAYAR", "Sphere": "COOK_TORRANCE"}
+    for name, model in figures["models"].items():
+        mat = scene.objects[name].active_material
+        assert mat["il_model"] == model and sorted(mat["il_light_names"]) == ["Key", "Sun"]
+    assert scene.objects["Floor"].active_material is None
+
+
+def test_brdf_compare_script_quick(script, tmp_path):
+    r = script("brdf_compare.py", "--out", tmp_path, "--quick")
+    assert r.returncode == 0, r.stderr
+    import json
+    report = json.loads((tmp_path / "brdf_report.json").read_text())
+    f = report["figures"]
+    assert f["node_vs_twin_max_relative_error"] < 1e-4
+    assert f["oren_nayar_sigma0_relative_rms"] < 1e-4      # sigma 0 = Lambert = Diffuse BSDF roughness 0
+    assert f["cook_torrance_vs_glossy_max_relative_rms"] < 1e-3  # F = 1, GGX, Smith = Glossy GGX
+    assert f["render_time_ratio_il_ct_over_principled"] > 0
+    for name in ("oren_nayar_vs_diffuse.png", "cook_torrance_vs_glossy.png", "brdf_phong.png",
+                 "shading_node_vs_twin.csv"):
+        assert (tmp_path / name).stat().st_size > 1000 or name.endswith(".csv")
+    bad = script("brdf_compare.py", "--bogus")
+    assert bad.returncode == 2 and "error" in bad.stderr
