@@ -42,6 +42,20 @@ def _shadows(out, quick):
     return result
 
 
+def _ssao(out, quick):
+    from .ssao_sweeps import demo_step
+    result = demo_step(os.path.join(out, "ssao"), quick)
+    result["files"] = [result["report"]]
+    return result
+
+
+def _report(out, quick):
+    from . import bench
+    result = bench.run(os.path.join(out, "report"), quick=True)
+    return {"report": result["report"], "files": [result["report"]],
+            "stability_rows": len(result["stability"])}
+
+
 def run(out, quick=False, samples=32):
     """Build the demo scene, run every tool on it, write ``out/demo_report.json``; return a summary."""
     if samples <= 0:
@@ -52,7 +66,10 @@ def run(out, quick=False, samples=32):
         ("render", "render the shaded scene", lambda s: _render(s, out, quick, samples)),
         ("lightmaps", "bake AO and irradiance maps", lambda s: _lightmaps(s, out, quick)),
         ("shadows", "compare shadow methods with ray-traced shadows", lambda s: _shadows(out, quick)),
+        ("ssao", "compare screen-space AO with ray-traced AO", lambda s: _ssao(out, quick)),
     ]
+    if not quick:
+        steps.append(("report", "measure speed against accuracy (quick report)", lambda s: _report(out, quick)))
     report = {"quick": quick, "blender": bpy.app.version_string, "steps": {}}
     lines = []
     with Progress("demo", len(steps) + 1) as progress:
@@ -69,5 +86,7 @@ def run(out, quick=False, samples=32):
             lines.append(f"{key}: {len(result.get('files', []))} files, {result['seconds']:.1f} s")
     path = os.path.join(out, "demo_report.json")
     write_json(path, report)
-    lines.append(f"report: {path}")
+    lines.append(f"demo report: {path}")
+    if "report" in report["steps"]:
+        lines.append(f"speed-against-accuracy report: {report['steps']['report']['report']}")
     return {"out": out, "lines": lines}

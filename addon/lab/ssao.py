@@ -1,0 +1,414 @@
+"""SSAO lab: screen-space AO methods against Cycles' ray-traced AO, on the same camera and pixels.
+
+Pipeline (one scene, one camera):
+1. G-buffer: Cycles at 1 sample with a pixel filter of 0.01 px (no jitter):
+   Depth, Normal, Position passes + alpha -> core.ssao.GBuffer via
+   render.camera_matrices.
+2. Reference: Cycles' AO pass (cosine-weighted rays of length = World AO
+   distance = radius) at ``reference_samples`` per pixel, same filter; cached
+   under ``cache_dir`` by a key of the scene's content and the parameters.
+3. Methods: the numpy ones of core.ssao on the G-buffer; EEVEE's AO pass;
+   Workbench's world-space cavity (flat white, so the image is the cavity factor).
+4. Files: ``<method>_ao.exr`` / ``reference_ao.exr`` ("Y" = k_A, "A" = 1 on
+   geometry), ``<method>_error.png``, ``ssao_report.json``.
+
+The scene's settings (engine, passes, resolution, world, display) are
+restored afterwards, also after an error.
+"""
+import contextlib
+import hashlib
+import os
+import time
+
+import bpy
+import numpy as np
+
+from .. import compat
+from ..core import exr, imageio, ssao, ssao_figures
+from ..core.errors import ILError, InputError
+from ..core.fileio import write_json
+from ..progress import Progress
+from . import render, ssao_scenes
+
+#: Bumped when the reference render changes meaning (invalidates caches).
+REFERENCE_VERSION = 1
+#: Pixel filter width of every lab render (pixels): effectively no jitter.
+FILTER_WIDTH = 0.01
+
+
+# ---------------------------------------------------------------- parameters
+
+def parse_methods(methods):
+    """``"a,b"`` or a list -> validated list of method names, in the given order, no duplicates."""
+    if isinstance(methods, str):
+        methods = [m.strip() for m in methods.split(",") if m.strip()]
+    out = []
+    for m in methods:
+        if m not in ssao.ALL_METHODS:
+            raise InputError(f"unknown SSAO method '{m}' (choose from {', '.join(ssao.ALL_METHODS)})")
+        if m not in out:
+            out.append(m)
+    if not out:
+        raise InputError("no SSAO method given")
+    return out
+
+
+def check_params(samples=16, radius=1.0, reference_samples=1024, resolution=None):
+    """Raise InputError for non-positive sample counts, radius or resolution."""
+    if not (isinstance(samples, (int, np.integer)) and samples > 0):
+        raise InputError(f"samples must be a positive integer, got {samples}")
+    if not (np.isfinite(radius) and radius > 0):
+        raise InputError(f"radius must be positive, got {radius}")
+    if not (isinstance(reference_samples, (int, np.integer)) and reference_samples > 0):
+        raise InputError(f"reference samples must be a positive integer, got {reference_samples}")
+    if resolution is not None and not (isinstance(resolution, (int, np.integer)) and 8 <= resolution <= 8192):
+        raise InputError(f"resolution must be an integer in [8, 8192], got {resolution}")
+
+
+# ---------------------------------------------------------------- scene state
+
+def _state_items(scene):
+    r, vl, d = scene.render, scene.view_layers[0], scene.display
+    items = [(r, "engine"), (r, "resolution_x"), (r, "resolution_y"), (r, "resolution_percentage"),
+             (r, "film_transparent"), (r, "filter_size"), (r, "filepath"), (r, "use_file_extension")]
+    im = r.image_settings
+    if hasattr(im, "media_type"):
+        items.append((im, "media_type"))
+    items += [(im, "file_format"), (im, "color_mode"), (im, "color_depth"), (im, "exr_codec")]
+    cy = scene.cycles
+    items += [(cy, a) for a in ("device", "samples", "use_adaptive_sampling", "use_denoising", "seed",
+                                "filter_width", "max_bounces")]
+    items += [(vl, a) for a in ("use_pass_z", "use_pass_normal", "use_pass_position",
+                                "use_pass_ambient_occlusion")]
+    items += [compat.eevee_ao_distance_owner(scene, vl), (scene.eevee, "taa_render_samples")]
+    items += [(d.shading, a) for a in ("light", "color_type", "single_color", "show_cavity", "cavity_type",
+                                       "cavity_valley_factor", "cavity_ridge_factor")]
+    items += [(d, a) for a in ("matcap_ssao_distance", "matcap_ssao_samples", "matcap_ssao_attenuation",
+                               "render_aa")]
+    items.append((scene, "world"))
+    if scene.world is not None:
+        items.append((scene.world.light_settings, "distance"))
+    return items
+
+
+@contextlib.contextmanager
+def preserved(scene):
+    """Restore every render/display/world setting the lab touches; remove a world it had to add."""
+    items = _state_items(scene)
+    saved = []
+    for owner, attr in items:
+        value = getattr(owner, attr)
+        if hasattr(value, "__len__") and not isinstance(value, str):
+            value = tuple(value)
+        saved.append((owner, attr, value))
+    world_added = None
+    if scene.world is None:
+        world_added = bpy.data.worlds.new(f"{scene.name} SSAO World")
+        scene.world = world_added
+    try:
+        yield scene
+    finally:
+        failed = []
+        for owner, attr, value in saved:
+            try:
+                if getattr(owner, attr) != value:
+                    setattr(owner, attr, value)
+            except (AttributeError, TypeError, ValueError):
+                failed.append((owner, attr, value))
+        for owner, attr, value in failed:      # order-dependent ones (media type before format)
+            with contextlib.suppress(AttributeError, TypeError, ValueError):
+                setattr(owner, attr, value)
+        if world_added is not None:
+            if scene.world == world_added:
+                scene.world = None
+            bpy.data.worlds.remove(world_added)
+
+
+def set_resolution(scene, resolution):
+    """Width = ``resolution`` (height keeps the scene's aspect ratio), 100 %."""
+    if resolution is None:
+        return
+    r = scene.render
+    aspect = r.resolution_y / r.resolution_x
+    r.resolution_x = int(resolution)
+    r.resolution_y = max(1, int(round(resolution * aspect)))
+    r.resolution_percentage = 100
+
+
+def _cycles(scene, samples):
+    render.cycles_cpu(scene, samples=samples, seed=0)
+    scene.cycles.filter_width = FILTER_WIDTH
+    scene.render.film_transparent = True
+
+
+def _passes(scene, z=False, normal=False, position=False, ao=False):
+    vl = scene.view_layers[0]
+    vl.use_pass_z, vl.use_pass_normal, vl.use_pass_position, vl.use_pass_ambient_occlusion = z, normal, position, ao
+
+
+# ---------------------------------------------------------------- renders
+
+def render_gbuffer(scene):
+    """Depth, normal, position at 1 sample, no jitter -> ``(GBuffer, world positions (H, W, 3), seconds)``."""
+    t0 = time.perf_counter()
+    _cycles(scene, 1)
+    scene.cycles.max_bounces = 0
+    _passes(scene, z=True, normal=True, position=True)
+    w2v, proj, _, _ = render.camera_matrices(scene)
+    p = render.render_layers(scene)
+    mask = (p["Combined"][..., 3] > 0.5) & (p["Depth"] < 0.5 * ssao.SKY_DEPTH)
+    gb = ssao.gbuffer_from_passes(p["Position"][..., :3], p["Normal"][..., :3], mask, w2v, proj)
+    world = np.where(gb.mask[..., None], p["Position"][..., :3], np.nan)
+    return gb, world, time.perf_counter() - t0
+
+
+def scene_key(scene, radius, samples):
+    """Cache key: every renderable object's type, transform, evaluated mesh and modifiers, the camera,
+    the resolution, AO distance, samples, Blender version and REFERENCE_VERSION."""
+    h = hashlib.sha256()
+    h.update(repr((REFERENCE_VERSION, bpy.app.version, float(radius), int(samples), FILTER_WIDTH,
+                   scene.render.resolution_x, scene.render.resolution_y,
+                   scene.render.resolution_percentage)).encode())
+    depsgraph = bpy.context.evaluated_depsgraph_get() if bpy.context.scene == scene else None
+    for obj in sorted(scene.objects, key=lambda o: o.name):
+        if obj.hide_render:
+            continue
+        h.update(repr((obj.name, obj.type, [tuple(r) for r in obj.matrix_world],
+                       [(m.type, m.show_render) for m in getattr(obj, "modifiers", [])])).encode())
+        if obj.type == "MESH":
+            me = obj.data
+            if depsgraph is not None and len(obj.modifiers):
+                me = obj.evaluated_get(depsgraph).data
+            co = np.empty(len(me.vertices) * 3, np.float32)
+            me.vertices.foreach_get("co", co)
+            idx = np.empty(len(me.loops), np.int32)
+            me.loops.foreach_get("vertex_index", idx)
+            h.update(co.tobytes())
+            h.update(idx.tobytes())
+    cam = scene.camera
+    data = cam.data
+    h.update(repr((cam.name, [tuple(r) for r in cam.matrix_world], data.type, data.lens, data.sensor_width,
+                   data.sensor_fit, data.ortho_scale, data.shift_x, data.shift_y,
+                   data.clip_start, data.clip_end)).encode())
+    return h.hexdigest()[:20]
+
+
+def render_reference(scene, radius, samples, cache_dir=None, progress=None):
+    """Cycles AO pass with AO distance = ``radius`` -> dict(k, alpha, samples, seconds, cached, key).
+
+    The pass is the cosine-weighted fraction of unblocked rays (REFERENCE.md §1),
+    one AO ray per sample at the first hit; noise per pixel √(k(1-k)/N).
+    """
+    key = scene_key(scene, radius, samples)
+    path = os.path.join(cache_dir, f"ssao_reference_{key}.npz") if cache_dir else None
+    if path and os.path.exists(path):
+        with np.load(path) as f:
+            return {"k": f["k"], "alpha": f["alpha"], "samples": int(f["samples"]),
+                    "seconds": float(f["seconds"]), "cached": True, "key": key}
+    t0 = time.perf_counter()
+    _cycles(scene, samples)
+    scene.cycles.max_bounces = 0
+    scene.world.light_settings.distance = radius
+    _passes(scene, ao=True)
+    p = render.render_layers(scene)
+    if compat.AO_PASS not in p:
+        raise ILError("Cycles returned no ambient occlusion pass")
+    k = p[compat.AO_PASS][..., 0].astype(np.float32)
+    alpha = p["Combined"][..., 3].astype(np.float32)
+    seconds = time.perf_counter() - t0
+    if path:
+        os.makedirs(cache_dir, exist_ok=True)
+        tmp = path + ".tmp.npz"
+        np.savez_compressed(tmp, k=k, alpha=alpha, samples=samples, seconds=seconds)
+        os.replace(tmp, path)
+    return {"k": k, "alpha": alpha, "samples": int(samples), "seconds": seconds, "cached": False, "key": key}
+
+
+def render_eevee(scene, radius, samples=16):
+    """EEVEE's AO pass (horizon scan, distance = radius) -> (k_A image, seconds, params)."""
+    t0 = time.perf_counter()
+    scene.render.engine = compat.EEVEE
+    scene.render.film_transparent = True
+    scene.render.filter_size = 0.0
+    scene.eevee.taa_render_samples = int(samples)
+    compat.set_eevee_ao_distance(scene, scene.view_layers[0], radius)
+    _passes(scene, ao=True)
+    p = render.render_layers(scene)
+    if compat.AO_PASS not in p:
+        raise ILError("EEVEE returned no ambient occlusion pass")
+    k = np.clip(p[compat.AO_PASS][..., 0], 0.0, 1.0).astype(np.float32)
+    return k, time.perf_counter() - t0, {"radius": float(radius), "taa_render_samples": int(samples)}
+
+
+def render_workbench(scene, radius, samples=16):
+    """Workbench world-space cavity (Alchemy-style SSAO) on flat white: Combined = cavity factor."""
+    t0 = time.perf_counter()
+    r, d = scene.render, scene.display
+    r.engine = compat.WORKBENCH
+    r.film_transparent = True
+    sh = d.shading
+    sh.light, sh.color_type, sh.single_color = "FLAT", "SINGLE", (1.0, 1.0, 1.0)
+    sh.show_cavity, sh.cavity_type = True, "WORLD"
+    sh.cavity_valley_factor, sh.cavity_ridge_factor = 1.0, 0.0
+    d.matcap_ssao_distance, d.matcap_ssao_samples, d.matcap_ssao_attenuation = radius, int(samples), 1.0
+    d.render_aa = "OFF"
+    _passes(scene)
+    p = render.render_layers(scene)
+    k = np.clip(p["Combined"][..., 0], 0.0, 1.0).astype(np.float32)
+    return k, time.perf_counter() - t0, {"radius": float(radius), "samples": int(samples),
+                                         "cavity_type": "WORLD", "valley": 1.0, "ridge": 0.0}
+
+
+# ---------------------------------------------------------------- files
+
+def write_ao(path, k_a, mask, method, samples, radius):
+    """``<method>_ao.exr``: "Y" = k_A (1 on sky), "A" = 1 on geometry pixels."""
+    exr.write_exr(path, {"Y": np.where(mask, k_a, 1.0), "A": mask.astype(np.float32)},
+                  {"il:quantity": "ambient occlusion k_A (1 = open)", "il:units": "1", "il:method": method,
+                   "il:samples": samples, "il:ao_distance": radius,
+                   "il:blender_version": bpy.app.version_string})
+
+
+def _write_images(out, name, k_a, reference, mask):
+    imageio.write_png(os.path.join(out, f"{name}_ao.png"), imageio.to_uint8(ssao_figures.ao_grey(k_a, mask)))
+    if reference is not None:
+        imageio.write_png(os.path.join(out, f"{name}_error.png"),
+                          imageio.to_uint8(ssao_figures.error_rgb(k_a, reference, mask)))
+
+
+# ---------------------------------------------------------------- the comparison
+
+def run_methods(gb, methods, samples, radius, blur=False, seed=0, scene=None, params=None):
+    """Run ``methods`` on one frame -> {method: (k_A image, seconds, params)}. EEVEE/Workbench need ``scene``."""
+    out = {}
+    for m in methods:
+        if m in ssao.METHODS:
+            out[m] = ssao.run_method(m, gb, radius, samples, blur=blur, seed=seed, **(params or {}).get(m, {}))
+        elif m == "eevee":
+            out[m] = render_eevee(scene, radius, samples)
+        else:
+            out[m] = render_workbench(scene, radius, samples)
+    return out
+
+
+def compare(scene, methods, out=None, samples=16, radius=1.0, reference_samples=1024, resolution=None,
+            cache_dir=None, blur=False, seed=0, method_params=None):
+    """Run the comparison on ``scene`` (its camera); write files to ``out`` (if given); return the report.
+
+    Report (DESIGN.md): {"reference": {"samples", "seconds", ...}, "methods": {m: {"rmse", "bias",
+    "mean", "seconds", "params"}}} over geometry pixels (G-buffer mask) only. The
+    arrays are kept under report["_arrays"] (not written to JSON).
+    """
+    methods = parse_methods(methods)
+    check_params(samples, radius, reference_samples, resolution)
+    if scene.camera is None:
+        raise InputError(f"scene '{scene.name}' has no camera")
+    if out is not None and cache_dir is None:
+        cache_dir = os.path.join(out, "cache")
+    steps = 2 + len(methods)
+    with Progress("ssao", steps) as progress, preserved(scene):
+        set_resolution(scene, resolution)
+        progress.step("G-buffer (depth, normal, position at 1 sample)")
+        gb, world, gb_seconds = render_gbuffer(scene)
+        if not gb.mask.any():
+            raise ILError(f"the camera of scene '{scene.name}' sees no geometry")
+        progress.step(f"reference: Cycles AO pass, {reference_samples} samples")
+        ref = render_reference(scene, radius, reference_samples, cache_dir)
+        mask = gb.mask
+        results = {}
+        for m in methods:
+            progress.step(m)
+            results.update(run_methods(gb, [m], samples, radius, blur, seed, scene, method_params))
+    noise = ssao.reference_noise(ref["k"], ref["samples"], mask)
+    report = {
+        "scene": scene.get("il_ssao_scene", scene.name),
+        "resolution": [gb.width, gb.height],
+        "radius": float(radius), "samples": int(samples), "blur": bool(blur),
+        "geometry_pixels": int(mask.sum()),
+        "gbuffer": {"seconds": gb_seconds, "samples": 1, "filter_width": FILTER_WIDTH},
+        "reference": {"samples": ref["samples"], "seconds": ref["seconds"], "cached": ref["cached"],
+                      "ao_distance": float(radius), "noise_rms": noise,
+                      "noise_max": 0.5 / float(np.sqrt(ref["samples"])), "cache_key": ref["key"],
+                      "mean": float(np.mean(ref["k"][mask]))},
+        "methods": {},
+    }
+    for m, (k, seconds, params) in results.items():
+        e = ssao.error_metrics(k, ref["k"], mask)
+        report["methods"][m] = {"rmse": e["rmse"], "bias": e["bias"], "mean": e["mean"], "seconds": seconds,
+                                "params": params}
+    if report["scene"] == "corner":
+        closed = ssao_scenes.corner_closed_form(world, radius)
+        ok = np.isfinite(closed) & mask
+        if ok.any():
+            report["reference"]["closed_form"] = ssao.error_metrics(ref["k"], closed, ok)
+    if out is not None:
+        os.makedirs(out, exist_ok=True)
+        write_ao(os.path.join(out, "reference_ao.exr"), ref["k"], mask, "reference", ref["samples"], radius)
+        _write_images(out, "reference", ref["k"], None, mask)
+        for m, (k, _, _) in results.items():
+            write_ao(os.path.join(out, f"{m}_ao.exr"), k, mask, m, samples, radius)
+            _write_images(out, m, k, ref["k"], mask)
+            report["methods"][m]["file"] = f"{m}_ao.exr"
+            report["methods"][m]["error_image"] = f"{m}_error.png"
+        report["reference"]["file"] = "reference_ao.exr"
+        write_json(os.path.join(out, "ssao_report.json"), report)
+    report["_arrays"] = {"gbuffer": gb, "world": world, "reference": ref["k"],
+                         "methods": {m: r[0] for m, r in results.items()}}
+    return report
+
+
+def frame(scene, radius, reference_samples, resolution=None, cache_dir=None):
+    """G-buffer and reference of ``scene`` (settings restored) -> (GBuffer, world positions, reference dict)."""
+    check_params(1, radius, reference_samples, resolution)
+    with preserved(scene):
+        set_resolution(scene, resolution)
+        gb, world, _ = render_gbuffer(scene)
+        ref = render_reference(scene, radius, reference_samples, cache_dir)
+    return gb, world, ref
+
+
+def blender_method(scene, method, radius, samples, resolution=None):
+    """EEVEE or Workbench on ``scene`` (settings restored) -> (k_A image, seconds, params)."""
+    with preserved(scene):
+        set_resolution(scene, resolution)
+        return (render_eevee if method == "eevee" else render_workbench)(scene, radius, samples)
+
+
+def run_builtin(name, methods, out=None, resolution=128, **kwargs):
+    """Build the built-in scene ``name``, compare, remove the scene again; return the report."""
+    ssao_scenes.check_scene_name(name)
+    methods = parse_methods(methods)
+    check_params(kwargs.get("samples", 16), kwargs.get("radius", 1.0), kwargs.get("reference_samples", 1024),
+                 resolution)
+    scene = ssao_scenes.build_scene(name, resolution, kwargs.get("radius", 1.0))
+    try:
+        return compare(scene, methods, out, resolution=resolution, **kwargs)
+    finally:
+        remove_scene(scene)
+
+
+def remove_scene(scene):
+    """Remove a lab scene and the data blocks only it used (meshes, cameras, world)."""
+    objs = list(scene.objects)
+    world = scene.world
+    bpy.data.scenes.remove(scene)
+    for obj in objs:
+        data = obj.data
+        if obj.users == 0 or not obj.users_scene:
+            bpy.data.objects.remove(obj)
+        if data is not None and data.users == 0:
+            for coll in (bpy.data.meshes, bpy.data.cameras, bpy.data.lights):
+                if data.name in coll and coll[data.name] == data:
+                    coll.remove(data)
+                    break
+    if world is not None and world.users == 0:
+        bpy.data.worlds.remove(world)
+
+
+def summary_lines(report):
+    ref = report["reference"]
+    lines = [f"reference: {ref['samples']} samples, noise {ref['noise_rms']:.4f} rms, "
+             f"{ref['seconds']:.2f} s{' (cached)' if ref['cached'] else ''}"]
+    for m, r in report["methods"].items():
+        lines.append(f"{m:>10}: RMSE {r['rmse']:.4f}  bias {r['bias']:+.4f}  {r['seconds']:.3f} s")
+    return lines

@@ -1,0 +1,155 @@
+"""SSAO sweeps: error against seconds (Pareto front), samples, radius, and the failure cases side by side.
+
+``sweeps(out_dir, quick)`` is used by ``scripts/ssao.py --sweeps`` and by the
+project-wide bench; ``demo_step(out, quick)`` is the demo's quick comparison.
+Errors are RMSE against Cycles' AO pass over geometry pixels (core.ssao.error_metrics).
+"""
+import os
+
+import numpy as np
+
+from ..core import charts, ssao, ssao_figures
+from ..core.fileio import write_json
+from ..progress import Progress
+from . import ssao as lab
+from . import ssao_scenes
+
+#: Per failure scene: the methods shown and the one whose failure the scene is about.
+FAILURES = (("plane", "crytek", "flat plane grey under the sphere kernel"),
+            ("edge", "gtao", "occluders cut by the screen edge are lost"),
+            ("discontinuity", "crytek", "halos on the wall behind a floating ball"),
+            ("thin", "gtao", "thin occluders treated as infinitely thick"))
+
+
+def _settings(quick):
+    if quick:
+        return dict(resolution=64, reference_samples=256, counts=(4, 16, 64), radii=(0.25, 0.5, 1.0, 2.0),
+                    blender=("workbench",))
+    return dict(resolution=128, reference_samples=1024, counts=(2, 4, 8, 16, 32, 64, 128),
+                radii=(0.125, 0.25, 0.5, 1.0, 2.0, 4.0), blender=("workbench", "eevee"))
+
+
+def sweeps(out_dir, quick=False, radius=1.0, samples=16):
+    """Run every sweep; write charts (PNG) and tables (CSV) to ``out_dir``.
+
+    Returns {"tables": {name: [row dicts]}, "charts": [png paths], "figures": {...}}.
+    """
+    cfg = _settings(quick)
+    os.makedirs(out_dir, exist_ok=True)
+    cache = os.path.join(out_dir, "cache")
+    tables, chart_paths, figures = {}, [], {}
+    steps = 3 + len(FAILURES)
+    with Progress("ssao sweeps", steps) as progress:
+        progress.step("corner scene: G-buffer and reference")
+        scene = ssao_scenes.build_scene("corner", cfg["resolution"], radius)
+        try:
+            gb, _, ref = lab.frame(scene, radius, cfg["reference_samples"], cfg["resolution"], cache)
+            mask = gb.mask
+
+            progress.step("error against seconds, samples")
+            rows = []
+            for m in ssao.METHODS:
+                for n in cfg["counts"]:
+                    for blur in (False, True) if n == samples else (False,):
+                        k, sec, _ = ssao.run_method(m, gb, radius, n, blur=blur)
+                        e = ssao.error_metrics(k, ref["k"], mask)
+                        rows.append({"method": m + (" + blur" if blur else ""), "samples": n, "rmse": e["rmse"],
+                                     "bias": e["bias"], "seconds": sec})
+            for m in cfg["blender"]:
+                k, sec, _ = lab.blender_method(scene, m, radius, samples, cfg["resolution"])
+                e = ssao.error_metrics(k, ref["k"], mask)
+                rows.append({"method": m, "samples": samples, "rmse": e["rmse"], "bias": e["bias"], "seconds": sec})
+            tables["ssao_error_vs_seconds"] = rows
+            points = {f"{r['method']} {r['samples']}": (r["seconds"], r["rmse"]) for r in rows}
+            chart_paths.append(charts.scatter_chart(
+                os.path.join(out_dir, "ssao_pareto.png"), points,
+                f"SSAO on the corner scene, {gb.width}x{gb.height}: error against time",
+                "seconds per frame (log)", "RMSE of k_A against Cycles AO", logx=True))
+            front = charts.pareto_front([p[0] for p in points.values()], [p[1] for p in points.values()])
+            figures["pareto_front"] = [list(points)[i] for i in front]
+            series = {m: ([r["samples"] for r in rows if r["method"] == m],
+                          [r["rmse"] for r in rows if r["method"] == m]) for m in ssao.METHODS}
+            chart_paths.append(charts.line_chart(
+                os.path.join(out_dir, "ssao_samples.png"), series,
+                "SSAO error against samples per pixel (corner scene)", "samples per pixel (log)",
+                "RMSE of k_A (log)", logx=True, logy=True))
+
+            progress.step("radius (reference AO distance fixed)")
+            rrows = []
+            for m in ssao.METHODS:
+                for r in cfg["radii"]:
+                    k, sec, _ = ssao.run_method(m, gb, r * radius, samples)
+                    e = ssao.error_metrics(k, ref["k"], mask)
+                    rrows.append({"method": m, "radius_over_ao_distance": r, "rmse": e["rmse"], "bias": e["bias"],
+                                  "seconds": sec})
+            tables["ssao_radius"] = rrows
+            chart_paths.append(charts.line_chart(
+                os.path.join(out_dir, "ssao_radius.png"),
+                {m: ([r["radius_over_ao_distance"] for r in rrows if r["method"] == m],
+                     [r["rmse"] for r in rrows if r["method"] == m]) for m in ssao.METHODS},
+                f"SSAO radius against the reference's AO distance ({radius} m), {samples} samples",
+                "SSAO radius / AO distance (log)", "RMSE of k_A", logx=True))
+            figures["reference"] = {"samples": ref["samples"], "seconds": ref["seconds"],
+                                    "noise_rms": ssao.reference_noise(ref["k"], ref["samples"], mask)}
+        finally:
+            lab.remove_scene(scene)
+
+        frows, ao_rows, err_rows = [], [], []
+        for name, focus, what in FAILURES:
+            progress.step(f"failure: {name} ({what})")
+            scene = ssao_scenes.build_scene(name, cfg["resolution"], radius)
+            try:
+                gb, world, ref = lab.frame(scene, radius, cfg["reference_samples"], cfg["resolution"], cache)
+            finally:
+                lab.remove_scene(scene)
+            label, region_of, control_of = ssao_scenes.REGIONS[name]
+            wpos = np.nan_to_num(world, nan=1e9)
+            region = region_of(wpos, gb, radius) & gb.mask
+            control = control_of(wpos, gb, radius) & gb.mask if control_of else None
+            variants = [(m, m, {}) for m in ssao.METHODS]
+            if name == "discontinuity":
+                variants.append(("crytek + range check", "crytek", {"range_check": True}))
+            ao_cols = [("reference (Cycles)", ssao_figures.ao_grey(ref["k"], gb.mask))]
+            err_cols = []
+            for label_m, m, params in variants:
+                k, sec, _ = ssao.run_method(m, gb, radius, samples, **params)
+                e = ssao.error_metrics(k, ref["k"], gb.mask)
+                er = ssao.error_metrics(k, ref["k"], region)
+                frows.append({"scene": name, "failure": what, "region": label, "method": label_m,
+                              "rmse": e["rmse"], "bias": e["bias"], "region_pixels": er["pixels"],
+                              "region_rmse": er["rmse"], "region_bias": er["bias"],
+                              "region_reference_mean": float(np.mean(ref["k"][region])) if region.any() else float("nan"),
+                              "region_mean": er["mean"],
+                              "control_bias": (ssao.error_metrics(k, ref["k"], control)["bias"]
+                                               if control is not None else float("nan"))})
+                ao_cols.append((label_m, ssao_figures.ao_grey(k, gb.mask)))
+                err_cols.append((f"{label_m} error", ssao_figures.error_rgb(k, ref["k"], gb.mask)))
+            ao_rows.append((name, ao_cols))
+            err_rows.append((name, err_cols))
+            figures.setdefault("failures", {})[name] = {
+                r["method"]: round(r["region_bias"], 4) for r in frows if r["scene"] == name}
+        tables["ssao_failures"] = frows
+        chart_paths.append(ssao_figures.failure_grid(
+            os.path.join(out_dir, "ssao_failures.png"), ao_rows,
+            f"k_A side by side (white = open), radius = AO distance = {radius} m, {samples} samples"))
+        chart_paths.append(ssao_figures.failure_grid(
+            os.path.join(out_dir, "ssao_failures_error.png"), err_rows,
+            "signed error (blue = too dark, red = too bright, saturated at 0.5)"))
+    for name, rows in tables.items():
+        charts.write_csv(os.path.join(out_dir, f"{name}.csv"), rows)
+    write_json(os.path.join(out_dir, "ssao_sweeps.json"), {"figures": figures, "charts": chart_paths})
+    return {"tables": tables, "charts": chart_paths, "figures": figures}
+
+
+def demo_step(out, quick=False):
+    """The demo's SSAO step: corner scene, the numpy methods against the reference, files in ``out``.
+
+    Returns {"report": path of ssao_report.json, "figures": {method: {"rmse", "bias", "seconds"}},
+    "reference": {...}, "lines": [summary lines]}.
+    """
+    report = lab.run_builtin("corner", list(ssao.METHODS), out, resolution=64 if quick else 128, samples=16,
+                             radius=1.0, reference_samples=256 if quick else 1024)
+    return {"report": os.path.join(out, "ssao_report.json"),
+            "figures": {m: {k: r[k] for k in ("rmse", "bias", "seconds")} for m, r in report["methods"].items()},
+            "reference": {k: report["reference"][k] for k in ("samples", "seconds", "noise_rms")},
+            "lines": lab.summary_lines(report)}

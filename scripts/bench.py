@@ -1,0 +1,31 @@
+"""Speed against accuracy for every method the project offers: charts, CSV tables and report.md.
+
+    python scripts/bench.py --out out/bench --quick
+    blender -b -P scripts/bench.py -- --out out/bench
+"""
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import _cli  # noqa: E402
+
+AREA_NAMES = ("shading", "lightmaps", "shadows", "ssao", "envmap")
+
+
+def main(args):
+    from addon.lab import bench
+    result = bench.run(os.path.abspath(args.out), quick=args.quick, areas=args.areas)
+    print(f"bench: {result['report']} ({result['seconds']:.0f} s)")
+
+
+def build_parser():
+    p = _cli.parser("bench.py", "Run the sweeps of all labs and write report.md with charts and CSV tables.",
+                    blend_file=False)
+    p.add_argument("--out", default="out/bench", help="output folder (default: out/bench)")
+    p.add_argument("--quick", action="store_true", help="small sizes and sample counts (a few minutes)")
+    p.add_argument("--areas", nargs="+", choices=AREA_NAMES, help="only these areas (default: all)")
+    return p
+
+
+if __name__ == "__main__":
+    _cli.run(build_parser(), main)

@@ -1,0 +1,103 @@
+"""SSAO lab: screen-space AO methods against Cycles' ray-traced AO on the same pixels.
+
+    python scripts/ssao.py --scene corner --methods crytek,hemisphere,hbao,gtao --out out/ssao
+    python scripts/ssao.py my.blend --methods gtao,eevee --radius 0.5 --out out/ssao
+    blender -b my.blend -P scripts/ssao.py -- --methods gtao,workbench --out out/ssao
+    python scripts/ssao.py --sweeps --quick --out out/ssao_sweeps
+
+Writes <out>/<method>_ao.exr and <out>/reference_ao.exr ("Y" = k_A, "A" = 1 on
+geometry), <method>_error.png, <out>/ssao_report.json; the reference is cached
+in <out>/cache (or --cache DIR). With --sweeps: the charts and tables of
+addon/lab/ssao_sweeps.py instead.
+"""
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import _cli  # noqa: E402
+
+from addon.core import ssao as core_ssao  # noqa: E402  (numpy only)
+from addon.core.errors import InputError  # noqa: E402
+
+
+def _validate(args):
+    """Every bad-input check that needs no Blender (fast exit 2)."""
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    for m in methods:
+        if m not in core_ssao.ALL_METHODS:
+            raise InputError(f"unknown SSAO method '{m}' (choose from {', '.join(core_ssao.ALL_METHODS)})")
+    if not methods:
+        raise InputError("--methods is empty")
+    if args.scene is not None and args.scene not in core_ssao.SCENES:
+        raise InputError(f"unknown SSAO scene '{args.scene}' (choose from {', '.join(core_ssao.SCENES)})")
+    if args.scene is not None and args.blend:
+        raise InputError("give either FILE.blend or --scene, not both")
+    for name in ("samples", "reference_samples"):
+        if getattr(args, name) <= 0:
+            raise InputError(f"--{name.replace('_', '-')} must be positive, got {getattr(args, name)}")
+    if not args.radius > 0:
+        raise InputError(f"--radius must be positive, got {args.radius}")
+    if not 8 <= args.resolution <= 8192:
+        raise InputError(f"--resolution must be in [8, 8192], got {args.resolution}")
+    return methods
+
+
+def main(args):
+    methods = _validate(args)
+    out = os.path.abspath(args.out)
+    cache = os.path.abspath(args.cache) if args.cache else os.path.join(out, "cache")
+    if args.sweeps:
+        from addon.lab import ssao_sweeps
+        result = ssao_sweeps.sweeps(out, quick=args.quick)
+        print(f"ssao sweeps: {out}")
+        for path in result["charts"]:
+            print(f"  chart {path}")
+        for name in result["tables"]:
+            print(f"  table {os.path.join(out, name + '.csv')}")
+        return
+    import bpy
+    from addon.lab import ssao as lab
+    kwargs = dict(samples=args.samples, radius=args.radius, reference_samples=args.reference_samples,
+                  cache_dir=cache, blur=args.blur, seed=args.seed)
+    if args.blend:
+        scene = bpy.context.scene
+        report = lab.compare(scene, methods, out, resolution=args.resolution if args.resolution_given else None,
+                             **kwargs)
+    else:
+        report = lab.run_builtin(args.scene or "corner", methods, out, resolution=args.resolution, **kwargs)
+    print(f"ssao: {os.path.join(out, 'ssao_report.json')}")
+    for line in lab.summary_lines(report):
+        print(f"  {line}")
+
+
+class _Resolution(_cli.argparse.Action):
+    def __call__(self, parser, namespace, values, option_string=None):
+        setattr(namespace, self.dest, values)
+        namespace.resolution_given = True
+
+
+def build_parser():
+    p = _cli.parser("ssao.py", "Compare screen-space AO methods with Cycles' ray-traced AO.")
+    p.add_argument("--scene", choices=None, metavar="NAME",
+                   help=f"a built-in scene: {', '.join(core_ssao.SCENES)} (default corner without FILE.blend)")
+    p.add_argument("--methods", default="crytek,hemisphere,hbao,gtao",
+                   help=f"comma-separated, from {','.join(core_ssao.ALL_METHODS)} (default: the numpy ones)")
+    p.add_argument("--out", default="out/ssao", help="output folder (default out/ssao)")
+    p.add_argument("--resolution", type=int, default=128, action=_Resolution,
+                   help="frame width in pixels (default 128; a .blend keeps its own unless given)")
+    p.add_argument("--samples", type=int, default=16, help="depth-buffer samples per pixel (default 16)")
+    p.add_argument("--radius", type=float, default=1.0,
+                   help="SSAO radius in metres = the reference's AO distance (default 1.0)")
+    p.add_argument("--reference-samples", type=int, default=1024,
+                   help="Cycles AO samples per pixel of the reference (default 1024: noise <= 0.016)")
+    p.add_argument("--blur", action="store_true", help="depth-aware blur after each numpy method")
+    p.add_argument("--seed", type=int, default=0, help="random seed of the numpy methods")
+    p.add_argument("--cache", metavar="DIR", help="reference cache folder (default <out>/cache)")
+    p.add_argument("--sweeps", action="store_true", help="run the sweeps (charts, tables) instead")
+    p.add_argument("--quick", action="store_true", help="with --sweeps: small frames, well under a minute")
+    p.set_defaults(resolution_given=False)
+    return p
+
+
+if __name__ == "__main__":
+    _cli.run(build_parser(), main)

@@ -1,0 +1,80 @@
+"""The speed-against-accuracy report: bench.py --quick writes every chart and table, all numbers finite."""
+import csv
+import math
+import os
+
+import numpy as np
+import pytest
+
+from addon.lab import bench
+
+CHARTS = {
+    "lightmaps": ["bake_error_vs_seconds.png"],
+    "ssao": ["ssao_pareto.png", "ssao_samples.png", "ssao_radius.png", "ssao_failures.png"],
+    "shadows": ["shadow_pareto.png", "shadowmap_resolution_error.png", "shadowmap_bias.png", "shadowmap_pcf.png",
+                "volume_cost.png", "planar_receivers.png", "zpass_zfail.png"],
+    "shading": ["oren_nayar_vs_diffuse.png", "cook_torrance_vs_glossy.png"],
+    "envmap": ["envmap_sh9_accuracy.png", "radiosity_convergence.png"],
+}
+TABLES = {
+    "lightmaps": ["bake_time_to_error", "bake_overhead"],
+    "ssao": ["ssao_error_vs_seconds", "ssao_failures"],
+    "shadows": ["shadow_methods", "shadowmap_resolution", "shadowmap_bias"],
+    "shading": ["shading_node_vs_twin", "shading_oren_nayar_vs_diffuse", "shading_cook_torrance_vs_glossy"],
+    "envmap": ["radiosity_solvers"],
+}
+
+
+def test_monte_carlo_slope_recovers_known_exponents():
+    n = np.array([4, 16, 64, 256])
+    assert bench.monte_carlo_slope(n, 0.3 * n ** -0.5) == pytest.approx(-0.5, abs=1e-12)
+    assert bench.monte_carlo_slope(n, 2.0 / n) == pytest.approx(-1.0, abs=1e-12)
+    assert math.isnan(bench.monte_carlo_slope([8], [0.1]))
+
+
+def test_shading_edges_are_finite_and_bounded():
+    rows = bench.shading_edges()
+    assert len(rows) >= 18
+    assert all(r["finite"] for r in rows)
+    back = [r for r in rows if r["input"].startswith("back-facing")]
+    assert back and all(r["max_output"] == 0.0 for r in back)
+
+
+def _floats(path):
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert rows, path
+    values = []
+    for row in rows:
+        for v in row.values():
+            try:
+                values.append(float(v))
+            except (TypeError, ValueError):
+                pass
+    return rows, values
+
+
+def test_quick_bench_writes_every_chart_and_table(script, tmp_path):
+    proc = script("bench.py", "--quick", "--out", tmp_path, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    report = (tmp_path / "report.md").read_text()
+    for area, names in CHARTS.items():
+        for name in names:
+            assert (tmp_path / area / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+            assert f"]({area}/{name})" in report, name
+    for area, names in TABLES.items():
+        for name in names:
+            rows, values = _floats(tmp_path / area / f"{name}.csv")
+            assert values and all(math.isfinite(v) for v in values if v == v), name
+            assert f"{area}/{name}.csv" in report
+    stability, _ = _floats(tmp_path / "stability.csv")
+    methods = {r["method"] for r in stability}
+    assert {"shadow map", "shadow volume z-pass", "planar projection", "shading models", "SSAO"} <= methods
+    failures = " ".join(r["fails at"] for r in stability)
+    for word in ("acne", "peter-panning", "screen edge", "thin", "grazing", "roughness 0"):
+        assert word in failures, word
+    # The timings that let a user choose: every shadow method has finite seconds and error.
+    shadow_rows, _ = _floats(tmp_path / "shadows" / "shadow_methods.csv")
+    assert {r["method"] for r in shadow_rows} == set(bench.SHADOW_METHODS)
+    assert all(float(r["seconds"]) > 0 and 0 <= float(r["error"]) <= 1 for r in shadow_rows)
+    assert os.path.exists(tmp_path / "report.json")
