@@ -156,6 +156,102 @@ def test_closed_enclosure_follows_the_truncated_bounce_series(tmp_path):
         assert abs(e.mean() - expected) < 4 * se + 0.01 * expected, (k, e.mean(), expected)
 
 
+def _inward_cube(scene, name, half, strip=4):
+    """A closed cube [-half, half]³ with inward normals; UV layer "UVMap" gives face i the columns
+    [i, i + 1) × strip of a 6·strip map (all of v). Returns (object, faces as (4, 3) corner arrays)."""
+    faces = []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            n = np.zeros(3)
+            n[axis] = -sign                              # inward
+            t = np.zeros(3)
+            t[(axis + 1) % 3] = 1.0
+            b = np.cross(n, t)
+            c = -half * n                                # the face plane
+            faces.append(np.array([c + half * (-t - b), c + half * (t - b), c + half * (t + b), c + half * (-t + b)]))
+    verts = np.concatenate(faces)
+    me = bpy.data.meshes.new(name)
+    me.from_pydata([tuple(v) for v in verts], [], [tuple(range(4 * i, 4 * i + 4)) for i in range(6)])
+    me.update()
+    uv = me.uv_layers.new(name="UVMap")
+    u = np.array([[i, i + 1, i + 1, i] for i in range(6)], float).ravel() / 6
+    v = np.tile([0.0, 0.0, 1.0, 1.0], 6)
+    uv.data.foreach_set("uv", np.stack([u, v], -1).ravel())
+    obj = bpy.data.objects.new(name, me)
+    scene.collection.objects.link(obj)
+    return obj, faces
+
+
+def _wall_material(name, rho, le):
+    """Diffuse of albedo rho plus Emission of radiance le (an Emission shader alone when rho = 0)."""
+    mat = bpy.data.materials.new(name)
+    compat.ensure_use_nodes(mat)
+    nt = mat.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Strength"].default_value = le
+    if rho == 0:
+        nt.links.new(em.outputs[0], out.inputs["Surface"])
+        return mat
+    dif = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    dif.inputs["Color"].default_value = (rho, rho, rho, 1)
+    add = nt.nodes.new("ShaderNodeAddShader")
+    nt.links.new(dif.outputs[0], add.inputs[0])
+    nt.links.new(em.outputs[0], add.inputs[1])
+    nt.links.new(add.outputs[0], out.inputs["Surface"])
+    return mat
+
+
+@pytest.mark.both_versions
+def test_baked_enclosure_walls_keep_their_own_albedo_and_emission(tmp_path):
+    """The box IS the baked object: its walls must light each other with their own rho and L_e
+    (not as white non-emitters), E = pi Le (1 - rho^(K+1)) / (1 - rho) on every wall."""
+    scene = sc.new_scene("T")
+    sc.world(scene, strength=0.0)
+    le, rho = 0.5, 0.6
+    box, _ = _inward_cube(scene, "Room", 1.0)
+    box.data.materials.append(_wall_material("Wall", rho, le))
+    for k in (0, 1, 3):
+        bake(scene, [box], ["irradiance"], tmp_path / str(k), resolution=24, samples=16, bounces=k)
+        ch = read(tmp_path / str(k), "Room", "irradiance")[0]
+        assert ch["A"].min() == 1.0                    # the six strips cover the whole map
+        e = ch["R"]
+        expected = lm.irradiance_enclosure(le, rho, k)
+        se = e.std() / math.sqrt(e.size)
+        assert abs(e.mean() - expected) < 4 * se + 2e-3 * expected, (k, e.mean(), expected)
+
+
+def test_multi_material_object_keeps_each_slot_for_the_bounces(tmp_path):
+    """One object, two slots: floor and ceiling pure emitters (albedo 0), the four walls emit and reflect rho.
+    One bounce: E(p) = pi Le (1 + rho sum over the walls j in view F(p -> j)), per face at the texel centres."""
+    scene = sc.new_scene("T")
+    sc.world(scene, strength=0.0)
+    le, rho, strip, res = 0.5, 0.6, 4, 24
+    box, faces = _inward_cube(scene, "Room", 1.0, strip)
+    box.data.materials.append(_wall_material("Emitter", 0.0, le))
+    box.data.materials.append(_wall_material("Wall", rho, le))
+    walls = [i for i, f in enumerate(faces) if abs(f[0, 2] - f[2, 2]) > 0]    # faces spanning z
+    box.data.polygons.foreach_set("material_index", [int(i in walls) for i in range(6)])
+    bake(scene, [box], ["irradiance"], tmp_path, resolution=res, samples=64, bounces=1)
+    e = read(tmp_path, "Room", "irradiance")[0]["R"]
+    v = 1 - (np.arange(res) + 0.5) / res                     # EXR row 0 = top
+    for i, f in enumerate(faces):
+        cols = np.arange(i * strip, (i + 1) * strip)
+        s = (cols + 0.5) / res * 6 - i
+        n = np.cross(f[1] - f[0], f[3] - f[0])
+        n /= np.linalg.norm(n)
+        ref = []
+        for vv in v:
+            for ss in s:
+                p = f[0] + (f[1] - f[0]) * ss + (f[3] - f[0]) * vv
+                ref.append(1 + rho * sum(lm.view_factor_polygon(p, n, faces[j]) for j in walls if j != i))
+        got, ref = e[:, cols].mean(), np.pi * le * np.mean(ref)
+        assert abs(got / ref - 1) < 0.01, (i, got, ref)
+    # the wrong answers this guards against: every slot white (no emission at all), or one slot for all
+    assert abs(e.mean() - np.pi * le) > 0.3
+
+
 @pytest.mark.both_versions
 def test_vertex_colour_bake_agrees_with_image_bake(tmp_path):
     scene = sc.new_scene("T")

@@ -95,7 +95,8 @@ def test_state_restored_after_success(tmp_path):
         assert after[k] == before[k]
 
 
-def test_black_metal_bakes_the_same_irradiance_as_white(tmp_path):
+@pytest.mark.parametrize("bounces", [0, 2])
+def test_black_metal_bakes_the_same_irradiance_as_white(tmp_path, bounces):
     scene = sc.new_scene("T")
     p = sc.plane(scene, "P", 2.0)
     sc.world(scene, strength=0.5)
@@ -105,7 +106,8 @@ def test_black_metal_bakes_the_same_irradiance_as_white(tmp_path):
     bsdf.inputs["Base Color"].default_value = (0, 0, 0, 1)
     bsdf.inputs["Metallic"].default_value = 1.0
     p.data.materials.append(m)
-    bake_lightmaps([p], ["irradiance"], tmp_path, BakeOptions(resolution=8, samples=2, bounces=0), scene=scene)
+    bake_lightmaps([p], ["irradiance"], tmp_path, BakeOptions(resolution=8, samples=2, bounces=bounces),
+                   scene=scene)
     ch, _ = exr.read_exr(tmp_path / "P_irradiance.exr")
     np.testing.assert_allclose(ch["R"], np.pi * 0.5, rtol=1e-4)
     assert p.material_slots[0].material == m
@@ -137,6 +139,8 @@ BAD = [
     ("res 0", lambda o: ([o["A"]], {"resolution": 0}), "resolution must be between 1 and 16384"),
     ("res big", lambda o: ([o["A"]], {"resolution": 16385}), "resolution must be between 1 and 16384"),
     ("samples 0", lambda o: ([o["A"]], {"samples": 0}), "samples must be at least 1"),
+    ("size 0", lambda o: ([o["A"]], {"sizes": {"A": (8, 0)}}), "map size of 'A' must be between 1 and 16384"),
+    ("sizes+vertex", lambda o: ([o["A"]], {"sizes": {"A": (8, 8)}, "target": "vertex"}), "image target"),
 ]
 
 

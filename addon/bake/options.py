@@ -31,6 +31,9 @@ class BakeOptions:
     overwrite       replace existing output files
     keep_products   leave the generated "Lightmap" UV layer / vertex colour attributes on the meshes
     seed            Cycles seed of the (first) bake
+    sizes           {object name: (width, height)} of its image map, overriding resolution and
+                    texel_density for that object (a UV layout made for a given image size, e.g. a
+                    radiosity patch atlas); image target without atlas only
     """
     resolution: int = 256
     texel_density: float = None
@@ -49,6 +52,7 @@ class BakeOptions:
     overwrite: bool = False
     keep_products: bool = True
     seed: int = 0
+    sizes: dict = None
 
     def validate(self):
         """Raise InputError for any value out of range (before anything is touched)."""
@@ -74,6 +78,12 @@ class BakeOptions:
             raise InputError(f"margin must be between 0 and 1024 texels, got {self.margin}")
         if self.target not in TARGETS:
             raise InputError(f"target must be one of {', '.join(TARGETS)}, got {self.target!r}")
+        if self.sizes:
+            if self.target != "image" or self.atlas:
+                raise InputError("per-object map sizes need the image target without a shared atlas")
+            for name, (w, h) in self.sizes.items():
+                if not (1 <= int(w) <= MAX_RESOLUTION and 1 <= int(h) <= MAX_RESOLUTION):
+                    raise InputError(f"map size of '{name}' must be between 1 and {MAX_RESOLUTION}, got {w}x{h}")
         return self
 
 

@@ -1,4 +1,5 @@
-"""The light-map pipeline: validate, UVs, temporary white Lambert materials, Cycles bakes, files, restore."""
+"""The light-map pipeline: validate, UVs, temporary materials (white at the baked point), Cycles bakes, files,
+restore."""
 import json
 import os
 import time
@@ -109,17 +110,17 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
 
         _setup_render(scene, options)
         layers = {}
+        materials = TemporaryMaterials(state)
         if options.target == "image":
             step("light-map UVs")
             margin_uv = options.margin / max(options.resolution if options.texel_density is None else 256, 1)
             layers = uvmod.prepare(scene, objects, state, options.uv_layer, margin_uv=max(margin_uv, 0.002),
                                    together=options.atlas)
         for name, group in groups:
-            res = uvmod.resolution(group, layers, options) if options.target == "image" else 0
-            materials = _temporary_materials(group, state)
+            size = _map_size(group, layers, options)
             for m in maps:
-                step(f"{name}: {m}" + (f" {res}x{res}" if res else " (vertices)"))
-                result = bake_map(scene, group, m, options, layers, res, materials, state)
+                step(f"{name}: {m}" + (f" {size[0]}x{size[1]}" if size else " (vertices)"))
+                result = bake_map(scene, group, m, options, layers, size, materials.assign(group, m), state)
                 entries = _write(name, group, m, result, out, options, layers)
                 for o in group:
                     report["objects"].setdefault(o.name, {})[m] = entries[o.name]
@@ -133,6 +134,17 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
 
 # ------------------------------------------------------------------ bakes
 
+def _map_size(group, layers, options):
+    """(width, height) of the group's image map (None for the vertex target)."""
+    if options.target != "image":
+        return None
+    if options.sizes and group[0].name in options.sizes:
+        w, h = options.sizes[group[0].name]
+        return int(w), int(h)
+    res = uvmod.resolution(group, layers, options)
+    return res, res
+
+
 def _setup_render(scene, options):
     scene.render.engine = compat.CYCLES
     cy = scene.cycles
@@ -141,50 +153,125 @@ def _setup_render(scene, options):
     cy.use_adaptive_sampling = False
     if hasattr(cy, "use_animated_seed"):
         cy.use_animated_seed = False
-    cy.diffuse_bounces = int(options.bounces)
-    cy.max_bounces = max(int(options.bounces), 1)
     if scene.world is None:
         scene.world = bpy.data.worlds.new("IL temporary world")
         scene.world.color = (0.0, 0.0, 0.0)
     scene.world.light_settings.distance = float(options.ao_distance)
 
 
-def _temporary_materials(group, state):
-    """Give every slot of each object a temporary white Lambertian material with an image node.
+class TemporaryMaterials:
+    """The temporary materials of a run, made once and assigned per map.
 
-    Returns ``{object name: image node}``; the node's image is set per map.
+    AO (geometry only): one plain white Lambert shared by every slot, just a carrier
+    of the active image node.
+
+    Irradiance: per original slot material a copy whose surface is
+    ``Mix(original, white Lambert, factor = Light Path "Is Camera Ray")``. Cycles starts
+    every bake sample at the baked point with a camera path state (PATH_RAY_CAMERA,
+    cleared at the first bounce), so the receiving point is white Lambertian (the
+    DIFFUSE bake without COLOR then returns E/π even on black, metallic or textured
+    surfaces, REFERENCE.md §1) while every ray that reaches the object later sees its
+    own albedo and emission: bounces between baked objects stay physical. The copy's
+    Displacement input is unlinked so that E is taken about the mesh normal.
     """
-    nodes = {}
-    for o in group:
-        mat = state.track(bpy.data.materials, bpy.data.materials.new(f"IL bake {o.name}"))
+
+    def __init__(self, state):
+        self.state = state
+        self.ao = None
+        self.copies = {}          # original material (or None) -> (copy, image node)
+
+    def assign(self, group, kind):
+        """Put the ``kind`` materials on every slot of ``group``; return their image nodes."""
+        nodes = []
+        for o in group:
+            originals = [mat for _, mat in self.state.slots[o.name]] or [None]
+            if len(o.material_slots) == 0:
+                o.data.materials.append(None)
+            for slot, orig in zip(o.material_slots, originals):
+                mat, tex = self._ao() if kind == "ao" else self._irradiance(orig)
+                if slot.material != mat:
+                    slot.material = mat
+                if tex not in nodes:
+                    nodes.append(tex)
+        return nodes
+
+    def _new(self, name):
+        mat = self.state.track(bpy.data.materials, bpy.data.materials.new(name))
         compat.ensure_use_nodes(mat)
-        nt = mat.node_tree
-        for n in list(nt.nodes):
-            nt.nodes.remove(n)
+        mat.node_tree.nodes.clear()
+        return mat
+
+    @staticmethod
+    def _white(nt):
         bsdf = nt.nodes.new("ShaderNodeBsdfDiffuse")
         bsdf.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
         bsdf.inputs["Roughness"].default_value = 0.0
-        out = nt.nodes.new("ShaderNodeOutputMaterial")
-        nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+        return bsdf
+
+    @staticmethod
+    def _image_node(nt):
         tex = nt.nodes.new("ShaderNodeTexImage")
         nt.nodes.active = tex
-        if len(o.material_slots) == 0:
-            o.data.materials.append(mat)
-        for slot in o.material_slots:
-            slot.material = mat
-        nodes[o.name] = tex
-    return nodes
+        return tex
+
+    def _ao(self):
+        if self.ao is None:
+            mat = self._new("IL bake AO")
+            nt = mat.node_tree
+            out = nt.nodes.new("ShaderNodeOutputMaterial")
+            nt.links.new(self._white(nt).outputs["BSDF"], out.inputs["Surface"])
+            self.ao = (mat, self._image_node(nt))
+        return self.ao
+
+    def _irradiance(self, orig):
+        if orig in self.copies:
+            return self.copies[orig]
+        if orig is None or (not compat.IS_5 and not orig.use_nodes) or orig.node_tree is None:
+            # Cycles shades such a slot with a plain diffuse of the viewport colour (grey without material)
+            mat = self._new(f"IL bake {orig.name if orig else 'default'}")
+            nt = mat.node_tree
+            base = nt.nodes.new("ShaderNodeBsdfDiffuse")
+            base.inputs["Color"].default_value = tuple(orig.diffuse_color) if orig else (0.8, 0.8, 0.8, 1.0)
+            surface = base.outputs["BSDF"]
+            out = None
+        else:
+            mat = self.state.track(bpy.data.materials, orig.copy())
+            mat.name = f"IL bake {orig.name}"
+            nt = mat.node_tree
+            out = nt.get_output_node("CYCLES")
+            surface = None
+            if out is not None:
+                links = out.inputs["Surface"].links
+                surface = links[0].from_socket if links else None
+                for link in out.inputs["Displacement"].links:
+                    nt.links.remove(link)
+        if out is None:
+            for n in nt.nodes:
+                if n.bl_idname == "ShaderNodeOutputMaterial":
+                    n.is_active_output = False
+            out = nt.nodes.new("ShaderNodeOutputMaterial")
+            out.target = "ALL"
+            out.is_active_output = True
+        mix = nt.nodes.new("ShaderNodeMixShader")
+        path = nt.nodes.new("ShaderNodeLightPath")
+        nt.links.new(path.outputs["Is Camera Ray"], mix.inputs["Fac"])
+        if surface is not None:
+            nt.links.new(surface, mix.inputs[1])
+        nt.links.new(self._white(nt).outputs["BSDF"], mix.inputs[2])
+        nt.links.new(mix.outputs["Shader"], out.inputs["Surface"])
+        self.copies[orig] = (mat, self._image_node(nt))
+        return self.copies[orig]
 
 
-def bake_map(scene, group, kind, options, layers, res, materials, state):
-    """Bake one map of one object group (already prepared); return a :class:`BakeResult`."""
+def bake_map(scene, group, kind, options, layers, size, image_nodes, state):
+    """Bake one map of one object group (UVs and materials in place); return a :class:`BakeResult`."""
     t0 = time.perf_counter()
     image_target = options.target == "image"
     image = None
     if image_target:
-        image = state.track(bpy.data.images, bpy.data.images.new(f"IL {kind}", res, res, float_buffer=True,
-                                                                 alpha=True))
-        for tex in materials.values():
+        image = state.track(bpy.data.images, bpy.data.images.new(f"IL {kind}", size[0], size[1],
+                                                                 float_buffer=True, alpha=True))
+        for tex in image_nodes:
             tex.image = image
     else:
         for o in group:
@@ -257,10 +344,21 @@ def _combine(parts, counts):
     return lightmap.combine(parts, counts).astype(np.float32)
 
 
+def _set_bounces(cy, kind, options):
+    """AO needs the first hit only: no bounces (same k_A, measured, and much cheaper); irradiance: the
+    chosen number of diffuse bounces."""
+    diffuse, total = (0, 0) if kind == "ao" else (int(options.bounces), max(int(options.bounces), 1))
+    if cy.diffuse_bounces != diffuse:
+        cy.diffuse_bounces = diffuse
+    if cy.max_bounces != total:
+        cy.max_bounces = total
+
+
 def _bake_once(scene, group, kind, samples, seed, image, uv_name, options):
     """One Cycles bake call; returns (values, mask) with E already multiplied by π."""
     cy = scene.cycles
     cy.samples, cy.seed = int(samples), int(seed)
+    _set_bounces(cy, kind, options)
     vl = scene.view_layers[0]
     for o in vl.objects:
         want = o in group

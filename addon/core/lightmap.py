@@ -62,11 +62,11 @@ def nearest_fill(values, mask, max_distance=None):
 
     Texels farther than ``max_distance`` keep their value. Returns ``(values, filled_mask)``.
     """
-    from scipy import ndimage
     m = np.asarray(mask, bool)
     v = np.array(values, dtype=np.float32, copy=True)
     if not m.any() or m.all():
         return v, m.copy()
+    from scipy import ndimage
     dist, (iy, ix) = ndimage.distance_transform_cdt(~m, metric="chessboard", return_indices=True)
     grow = ~m if max_distance is None else (~m) & (dist <= max_distance)
     v[grow] = v[iy[grow], ix[grow]]

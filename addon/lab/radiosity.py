@@ -2,9 +2,8 @@
 and the Cycles irradiance bake of the same scene for comparison (seed 004; core in addon.core.radiosity).
 
 Units: B radiosity (exitance) and H irradiance in W/m²; an Emission shader's Strength is the emitted
-radiance L_e (E_i = π L_e). A Cycles DIFFUSE bake {DIRECT, INDIRECT} without COLOR returns H/π
-(REFERENCE.md §1); the bake here keeps the scene's own materials (their albedo drives the bounces) and
-skips pure emitters (albedo 0 bakes black).
+radiance L_e (E_i = π L_e). The comparison is the light-map pipeline's irradiance bake (addon.bake) of the
+result objects: the scene's own materials drive the bounces, emitters included.
 """
 import os
 import time
@@ -15,7 +14,7 @@ import numpy as np
 from .. import compat
 from ..core import charts, exr
 from ..core import radiosity as core
-from ..core.errors import ILError, InputError
+from ..core.errors import InputError
 from ..core.fileio import write_json
 from ..progress import Progress
 from . import scene as scn
@@ -264,92 +263,34 @@ def write_lightmaps(out, results, patches, H):
     return files
 
 
-def cycles_patch_irradiance(scene, results, patches, samples=64, bounces=32, seed=0):
-    """Cycles DIFFUSE bake {DIRECT, INDIRECT} (× π) of every result object into its atlas; per-patch means
-    (N, 3), NaN for emitters (albedo 0 bakes black), and the seconds it took.
+def cycles_patch_irradiance(scene, results, patches, out, samples=64, bounces=32, seed=0):
+    """The light-map pipeline's Cycles irradiance bake (addon.bake, E = π × DIFFUSE bake, white only at the
+    baked point so emitters and every albedo bake right) of every result object into its own patch atlas
+    (``sizes``), written to ``out``; returns per-patch means (N, 3) and the seconds it took.
 
-    The result objects carry the scene's materials, so the bounces are the real ones; the originals are
-    hidden from rendering during the bake and the render settings are restored afterwards.
+    The result objects carry the scene's materials, so the bounces are the real ones; the originals they
+    were built from are hidden from rendering during the bake.
     """
+    from ..bake import BakeOptions, bake_lightmaps
     t0 = time.perf_counter()
-    cy = scene.cycles
-    saved = {k: getattr(cy, k) for k in ("samples", "seed", "diffuse_bounces", "max_bounces", "device",
-                                         "use_denoising", "use_adaptive_sampling")}
-    saved_engine = scene.render.engine
     originals = [scene.objects[n] for n in results if n in scene.objects]
     hidden = [o.hide_render for o in originals]
-    vl = scene.view_layers[0]
-    sel_saved = [o for o in vl.objects if o.select_get(view_layer=vl)]
-    active_saved = vl.objects.active
-    tmp_images, tmp_mats, saved_slots = [], [], []
-    H = np.full((len(patches), 3), np.nan)
+    objs = [obj for obj, _, _ in results.values()]
+    options = BakeOptions(samples=int(samples), bounces=int(bounces), seed=int(seed), margin=0, uv_layer=UV,
+                          sizes={obj.name: atlas.size for obj, _, atlas in results.values()},
+                          overwrite=True, keep_products=False)
     try:
-        scene.render.engine = compat.CYCLES
-        cy.device, cy.samples, cy.seed = "CPU", int(samples), int(seed)
-        cy.diffuse_bounces = cy.max_bounces = int(bounces)
-        cy.use_denoising = cy.use_adaptive_sampling = False
         for o in originals:
             o.hide_render = True
-        bake_objs = []
-        for name, (obj, sel, atlas) in results.items():
-            if not np.any(patches.rho[sel] > 0):
-                continue
-            w, h = atlas.size
-            img = bpy.data.images.new(f"IL bake {name}", w, h, float_buffer=True, alpha=True)
-            tmp_images.append(img)
-            slots = []
-            for slot in obj.material_slots:
-                mat = slot.material.copy() if slot.material else bpy.data.materials.new("IL white")
-                compat.ensure_use_nodes(mat)
-                tmp_mats.append(mat)
-                tex = mat.node_tree.nodes.new("ShaderNodeTexImage")
-                tex.image = img
-                mat.node_tree.nodes.active = tex
-                slots.append((slot, slot.material))
-                slot.material = mat
-            saved_slots += slots
-            obj.data.uv_layers.active = obj.data.uv_layers[UV]
-            bake_objs.append((obj, sel, atlas, img))
-        if not bake_objs:
-            raise ILError("nothing to bake: every surface is an emitter")
-        vl.update()
-        for o in vl.objects:
-            o.select_set(False, view_layer=vl)
-        for obj, *_ in bake_objs:
-            obj.select_set(True, view_layer=vl)
-        objs = [b[0] for b in bake_objs]
-        vl.objects.active = objs[0]
-        ctx = dict(scene=scene, view_layer=vl, active_object=objs[0], object=objs[0],
-                   selected_objects=objs, selected_editable_objects=objs)
-        with bpy.context.temp_override(**ctx):
-            res = bpy.ops.object.bake(type="DIFFUSE", pass_filter={"DIRECT", "INDIRECT"}, margin=0,
-                                      use_clear=True, target="IMAGE_TEXTURES", save_mode="INTERNAL")
-        if "FINISHED" not in res:
-            raise ILError("the Cycles bake did not finish")
-        for obj, sel, atlas, img in bake_objs:
-            w, h = img.size
-            px = np.empty(w * h * 4, np.float32)
-            img.pixels.foreach_get(px)
-            px = np.flipud(px.reshape(h, w, 4))
-            H[sel] = np.pi * core.atlas_means(atlas, px[..., :3], patches.is_tri[sel])
-            H[sel[patches.rho[sel].max(axis=1) <= 0]] = np.nan
-    except RuntimeError as e:
-        raise ILError(f"Cycles bake failed: {str(e).strip().splitlines()[-1]}") from e
+        report = bake_lightmaps(objs, ["irradiance"], out, options, scene=scene)
     finally:
-        for slot, mat in saved_slots:
-            slot.material = mat
-        for m in tmp_mats:
-            bpy.data.materials.remove(m)
-        for img in tmp_images:
-            bpy.data.images.remove(img)
         for o, hr in zip(originals, hidden):
             o.hide_render = hr
-        for k, v in saved.items():
-            setattr(cy, k, v)
-        scene.render.engine = saved_engine
-        for o in vl.objects:
-            o.select_set(o in sel_saved, view_layer=vl)
-        vl.objects.active = active_saved
+    H = np.full((len(patches), 3), np.nan)
+    for obj, sel, atlas in results.values():
+        ch, _ = exr.read_exr(report["objects"][obj.name]["irradiance"]["file"])      # row 0 = top
+        img = np.stack([ch[c] for c in "RGB"], -1)
+        H[sel] = core.atlas_means(atlas, img, patches.is_tri[sel])
     return H, time.perf_counter() - t0
 
 
@@ -399,13 +340,14 @@ def run(out, scene=None, cornell=False, solver="jacobi", max_edge=0.25, adaptive
                   "units": "irradiance W/m^2"}
         if compare:
             p.step(f"Cycles irradiance bake ({samples} samples)")
-            Hc, secs = cycles_patch_irradiance(scene, results, patches, samples)
+            Hc, secs = cycles_patch_irradiance(scene, results, patches, os.path.join(out, "cycles_bake"), samples)
             ok = np.isfinite(Hc).all(axis=1)
             report["rms_vs_cycles"] = rms(H, Hc)
             report["relative_rms_vs_cycles"] = report["rms_vs_cycles"] / float(np.mean(Hc[ok]))
             report["mean_irradiance"] = {"radiosity": float(np.mean(H[ok])), "cycles": float(np.mean(Hc[ok]))}
             report["cycles_seconds"] = round(secs, 4)
             report["cycles_samples"] = int(samples)
+            report["cycles_maps"] = os.path.join(out, "cycles_bake")
             r["cycles"] = Hc
     write_json(os.path.join(out, REPORT), report)
     r["report"] = report
