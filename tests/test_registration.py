@@ -51,3 +51,12 @@ def test_demo_operator_builds_a_new_scene_and_keeps_the_users(addon_registered):
     demo = bpy.data.scenes["IL Demo"]
     assert {"Floor", "Box", "Sphere", "Torus", "Sun", "Key", "Camera"} <= set(demo.objects.keys())
     assert "Mine" in bpy.data.scenes and len(bpy.data.scenes["Mine"].objects) == 0
+
+
+def test_a_second_demo_scene_finds_its_own_objects(addon_registered):
+    from addon.lab import demo
+    first, second = demo.build_demo_scene(), demo.build_demo_scene()
+    for role in demo.ROLES:
+        a, b = demo.get(first, role), demo.get(second, role)
+        assert a != b and a.name in first.objects and b.name in second.objects
+    assert demo.get(second, "Torus").name == "Torus.001"

@@ -29,7 +29,7 @@ def demo_step(scene, out, quick=False):
     Returns figures for the demo report: {"seconds", "resolution", "samples", "maps":
     {object: {map: {file, seconds, estimated_error, mean}}}, "files": [...]}.
     """
-    objects = [scene.objects[n] for n in DEMO_OBJECTS if n in scene.objects]
+    objects = [demo.get(scene, n) for n in DEMO_OBJECTS]
     res, samples = (32, 8) if quick else (256, 64)
     t = time.perf_counter()
     report = bake_lightmaps(objects, ["ao", "irradiance"], out,
@@ -54,8 +54,8 @@ def demo_step(scene, out, quick=False):
 def _demo_floor_scene():
     """The demo scene with the Torus hidden (no closed form) and a planar UV layer on the Floor."""
     scene = demo.build_demo_scene(new_scene=True, resolution=(32, 32))
-    scene.objects["Torus"].hide_render = True
-    floor = scene.objects["Floor"]
+    demo.get(scene, "Torus").hide_render = True
+    floor = demo.get(scene, "Floor")
     me = floor.data
     layer = me.uv_layers.new(name=PLANAR)
     co = np.zeros(len(me.vertices) * 3)
@@ -79,7 +79,7 @@ def analytic_floor_ao(scene, n):
     texel and F = (R/D)² cos θ for the sphere (REFERENCE.md §3). The mask keeps texels
     whose two occluders' cones do not overlap and that lie 0.25 m or more away from them.
     """
-    box, sphere = scene.objects["Box"], scene.objects["Sphere"]
+    box, sphere = demo.get(scene, "Box"), demo.get(scene, "Sphere")
     faces, corners = _world_faces(box)
     centre_s = np.array(sphere.matrix_world.translation)
     radius = max(np.linalg.norm(np.array(v.co)) for v in sphere.data.vertices)
@@ -162,7 +162,7 @@ def _pipeline(scene, floor, out, **kw):
     t = time.perf_counter()
     rep = bake_lightmaps([floor], ["ao"], out, BakeOptions(**kw), scene=scene)
     seconds = time.perf_counter() - t                    # the whole call, validation included
-    e = rep["objects"]["Floor"]["ao"]
+    e = rep["objects"][floor.name]["ao"]
     ch, _ = exr.read_exr(e["file"])
     return seconds, np.flipud(ch["Y"]), e
 

@@ -1,4 +1,4 @@
-"""Charts (matplotlib, Agg backend) and tables (CSV) of the measurements; imported lazily.
+"""Charts (matplotlib, Agg backend) and tables (CSV) of the measurements; matplotlib imported lazily.
 
 Every chart the project writes goes through :func:`line_chart` or :func:`scatter_chart`,
 so they share one look: labelled axes with units, a legend, a title, 120 dpi PNG.
@@ -9,6 +9,24 @@ import io
 import numpy as np
 
 from .fileio import atomic_path, write_bytes
+
+
+#: What a UI operator reports when it skipped its charts.
+MISSING = "matplotlib is needed for charts: charts skipped (tables and images are written)"
+
+
+def available():
+    """True when matplotlib can be imported.
+
+    Inside Blender an extension has numpy and its bundled wheels only, so code reached from a
+    UI operator asks this and skips its charts (reporting :data:`MISSING` once); scripts run in
+    the project's venv and simply require matplotlib.
+    """
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        return False
+    return True
 
 
 def _pyplot():

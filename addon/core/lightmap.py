@@ -57,6 +57,54 @@ def coverage_mask(tri_uv, width, height):
 
 # ---------------------------------------------------------------- dilation
 
+_NEIGHBOURS = tuple((dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if dy or dx)
+
+
+def nearest_covered(mask, max_distance=None):
+    """Flat index of a nearest covered texel for every texel (chessboard distance), -1 beyond ``max_distance``.
+
+    Grows the covered set one 8-neighbour ring at a time; ring k holds exactly the texels at
+    chessboard distance k, and a texel of ring k copies the source of a ring-(k−1) neighbour,
+    which lies at distance ≤ (k−1) + 1 = k from it, hence is a nearest one. Only the frontier
+    ring is touched, so the cost is proportional to the texels grown. Returns an (H, W) int array.
+    """
+    m = np.asarray(mask, bool)
+    h, w = m.shape
+    W = w + 2                                     # padded grid: a border ring (-2) is never free
+    idx = np.int32 if (h + 2) * W < 2 ** 31 else np.int64
+    src = np.full((h + 2, W), -2, idx)
+    src[1:-1, 1:-1] = -1
+    src = src.ravel()
+    pm = np.zeros((h + 2, W), bool)
+    pm[1:-1, 1:-1] = m
+    covered = np.flatnonzero(pm).astype(idx)
+    src[covered] = covered
+    free = np.zeros((h + 2, W), bool)
+    free[1:-1, 1:-1] = ~m
+    edge = np.zeros((h + 2, W), bool)             # covered texels with an uncovered neighbour
+    for dy, dx in _NEIGHBOURS:
+        edge[1:-1, 1:-1] |= free[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+    front = np.flatnonzero(edge & pm).astype(idx)
+    offsets = np.array([dy * W + dx for dy, dx in _NEIGHBOURS], idx)[:, None]
+    rings = math.inf if max_distance is None else math.floor(max_distance)
+    stamp = np.empty(src.size, idx)
+    k = 0
+    while front.size and k < rings:
+        cand = (front[None, :] + offsets).ravel()
+        parent = np.broadcast_to(src[front], (len(offsets), front.size)).ravel()
+        keep = src[cand] == -1
+        cand, parent = cand[keep], parent[keep]
+        order = np.arange(cand.size, dtype=idx)
+        stamp[cand] = order                       # one winner per texel (any parent is a nearest one)
+        first = stamp[cand] == order
+        front = cand[first]
+        src[front] = parent[first]
+        k += 1
+    src = src.reshape(h + 2, W)[1:-1, 1:-1]
+    # padded p = (r + 1) W + (c + 1)  ->  r w + c = p − 2 (p // W) − w − 1
+    return np.where(src >= 0, src - 2 * (src // W) - (w + 1), -1)
+
+
 def nearest_fill(values, mask, max_distance=None):
     """Copy each uncovered texel from its nearest covered texel (chessboard distance, in texels).
 
@@ -66,11 +114,11 @@ def nearest_fill(values, mask, max_distance=None):
     v = np.array(values, dtype=np.float32, copy=True)
     if not m.any() or m.all():
         return v, m.copy()
-    from scipy import ndimage
-    dist, (iy, ix) = ndimage.distance_transform_cdt(~m, metric="chessboard", return_indices=True)
-    grow = ~m if max_distance is None else (~m) & (dist <= max_distance)
-    v[grow] = v[iy[grow], ix[grow]]
-    return v, m | grow
+    src = nearest_covered(m, max_distance).ravel()
+    grow = (src >= 0) & ~m.ravel()
+    flat = v.reshape(m.size, -1)                  # a view of the fresh copy
+    flat[grow] = flat[src[grow]]
+    return v, (src >= 0).reshape(m.shape)
 
 
 def dilate(values, mask, pixels):

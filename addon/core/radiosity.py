@@ -406,18 +406,23 @@ def solve_jacobi(F, rho, E, tol=1e-6, max_iter=10000):
 
 
 def solve_gauss_seidel(F, rho, E, tol=1e-6, max_iter=10000):
-    """Gauss-Seidel: each B_i updated in place with the newest B_j; a sweep is the triangular solve
-    (I − L) B^{k+1} = E + U B^k, where ρF = L + U (strictly lower / upper)."""
-    from scipy.linalg import solve_triangular
+    """Gauss-Seidel: one sweep updates every B_i in place, in order, with the newest B_j:
+
+        B_i ← (E_i + ρ_i Σ_{j≠i} F_ij B_j) / (1 − ρ_i F_ii)
+
+    i.e. (I − D − L) B^{k+1} = E + U B^k with ρF = L + D + U (strictly lower, diagonal,
+    strictly upper); F_ii = 0 for flat patches.
+    """
     F, rho, E = _check(F, rho, E)
     t = time.perf_counter()
     B, res = E.copy(), []
-    C = E.shape[1]
-    lowers = [np.eye(len(F)) - np.tril(rho[:, c, None] * F, -1) for c in range(C)]
-    uppers = [np.triu(rho[:, c, None] * F, 1) for c in range(C)]
+    off = F.copy()
+    np.fill_diagonal(off, 0.0)
+    scale = rho / (1.0 - rho * np.diag(F)[:, None])    # ρ_i / (1 − ρ_i F_ii), per channel
+    base = E / (1.0 - rho * np.diag(F)[:, None])
     for k in range(1, max_iter + 1):
-        B = np.stack([solve_triangular(lowers[c], E[:, c] + uppers[c] @ B[:, c], lower=True, unit_diagonal=True)
-                      for c in range(C)], axis=1)
+        for i in range(len(F)):
+            B[i] = base[i] + scale[i] * (off[i] @ B)
         res.append(residual(F, rho, E, B))
         if res[-1] < tol:
             break

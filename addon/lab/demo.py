@@ -4,6 +4,20 @@ import bpy
 from . import scene as sc
 
 DEMO_NAME = "IL Demo"
+ROLE = "il_demo_role"
+ROLES = ("Floor", "Box", "Sphere", "Torus", "Sun", "Key", "Camera")
+
+
+def get(scene, role):
+    """The demo object playing ``role`` in ``scene`` (its name may carry a .001 suffix)."""
+    for obj in scene.objects:
+        if obj.get(ROLE) == role:
+            return obj
+    obj = scene.objects.get(role)
+    if obj is None:
+        from ..core.errors import InputError
+        raise InputError(f"scene '{scene.name}' has no demo object '{role}'")
+    return obj
 
 
 def build_demo_scene(new_scene=True, resolution=(320, 240)):
@@ -13,14 +27,18 @@ def build_demo_scene(new_scene=True, resolution=(320, 240)):
     and the user's scenes are left untouched; otherwise the current scene is filled.
     """
     scene = sc.new_scene(DEMO_NAME, resolution) if new_scene else bpy.context.scene
-    sc.plane(scene, "Floor", 8.0)
-    sc.box(scene, "Box", 1.0, location=(-1.6, 0.3, 0.5), rotation=sc.deg(0, 0, 25))
-    sc.sphere(scene, "Sphere", 0.6, location=(0.0, -0.4, 0.6))
-    sc.mesh_object(scene, "Torus", _torus, location=(1.6, 0.3, 0.35), smooth=True)
-    sc.light(scene, "Sun", "SUN", 2.0, rotation=sc.deg(40, 0, 30))
-    sc.light(scene, "Key", "POINT", 300.0, location=(2.0, -3.0, 3.5))
-    sc.camera(scene, "Camera", (0.0, -7.0, 4.0), target=(0.0, 0.0, 0.4), lens=40)
+    objs = (
+        sc.plane(scene, "Floor", 8.0),
+        sc.box(scene, "Box", 1.0, location=(-1.6, 0.3, 0.5), rotation=sc.deg(0, 0, 25)),
+        sc.sphere(scene, "Sphere", 0.6, location=(0.0, -0.4, 0.6)),
+        sc.mesh_object(scene, "Torus", _torus, location=(1.6, 0.3, 0.35), smooth=True),
+        sc.light(scene, "Sun", "SUN", 2.0, rotation=sc.deg(40, 0, 30)),
+        sc.light(scene, "Key", "POINT", 300.0, location=(2.0, -3.0, 3.5)),
+        sc.camera(scene, "Camera", (0.0, -7.0, 4.0), target=(0.0, 0.0, 0.4), lens=40),
+    )
     sc.world(scene, strength=0.3, color=(0.8, 0.9, 1.0))
+    for obj, role in zip(objs, ROLES):
+        obj[ROLE] = role
     return scene
 
 

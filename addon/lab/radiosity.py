@@ -86,7 +86,8 @@ def material_rho_emission(mat):
 def _value(node, name, mat):
     sock = node.inputs[name]
     if sock.is_linked:
-        raise InputError(f"material '{mat.name}': {node.name}.{name} is textured; radiosity needs plain colours")
+        raise InputError(f"material '{mat.name}': {node.name}.{name} is driven by other nodes (a texture or node "
+                         f"setup); radiosity needs plain colours (Diffuse, Principled or Emission, nothing linked)")
     return np.array(sock.default_value[:3], np.float64)
 
 
@@ -301,8 +302,12 @@ def rms(a, b):
 
 
 def run(out, scene=None, cornell=False, solver="jacobi", max_edge=0.25, adaptive=0, samples=64,
-        compare=True, tol=1e-5):
-    """The whole job of scripts/radiosity.py; returns the report dict (also written to ``out``)."""
+        compare=True, tol=1e-5, chart=True):
+    """The whole job of scripts/radiosity.py; returns the report dict (also written to ``out``).
+
+    ``chart=False`` skips the convergence chart (the UI passes ``charts.available()``: no matplotlib
+    inside Blender); the report's "chart" is then None, the CSV table is written either way.
+    """
     if solver not in core.SOLVERS:
         raise InputError(f"unknown solver {solver!r}; choose from {', '.join(core.SOLVERS)}")
     if max_edge <= 0:
@@ -317,12 +322,19 @@ def run(out, scene=None, cornell=False, solver="jacobi", max_edge=0.25, adaptive
             scene = build_cornell_scene()
         scene = scene or bpy.context.scene
         meshes, _ = meshes_from_scene(scene)
+        if not any(np.any(m["emission"] > 0) for m in meshes):     # before the costly visibility and solve
+            raise InputError(f"nothing in scene '{scene.name}' emits light: radiosity counts only emissive surfaces "
+                             "(an Emission shader or Principled emission), not lamps; give a mesh an emissive "
+                             "material or build the Cornell box")
         p.step("patches, visibility, form factors, solve")
         r = solve_scene(meshes, max_edge, solver, tol, adaptive)
         patches, F, sol, H = r["patches"], r["F"], r["solution"], r["H"]
         p.step("all solvers for the convergence chart")
         sols = convergence(F, patches, tol)
-        chart = convergence_chart(os.path.join(out, "radiosity_convergence.png"), sols, len(patches))
+        if chart:
+            chart = convergence_chart(os.path.join(out, "radiosity_convergence.png"), sols, len(patches))
+        else:
+            chart = None
         charts.write_csv(os.path.join(out, "radiosity_convergence.csv"),
                          [{"solver": s, "iteration": k + 1, "residual": v}
                           for s, so in sols.items() for k, v in enumerate(so.residuals)])

@@ -16,7 +16,7 @@ from ..core import brdf, charts
 from ..core.errors import InputError
 from ..nodes import groups, material
 from ..progress import Progress
-from . import render, scene as sc
+from . import demo, render, scene as sc
 
 V_ORTHO = np.array([0.0, -1.0, 0.0])  # toward the viewer of the sweep camera (which looks along +Y)
 
@@ -428,12 +428,10 @@ def demo_step(scene, out, quick=False):
     groups.add_node_groups()
     mats, warnings = {}, []
     for obj_name, (model, params) in DEMO_MODELS.items():
-        obj = scene.objects.get(obj_name)
-        if obj is None:
-            raise InputError(f"the demo scene has no object '{obj_name}'")
+        obj = demo.get(scene, obj_name)
         mat, w = material.assign_shading_model(scene, [obj], model, params=params,
-                                               name=f"IL {material.MODEL_LABELS[model]} ({obj_name})")
-        mats[obj_name] = mat.name
+                                               name=f"IL {material.MODEL_LABELS[model]} ({obj.name})")
+        mats[obj.name] = mat.name
         warnings += w
     lights = [o.name for o in material.scene_lights(scene)]
     return {"seconds": time.perf_counter() - t, "materials": mats, "lights": lights, "warnings": warnings,

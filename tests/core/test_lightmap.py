@@ -110,6 +110,31 @@ def test_dilation_grows_by_margin_and_keeps_covered_texels():
     assert lm.bilinear(np.where(m, v, 0), uv)[0] == pytest.approx(v[14, 10] / 2)   # undilated: half black
 
 
+@pytest.mark.parametrize("max_distance", [None, 3, 0.5])
+def test_nearest_fill_matches_brute_force_chessboard_search(max_distance):
+    rng = np.random.default_rng(7)
+    h, w = 23, 31
+    m = rng.random((h, w)) < 0.04
+    m[0, 0] = True
+    v = rng.random((h, w, 3)).astype(np.float32)
+    out, filled = lm.nearest_fill(v, m, max_distance)
+    ys, xs = np.nonzero(m)
+    yy, xx = np.mgrid[0:h, 0:w]
+    d = np.maximum(np.abs(yy[..., None] - ys), np.abs(xx[..., None] - xs))    # (H, W, covered)
+    dmin = d.min(axis=2)
+    reach = np.inf if max_distance is None else max_distance
+    assert np.array_equal(filled, dmin <= reach)
+    assert dmin.max() > 3 and (dmin == 3).any()                       # the limit really cuts
+    assert np.array_equal(out[m], v[m]) and np.array_equal(out[~filled], v[~filled])
+    for y, x in zip(*np.nonzero(filled & ~m)):
+        nearest = d[y, x] == dmin[y, x]                               # every tie is allowed
+        assert any(np.array_equal(out[y, x], v[ys[k], xs[k]]) for k in np.flatnonzero(nearest)), (y, x)
+    src = lm.nearest_covered(m, max_distance)
+    sy, sx = np.divmod(src[filled], w)
+    assert np.array_equal(np.maximum(np.abs(sy - yy[filled]), np.abs(sx - xx[filled])), dmin[filled])
+    assert np.all(src[~filled] == -1)
+
+
 def test_bilinear_reproduces_a_linear_ramp():
     x = (np.arange(16) + 0.5) / 16
     img = np.tile(3.0 * x, (8, 1))
