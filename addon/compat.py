@@ -92,3 +92,9 @@ AO_PASS = "Ambient Occlusion" if IS_5 else "AO"
 def eevee_ao_distance_owner(scene, view_layer):
     """``(owner, attribute)`` of EEVEE's AO distance (see set_eevee_ao_distance), to save and restore it."""
     return (view_layer.eevee, "ambient_occlusion_distance") if IS_5 else (scene.eevee, "gtao_distance")
+
+
+#: ``options`` for a StringProperty holding a path that may start with "//" (relative to the .blend):
+#: 5.0 warns when such a value is set on a path property that does not declare it; 4.5 has no such flag.
+BLEND_RELATIVE_PATH = ({"PATH_SUPPORTS_BLEND_RELATIVE"}
+                       if "is_path_supports_blend_relative" in bpy.types.Property.bl_rna.properties else set())

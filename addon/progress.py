@@ -8,6 +8,8 @@ import bpy
 class Progress:
     """``with Progress("Baking", total) as p: p.step("Cube AO")`` -- ``step`` advances by one."""
 
+    _open = 0  # nested progress (a bake inside a radiosity run) leaves the outer one's display alone
+
     def __init__(self, label, total):
         self.label, self.total, self.done = label, max(int(total), 1), 0
         self.t0 = time.perf_counter()
@@ -15,6 +17,9 @@ class Progress:
         self.wm = wm if (wm is not None and not bpy.app.background and wm.windows) else None
 
     def __enter__(self):
+        Progress._open += 1
+        if self.wm and Progress._open > 1:
+            self.wm = None
         if self.wm:
             self.wm.progress_begin(0, self.total)
         return self
@@ -29,6 +34,7 @@ class Progress:
         self.done += 1
 
     def __exit__(self, *exc):
+        Progress._open -= 1
         if self.wm:
             self.wm.progress_end()
         return False

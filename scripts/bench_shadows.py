@@ -20,6 +20,7 @@ def main(args):
     from addon.core import shadow_map
     from addon.lab import shadow_scenes, shadows
     from addon.lab.shadow_session import Session
+    from addon.lab.scene import remove_scene
     rows = []
     res = args.resolution
     scene = shadow_scenes.build("sphere", "sun", (res, res), segments=102, rings=50)   # 10 000 triangles
@@ -39,7 +40,7 @@ def main(args):
             rows.append((f"shadow volumes z-fail, {info['occluder_triangles']}-triangle occluder, {res}^2 frame",
                          time.perf_counter() - t, 5.0))
     finally:
-        shadows.discard_scene(scene)
+        remove_scene(scene)
     with tempfile.TemporaryDirectory() as tmp:
         rep = shadows.compare_builtin("sphere", "sun", "raytraced,planar,shadowmap,volume_zpass,volume_zfail", tmp,
                                       resolution=256, shadowmap_size=2048)

@@ -23,6 +23,7 @@ def main(args):
     from addon.core import ssao
     from addon.lab import ssao as lab
     from addon.lab import ssao_scenes
+    from addon.lab.scene import remove_scene
     scene = ssao_scenes.build_scene("corner", args.resolution, 1.0)
     cache = os.path.abspath(os.path.join(args.out, "cache"))
     gb, _, ref = lab.frame(scene, 1.0, args.reference_samples, args.resolution, cache)
@@ -43,7 +44,7 @@ def main(args):
                 k, sec, _ = lab.blender_method(scene, m, 1.0, spp, args.resolution)
                 best = min(best, sec)
             rows.append((f"{m} ({spp} spp)", best, ssao.error_metrics(k, ref["k"], gb.mask)["rmse"]))
-    lab.remove_scene(scene)
+    remove_scene(scene)
     print(f"SSAO on the corner scene, {gb.width}x{gb.height} ({int(gb.mask.sum())} geometry pixels), "
           f"{args.samples} samples per pixel, radius = AO distance = 1 m")
     print(f"reference: Cycles AO pass, {ref['samples']} samples, {ref['seconds']:.1f} s"

@@ -172,7 +172,7 @@ def test_bad_input_fails_clearly_and_changes_nothing(tmp_path):
         bake_lightmaps([objs[0]], ["ao"], tmp_path / "file", BakeOptions(resolution=8, samples=1), scene=scene)
     (tmp_path / "out").mkdir()
     (tmp_path / "out" / "A_ao.exr").write_bytes(b"mine")
-    with pytest.raises(InputError, match="exists: pass --overwrite"):
+    with pytest.raises(InputError, match=r"exists: turn on Overwrite \(--overwrite\)"):
         bake_lightmaps([objs[0]], ["ao"], tmp_path / "out", BakeOptions(resolution=8, samples=1), scene=scene)
     assert (tmp_path / "out" / "A_ao.exr").read_bytes() == b"mine"
     assert snapshot(scene) == before
@@ -190,7 +190,7 @@ def test_operator_bakes_selected_meshes_and_reports_errors(tmp_path):
     bpy.context.view_layer.objects.active = p
     assert bpy.ops.illumination.bake_lightmaps() == {"FINISHED"}
     assert (tmp_path / "P_ao.exr").exists()
-    with pytest.raises(RuntimeError, match="exists: pass --overwrite"):
+    with pytest.raises(RuntimeError, match=r"exists: turn on Overwrite \(--overwrite\)"):
         bpy.ops.illumination.bake_lightmaps()
     assert p.select_get() and bpy.context.view_layer.objects.active == p
 
@@ -215,4 +215,4 @@ def test_script_bakes_a_blend_without_modifying_it(tmp_path, script):
     r = script("bake.py", blend, "--objects", "Floor", "--out", out, "--samples", "0")
     assert r.returncode == 2 and "samples must be at least 1" in r.stderr
     r = script("bake.py", blend, "--objects", "Floor", "--out", out, "--resolution", "16")
-    assert r.returncode == 2 and "exists: pass --overwrite" in r.stderr.strip().splitlines()[-1]
+    assert r.returncode == 2 and "exists: turn on Overwrite (--overwrite)" in r.stderr.strip().splitlines()[-1]

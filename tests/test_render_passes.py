@@ -1,5 +1,4 @@
 """Render passes reach numpy on the camera's pixel grid (the labs' shared ground)."""
-import bpy
 import numpy as np
 import pytest
 

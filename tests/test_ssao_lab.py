@@ -12,6 +12,7 @@ from addon.core import exr, ssao as core
 from addon.core.errors import ILError, InputError
 from addon.lab import ssao as lab
 from addon.lab import ssao_scenes
+from addon.lab.scene import remove_scene
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "core"))
 from test_ssao_synthetic import quadrant, segment  # noqa: E402  (closed forms, independent of the lab)
@@ -147,7 +148,7 @@ def test_every_builtin_scene_renders_a_gbuffer():
         n = gb.normal[gb.mask]
         np.testing.assert_allclose(np.linalg.norm(n, axis=-1), 1.0, atol=1e-3)
         assert np.all(np.sum(n * -gb.position[gb.mask], -1) >= -1e-4)
-        lab.remove_scene(scene)
+        remove_scene(scene)
 
 
 @pytest.mark.eevee

@@ -44,7 +44,6 @@ def validate(scene, objects, maps, out, options):
     objects = list(objects)
     if not objects:
         raise InputError("nothing selected: select or name at least one mesh object")
-    vl = scene.view_layers[0]
     for o in objects:
         if o is None:
             raise InputError("no such object")
@@ -64,7 +63,7 @@ def validate(scene, objects, maps, out, options):
     if not options.overwrite:
         for path in output_files(objects, maps, out, options):
             if os.path.exists(path):
-                raise InputError(f"{path} exists: pass --overwrite to replace it")
+                raise InputError(f"{path} exists: turn on Overwrite (--overwrite) to replace it")
     return objects, maps, out
 
 

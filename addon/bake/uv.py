@@ -83,7 +83,6 @@ def _generate(scene, group, state, margin_uv):
             me.uv_layers.new(name=LIGHTMAP, do_init=False)
             state.created_uv(me, LIGHTMAP)
         me.uv_layers.active = me.uv_layers[LIGHTMAP]
-        me.polygons.foreach_set("select", np.ones(len(me.polygons), bool))
         o.select_set(True, view_layer=vl)
     for o in vl.objects:
         if o not in group:
@@ -92,15 +91,33 @@ def _generate(scene, group, state, margin_uv):
     vl.objects.active = lead
     ctx = dict(scene=scene, view_layer=vl, active_object=lead, object=lead,
                selected_objects=list(group), selected_editable_objects=list(group))
-    with bpy.context.temp_override(**ctx):
-        bpy.ops.object.mode_set(mode="EDIT")
+    selections = [(o.data, _mesh_selection(o.data)) for o in group]
+    for o in group:
+        o.data.polygons.foreach_set("select", np.ones(len(o.data.polygons), bool))
     try:
-        with bpy.context.temp_override(edit_object=lead, **ctx):
-            bpy.ops.uv.smart_project(angle_limit=1.15192, island_margin=float(margin_uv),
-                                     area_weight=0.0, correct_aspect=True, scale_to_bounds=False)
-    finally:
         with bpy.context.temp_override(**ctx):
-            bpy.ops.object.mode_set(mode="OBJECT")
+            bpy.ops.object.mode_set(mode="EDIT")
+        try:
+            with bpy.context.temp_override(edit_object=lead, **ctx):
+                bpy.ops.uv.smart_project(angle_limit=1.15192, island_margin=float(margin_uv),
+                                         area_weight=0.0, correct_aspect=True, scale_to_bounds=False)
+        finally:
+            with bpy.context.temp_override(**ctx):
+                bpy.ops.object.mode_set(mode="OBJECT")
+    finally:
+        for me, saved in selections:
+            for items, flags in saved:
+                items.foreach_set("select", flags)
+
+
+def _mesh_selection(me):
+    """The user's vertex, edge and face selection flags of ``me`` (smart_project needs all faces selected)."""
+    saved = []
+    for items in (me.vertices, me.edges, me.polygons):
+        flags = np.zeros(len(items), bool)
+        items.foreach_get("select", flags)
+        saved.append((items, flags))
+    return saved
 
 
 def resolution(objects, layers, options):

@@ -213,7 +213,7 @@ def run(out, quick=False, areas=None):
 
 
 def _markdown(out, results, seconds, stability, shading_rows, quick, total):
-    md = [f"# Illumination Lab: speed against accuracy\n\n",
+    md = ["# Illumination Lab: speed against accuracy\n\n",
           f"Blender {bpy.app.version_string}, {os.cpu_count()} cores ({platform.machine()}), "
           f"{'quick' if quick else 'full'} mode, {total:.0f} s in all. Every number below was measured in this run; "
           "each table is also a CSV beside this file.\n\n",

@@ -52,7 +52,8 @@ def world_environment(scene):
     if node.projection != "EQUIRECTANGULAR":
         raise InputError("only equirectangular environment textures are supported")
     if node.inputs["Vector"].is_linked:
-        raise InputError("the Environment Texture has a Vector input (Mapping): remove it or use --env FILE")
+        raise InputError("the Environment Texture has a Vector input (Mapping): remove it, or give the "
+                         "environment as a file (Environment field, --env)")
     strength = 1.0
     for link in node.outputs["Color"].links:
         if link.to_node.bl_idname == "ShaderNodeBackground":

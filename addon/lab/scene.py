@@ -114,3 +114,27 @@ def world(scene, strength=0.0, color=(1.0, 1.0, 1.0), ao_distance=None):
 
 def deg(*angles):
     return tuple(math.radians(a) for a in angles)
+
+
+def remove_scene(scene, materials=()):
+    """Remove a lab-built scene, its objects that no other scene uses, and the data, world and
+    ``materials`` left without users. The user's own objects linked into it survive."""
+    objs = list(scene.objects)
+    world = scene.world
+    bpy.data.scenes.remove(scene)
+    collections = ((bpy.types.Mesh, bpy.data.meshes), (bpy.types.Light, bpy.data.lights),
+                   (bpy.types.Camera, bpy.data.cameras))
+    for obj in objs:
+        data = obj.data
+        if not obj.users_scene:
+            bpy.data.objects.remove(obj)
+        if data is not None and data.users == 0:
+            for kind, coll in collections:
+                if isinstance(data, kind):
+                    coll.remove(data)
+                    break
+    if world is not None and world.users == 0:
+        bpy.data.worlds.remove(world)
+    for m in materials:
+        if m.users == 0:
+            bpy.data.materials.remove(m)

@@ -121,32 +121,9 @@ def render_group_sweep(group_name, cases, size=96):
             assign(obj, mats[-1])
         pix = render_pixels(scene)
     finally:
-        _remove_scene(scene, mats)
+        sc.remove_scene(scene, mats)
     return [dict(pix.get(k + 1, {"n": np.zeros((0, 3)), "p": np.zeros((0, 3)), "L": np.zeros((0, 3))}),
                  v=V_ORTHO, inputs=inputs) for k, inputs in enumerate(cases)]
-
-
-def _remove_scene(scene, mats=()):
-    objs = list(scene.objects)
-    datas = [o.data for o in objs]
-    worlds = [scene.world] if scene.world else []
-    bpy.data.scenes.remove(scene)
-    for o in objs:
-        bpy.data.objects.remove(o)
-    for d in datas:
-        if d is None or d.users:
-            continue
-        for kind, coll in ((bpy.types.Mesh, bpy.data.meshes), (bpy.types.Light, bpy.data.lights),
-                           (bpy.types.Camera, bpy.data.cameras)):
-            if isinstance(d, kind):
-                coll.remove(d)
-                break
-    for w in worlds:
-        if w.users == 0:
-            bpy.data.worlds.remove(w)
-    for m in mats:
-        if m.users == 0:
-            bpy.data.materials.remove(m)
 
 
 # -- twins of the group inputs ----------------------------------------------------------------------
@@ -243,7 +220,7 @@ def closure_comparison(kind, values, size=64, samples=16):
             assign(obj, mat)
         pix_b = render_pixels(scene, samples=samples)  # same seed and pixels: only the shading differs
     finally:
-        _remove_scene(scene, blender + il)
+        sc.remove_scene(scene, blender + il)
     l = -np.array(_sun_direction(rot))
     rows, data = [], []
     for k, val in enumerate(values):
@@ -278,7 +255,7 @@ def render_cost(size=128, samples=32):
     """Seconds of one Cycles render with IL Cook-Torrance vs Principled BSDF, same scene and samples."""
     scene = sc.new_scene("IL cost", (size, size))
     sc.plane(scene, "Cost Floor", 8.0)
-    ball = sc.sphere(scene, "Cost Ball", 0.8, location=(0, 0, 0.8))
+    sc.sphere(scene, "Cost Ball", 0.8, location=(0, 0, 0.8))
     sc.light(scene, "Cost Sun", "SUN", 3.0, rotation=sc.deg(40, 0, 30))
     sc.light(scene, "Cost Key", "POINT", 300.0, location=(2.0, -3.0, 3.5))
     sc.camera(scene, "Cost Cam", (0.0, -5.0, 3.0), target=(0, 0, 0.6))
@@ -300,7 +277,7 @@ def render_cost(size=128, samples=32):
             render.render_layers(scene)
             times[label] = time.perf_counter() - t
     finally:
-        _remove_scene(scene, mats)
+        sc.remove_scene(scene, mats)
     return {"size": size, "samples": samples, "seconds_il": times["il_cook_torrance"],
             "seconds_principled": times["principled"],
             "ratio_il_over_principled": times["il_cook_torrance"] / times["principled"]}

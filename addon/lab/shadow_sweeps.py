@@ -7,10 +7,10 @@ import time
 
 import numpy as np
 
-from ..core import charts, shadow_metrics, shadow_volume
+from ..core import charts, shadow_metrics
 from ..core.fileio import write_json
 from ..progress import Progress
-from . import shadow_scenes
+from . import scene as sc, shadow_scenes
 from .shadow_session import Session
 
 
@@ -53,7 +53,7 @@ def sweeps(out_dir, quick=False):
                     mask, lookup_s = lab.shadowmap_mask(s, maps, dict(base, pcf=k))
                     pcf_rows.append(dict(pcf=k, map_size=maps[0].size, **_score(s, mask), lookup_seconds=lookup_s))
         finally:
-            lab.discard_scene(scene)
+            sc.remove_scene(scene)
         tables["shadowmap_resolution"] = rows
         tables["shadowmap_pcf"] = pcf_rows
         x = [r["size"] for r in rows]
@@ -85,7 +85,7 @@ def sweeps(out_dir, quick=False):
                     mask, _ = lab.shadowmap_mask(s, maps, dict(base, bias=b, slope_bias=0.0))
                     rows.append(dict(bias=b, slope_bias=0.0, map_size=maps[0].size, **_score(s, mask)))
         finally:
-            lab.discard_scene(scene)
+            sc.remove_scene(scene)
         tables["shadowmap_bias"] = rows
         best = min(rows, key=lambda r: r["error"])
         xb = [max(r["bias"], 1e-4) for r in rows]
@@ -112,7 +112,7 @@ def sweeps(out_dir, quick=False):
                     mask = lab.volume_mask(s, volume, "zfail")
                     rows.append(dict(**info, seconds=time.perf_counter() - t, **_score(s, mask)))
             finally:
-                lab.discard_scene(scene)
+                sc.remove_scene(scene)
         for r in rows:
             r.pop("skipped_open_meshes", None)
         tables["volume_cost"] = rows
@@ -132,7 +132,7 @@ def sweeps(out_dir, quick=False):
                     mask, _, _ = lab.run_method(s, "planar", base)
                     rows.append(dict(scene=name, receiver="planar" if name == "sphere" else "stairs", **_score(s, mask)))
             finally:
-                lab.discard_scene(scene)
+                sc.remove_scene(scene)
         tables["planar_receivers"] = rows
         chart_paths.append(_bar(os.path.join(out_dir, "planar_receivers.png"), rows, "scene",
                                 "Planar shadows: planar floor vs stairs"))
@@ -149,7 +149,7 @@ def sweeps(out_dir, quick=False):
                         rows.append(dict(scene=name, camera="inside" if name == "inside" else "outside", mode=mode,
                                          **_score(s, lab.volume_mask(s, volume, mode))))
             finally:
-                lab.discard_scene(scene)
+                sc.remove_scene(scene)
         tables["zpass_zfail"] = rows
         chart_paths.append(_bar(os.path.join(out_dir, "zpass_zfail.png"), rows, ("camera", "mode"),
                                 "Shadow volumes: z-pass vs z-fail"))

@@ -10,14 +10,13 @@ and the demo job.
 import os
 import time
 
-import bpy
 import numpy as np
 
 from ..core import imageio, shadow_map, shadow_metrics, shadow_planar, shadow_volume
 from ..core.errors import InputError
 from ..core.fileio import write_json
 from ..progress import Progress
-from . import shadow_scenes
+from . import scene as sc, shadow_scenes
 from .shadow_session import Session
 
 METHODS = ("raytraced", "planar", "shadowmap", "volume_zpass", "volume_zfail", "eevee", "workbench")
@@ -57,7 +56,8 @@ def check_params(params):
 def _planar(s, p):
     name = p["receiver"] or s.user_scene.get("il_shadow_receiver", "Floor")
     if name not in s.user_scene.objects or s.user_scene.objects[name].type != "MESH":
-        raise InputError(f"no mesh named '{name}' to receive planar shadows (give --receiver NAME)")
+        raise InputError(f"no mesh named '{name}' to receive planar shadows: name the receiver plane "
+                         "(Receiver field, --receiver)")
     receiver = s.user_scene.objects[name]
     v, t = s.triangles(receiver)
     tri = v[t]
@@ -173,24 +173,6 @@ def compare(scene, light, methods, out, **params):
     return report
 
 
-def discard_scene(scene):
-    """Remove a lab-built scene with its objects and their data."""
-    objs = list(scene.objects)
-    bpy.data.scenes.remove(scene)
-    for o in objs:
-        data = o.data
-        bpy.data.objects.remove(o)
-        if data is None or data.users:
-            continue
-        for kind, coll in ((bpy.types.Mesh, bpy.data.meshes), (bpy.types.Light, bpy.data.lights),
-                           (bpy.types.Camera, bpy.data.cameras)):
-            if isinstance(data, kind):
-                coll.remove(data)
-                break
-    for w in [w for w in bpy.data.worlds if w.users == 0]:
-        bpy.data.worlds.remove(w)
-
-
 def compare_builtin(name, light_kind, methods, out, keep=False, **params):
     """Build the built-in scene ``name`` with a ``light_kind`` light, compare, remove it unless ``keep``."""
     p = check_params(params)
@@ -199,7 +181,7 @@ def compare_builtin(name, light_kind, methods, out, keep=False, **params):
         return compare(scene, scene["il_shadow_light"], methods, out, **params)
     finally:
         if not keep:
-            discard_scene(scene)
+            sc.remove_scene(scene)
 
 
 def demo_step(out, quick=True):

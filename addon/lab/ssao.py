@@ -28,7 +28,7 @@ from ..core import exr, imageio, ssao, ssao_figures
 from ..core.errors import ILError, InputError
 from ..core.fileio import write_json
 from ..progress import Progress
-from . import render, ssao_scenes
+from . import render, scene as sc, ssao_scenes
 
 #: Bumped when the reference render changes meaning (invalidates caches).
 REFERENCE_VERSION = 1
@@ -384,25 +384,7 @@ def run_builtin(name, methods, out=None, resolution=128, **kwargs):
     try:
         return compare(scene, methods, out, resolution=resolution, **kwargs)
     finally:
-        remove_scene(scene)
-
-
-def remove_scene(scene):
-    """Remove a lab scene and the data blocks only it used (meshes, cameras, world)."""
-    objs = list(scene.objects)
-    world = scene.world
-    bpy.data.scenes.remove(scene)
-    for obj in objs:
-        data = obj.data
-        if obj.users == 0 or not obj.users_scene:
-            bpy.data.objects.remove(obj)
-        if data is not None and data.users == 0:
-            for coll in (bpy.data.meshes, bpy.data.cameras, bpy.data.lights):
-                if data.name in coll and coll[data.name] == data:
-                    coll.remove(data)
-                    break
-    if world is not None and world.users == 0:
-        bpy.data.worlds.remove(world)
+        sc.remove_scene(scene)
 
 
 def summary_lines(report):

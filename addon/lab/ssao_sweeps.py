@@ -12,7 +12,7 @@ from ..core import charts, ssao, ssao_figures
 from ..core.fileio import write_json
 from ..progress import Progress
 from . import ssao as lab
-from . import ssao_scenes
+from . import scene as sc, ssao_scenes
 
 #: Per failure scene: the methods shown and the one whose failure the scene is about.
 FAILURES = (("plane", "crytek", "flat plane grey under the sphere kernel"),
@@ -92,7 +92,7 @@ def sweeps(out_dir, quick=False, radius=1.0, samples=16):
             figures["reference"] = {"samples": ref["samples"], "seconds": ref["seconds"],
                                     "noise_rms": ssao.reference_noise(ref["k"], ref["samples"], mask)}
         finally:
-            lab.remove_scene(scene)
+            sc.remove_scene(scene)
 
         frows, ao_rows, err_rows = [], [], []
         for name, focus, what in FAILURES:
@@ -101,7 +101,7 @@ def sweeps(out_dir, quick=False, radius=1.0, samples=16):
             try:
                 gb, world, ref = lab.frame(scene, radius, cfg["reference_samples"], cfg["resolution"], cache)
             finally:
-                lab.remove_scene(scene)
+                sc.remove_scene(scene)
             label, region_of, control_of = ssao_scenes.REGIONS[name]
             wpos = np.nan_to_num(world, nan=1e9)
             region = region_of(wpos, gb, radius) & gb.mask

@@ -269,13 +269,23 @@ def assign_shading_model(scene, objects, model, lights="ALL", attenuation="PHYSI
         raise
     mat["il_lights_mode"] = lights
     mat["il_light_names"] = [o.name for o in linked]
+    replaced = set()
     for obj in meshes:
         slots = obj.data.materials
+        replaced |= {m for m in slots if m is not None}
         if len(slots) == 0:
             slots.append(mat)
         else:
             for i in range(len(slots)):
                 slots[i] = mat
+        for slot in obj.material_slots:     # slots linked to the object override the mesh's material
+            if slot.link == "OBJECT":
+                replaced |= {slot.material} - {None}
+                slot.material = mat
+    for old in sorted(replaced - {mat}, key=lambda m: m.name):
+        if old.users == 0 and not old.get("il_model") and not old.library:
+            old.use_fake_user = True        # else saving the file would silently drop the user's material
+            warnings.append(f"material '{old.name}' is no longer used: kept with a fake user")
     return mat, warnings
 
 

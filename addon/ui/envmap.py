@@ -3,8 +3,9 @@
 import bpy
 from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 
+from .. import compat
 from ..core.errors import ILError
-from . import polls
+from . import common, polls
 
 
 class IL_OT_envmap_irradiance(bpy.types.Operator):
@@ -15,9 +16,10 @@ class IL_OT_envmap_irradiance(bpy.types.Operator):
     bl_label = "Irradiance Environment Map"
     bl_options = {"REGISTER", "UNDO"}
 
-    env_file: StringProperty(name="Environment", subtype="FILE_PATH",
+    env_file: StringProperty(name="Environment", subtype="FILE_PATH", options=compat.BLEND_RELATIVE_PATH,
                              description="Lat-long .exr/.hdr; empty = the world's Environment Texture")
-    out_dir: StringProperty(name="Output", subtype="DIR_PATH", default="//irradiance")
+    out_dir: StringProperty(name="Output", subtype="DIR_PATH", default="//irradiance",
+                            options=compat.BLEND_RELATIVE_PATH)
     method: EnumProperty(name="Method", items=(("sh9", "Nine SH", "Ramamoorthi & Hanrahan 2001"),
                                                ("brute", "Brute force", "Full cosine convolution")))
     width: IntProperty(name="Width", default=64, min=4, max=1024)
@@ -25,6 +27,9 @@ class IL_OT_envmap_irradiance(bpy.types.Operator):
     @classmethod
     def poll(cls, context):
         return polls.has_scene(cls, context)
+
+    def invoke(self, context, event):
+        return context.window_manager.invoke_props_dialog(self, width=400)
 
     def execute(self, context):
         from ..lab import envmap
@@ -34,11 +39,12 @@ class IL_OT_envmap_irradiance(bpy.types.Operator):
         try:
             s = envmap.run(bpy.path.abspath(self.out_dir), scene=context.scene,
                            env_file=bpy.path.abspath(self.env_file) if self.env_file else None,
-                           method=self.method, width=self.width)
+                           method=self.method, width=self.width + self.width % 2)
             img = envmap.load_irradiance_image(s["file"])
             envmap.ensure_node_group(img)
         except ILError as e:
-            self.report({"ERROR"}, str(e))
+            hint = "" if self.env_file else " (or choose an Environment file in this button's dialog)"
+            self.report({"ERROR"}, f"{e}{hint}")
             return {"CANCELLED"}
         self.report({"INFO"}, f"Wrote {s['file']} ({s['seconds'] * 1e3:.1f} ms); node group '{envmap.GROUP}' ready")
         return {"FINISHED"}
@@ -52,7 +58,8 @@ class IL_OT_radiosity(bpy.types.Operator):
     bl_label = "Radiosity"
     bl_options = {"REGISTER", "UNDO"}
 
-    out_dir: StringProperty(name="Output", subtype="DIR_PATH", default="//radiosity")
+    out_dir: StringProperty(name="Output", subtype="DIR_PATH", default="//radiosity",
+                            options=compat.BLEND_RELATIVE_PATH)
     solver: EnumProperty(name="Solver", items=(("jacobi", "Jacobi", ""), ("gauss_seidel", "Gauss-Seidel", ""),
                                                ("progressive", "Progressive refinement", "")))
     max_edge: FloatProperty(name="Patch size", default=0.25, min=0.001, unit="LENGTH")
@@ -64,15 +71,22 @@ class IL_OT_radiosity(bpy.types.Operator):
     def poll(cls, context):
         return polls.object_mode(cls, context) and polls.has_scene(cls, context)
 
+    def invoke(self, context, event):
+        return context.window_manager.invoke_props_dialog(self, width=400)
+
     def execute(self, context):
+        from ..core import charts
         from ..lab import radiosity
         if self.out_dir.startswith("//") and not bpy.data.filepath:
             self.report({"ERROR"}, "Save the file first, or choose an absolute output folder")
             return {"CANCELLED"}
+        chart = charts.available()
+        if not chart:
+            self.report({"WARNING"}, charts.MISSING)
         try:
             r = radiosity.run(bpy.path.abspath(self.out_dir), scene=context.scene, solver=self.solver,
                               max_edge=self.max_edge, adaptive=self.adaptive, samples=max(self.samples, 1),
-                              compare=self.samples > 0)
+                              compare=self.samples > 0, chart=chart)
         except ILError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
@@ -96,6 +110,7 @@ class IL_OT_build_cornell(bpy.types.Operator):
         except ILError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
+        common.copy_settings(context.scene, sc)
         if context.window:
             context.window.scene = sc
         self.report({"INFO"}, f"Built scene '{sc.name}'")

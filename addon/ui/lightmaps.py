@@ -2,6 +2,7 @@
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 
+from .. import compat
 from ..core.errors import ILError
 from . import polls
 
@@ -12,7 +13,7 @@ class IL_PG_lightmaps(bpy.types.PropertyGroup):
     bake_ao: BoolProperty(name="Ambient Occlusion", default=True, description="Bake k_A (1 = open)")
     bake_irradiance: BoolProperty(name="Irradiance", default=True, description="Bake E in W/m² (RGB)")
     out_dir: StringProperty(name="Output", subtype="DIR_PATH", default="//lightmaps/",
-                            description="Folder for the EXR maps, PNG previews and bake_report.json")
+                            options=compat.BLEND_RELATIVE_PATH, description="Folder for the EXR maps, PNG previews and bake_report.json")
     size_mode: EnumProperty(name="Size", items=(("RESOLUTION", "Resolution", "A fixed map side"),
                                                 ("DENSITY", "Texel Density", "Texels per metre, capped")),
                             default="RESOLUTION")

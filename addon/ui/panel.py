@@ -3,7 +3,7 @@ import bpy
 
 from ..core.errors import ILError
 from ..lab import demo
-from . import polls
+from . import common, polls
 
 
 class IL_OT_build_demo_scene(bpy.types.Operator):
@@ -23,7 +23,9 @@ class IL_OT_build_demo_scene(bpy.types.Operator):
         except ILError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
-        context.window.scene = scene if context.window else scene
+        common.copy_settings(context.scene, scene)
+        if context.window:
+            context.window.scene = scene
         self.report({"INFO"}, f"Built scene '{scene.name}'")
         return {"FINISHED"}
 

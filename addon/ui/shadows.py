@@ -1,9 +1,10 @@
 """Comparisons > Shadows: shadow scenes against ray-traced shadows (issue: shadow lab)."""
 import bpy
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
+from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 
+from .. import compat
 from ..core.errors import ILError
-from . import polls
+from . import common, polls
 
 _METHOD_ITEMS = [
     ("planar", "Planar", "Projected shadows onto the receiver plane"),
@@ -32,7 +33,8 @@ class IL_PG_shadows(bpy.types.PropertyGroup):
     bias: FloatProperty(name="Bias", default=0.01, min=0.0, precision=4, unit="LENGTH")
     slope_bias: FloatProperty(name="Slope Bias", default=2.0, min=0.0, description="In texels x tan(theta)")
     pcf: IntProperty(name="PCF", default=1, min=1, max=15, step=2, description="Odd kernel size")
-    output: StringProperty(name="Output", subtype="DIR_PATH", default="//shadows")
+    output: StringProperty(name="Output", subtype="DIR_PATH", default="//shadows",
+                           options=compat.BLEND_RELATIVE_PATH)
     last_report: StringProperty(name="Report", default="")
     last_summary: StringProperty(default="")
 
@@ -55,10 +57,8 @@ class IL_OT_build_shadow_scene(bpy.types.Operator):
         except ILError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
+        common.copy_settings(context.scene, scene)
         new = scene.illumination.shadows
-        for key in ("scene_name", "light_type", "methods", "resolution", "shadowmap_size", "bias", "slope_bias",
-                    "pcf", "output"):
-            setattr(new, key, getattr(st, key))
         new.light = scene["il_shadow_light"]
         new.receiver = scene["il_shadow_receiver"]
         if context.window is not None:
@@ -83,6 +83,9 @@ class IL_OT_run_shadow_comparison(bpy.types.Operator):
         scene = context.scene
         st = scene.illumination.shadows
         light = st.light or next((o.name for o in scene.objects if o.type == "LIGHT"), "")
+        if not light:
+            self.report({"ERROR"}, f"scene '{scene.name}' has no light: add one (or Build Shadow Scene)")
+            return {"CANCELLED"}
         try:
             report = shadows.compare(scene, light, ["raytraced", *sorted(st.methods)], bpy.path.abspath(st.output),
                                      resolution=st.resolution, shadowmap_size=st.shadowmap_size, bias=st.bias,

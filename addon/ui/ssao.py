@@ -4,8 +4,9 @@ import json
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 
+from .. import compat
 from ..core.errors import ILError
-from . import polls
+from . import common, polls
 
 _SCENES = [("plane", "Plane", "One open plane: k_A = 1 (the sphere kernel reads 0.5)"),
            ("corner", "Box in a Corner", "A box in a room corner (closed forms away from the box)"),
@@ -37,6 +38,7 @@ class IL_PG_ssao(bpy.types.PropertyGroup):
                                    description="Cycles AO samples per pixel of the reference")
     blur: BoolProperty(name="Depth-Aware Blur", default=False, description="Blur the numpy methods' results")
     output_dir: StringProperty(name="Output", subtype="DIR_PATH", default="//ssao/",
+                               options=compat.BLEND_RELATIVE_PATH,
                                description="Folder for the AO images, error images and ssao_report.json")
     last_report: StringProperty(name="Last Report", default="", options={"SKIP_SAVE"})
 
@@ -60,8 +62,7 @@ class IL_OT_ssao_build_scene(bpy.types.Operator):
         except ILError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
-        for key in ("methods", "resolution", "samples", "radius", "reference_samples", "blur", "output_dir"):
-            setattr(scene.illumination.ssao, key, getattr(settings, key))
+        common.copy_settings(context.scene, scene)
         if context.window:
             context.window.scene = scene
         self.report({"INFO"}, f"Built scene '{scene.name}'")
