@@ -9,7 +9,7 @@ import pytest
 from addon.lab import bench
 
 CHARTS = {
-    "lightmaps": ["bake_error_vs_seconds.png"],
+    "lightmaps": ["bake_error_vs_seconds.png", "bake_irradiance_error_vs_seconds.png"],
     "ssao": ["ssao_pareto.png", "ssao_samples.png", "ssao_radius.png", "ssao_failures.png"],
     "shadows": ["shadow_pareto.png", "shadowmap_resolution_error.png", "shadowmap_bias.png", "shadowmap_pcf.png",
                 "volume_cost.png", "planar_receivers.png", "zpass_zfail.png"],
@@ -17,7 +17,7 @@ CHARTS = {
     "envmap": ["envmap_sh9_accuracy.png", "radiosity_convergence.png"],
 }
 TABLES = {
-    "lightmaps": ["bake_time_to_error", "bake_overhead"],
+    "lightmaps": ["bake_time_to_error", "bake_irradiance_time_to_error", "bake_overhead"],
     "ssao": ["ssao_error_vs_seconds", "ssao_failures"],
     "shadows": ["shadow_methods", "shadowmap_resolution", "shadowmap_bias"],
     "shading": ["shading_node_vs_twin", "shading_oren_nayar_vs_diffuse", "shading_cook_torrance_vs_glossy"],
@@ -78,3 +78,12 @@ def test_quick_bench_writes_every_chart_and_table(script, tmp_path):
     assert {r["method"] for r in shadow_rows} == set(bench.SHADOW_METHODS)
     assert all(float(r["seconds"]) > 0 and 0 <= float(r["error"]) <= 1 for r in shadow_rows)
     assert os.path.exists(tmp_path / "report.json")
+    # The bakes converge on the closed forms: per-texel noise is at most 0.5/sqrt(N) (REFERENCE.md §3),
+    # plus 0.01 for the texel footprint and the polygonal sphere of the analytic k_A.
+    for table, column in (("bake_time_to_error", "rms"), ("bake_irradiance_time_to_error", "relative_rms")):
+        plain, _ = _floats(tmp_path / "lightmaps" / f"{table}.csv")
+        plain = [r for r in plain if r["method"] == "plain"]
+        errors = [float(r[column]) for r in plain]
+        assert errors == sorted(errors, reverse=True), table
+        for r in plain:
+            assert float(r[column]) <= 0.5 / math.sqrt(int(r["samples"])) + 0.01, (table, r)

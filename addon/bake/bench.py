@@ -16,6 +16,7 @@ from .. import compat
 from ..core import charts, exr
 from ..core import lightmap as lm
 from ..lab import demo
+from ..lab.scene import remove_scene
 from .options import BakeOptions
 from .pipeline import bake_lightmaps
 
@@ -156,15 +157,29 @@ def _bare_bake(scene, floor, res, samples):
         bpy.data.images.remove(img)
 
 
-def _pipeline(scene, floor, out, **kw):
+def _pipeline(scene, floor, out, kind="ao", **kw):
+    """Bake one map of the floor; (seconds, values with rows bottom-first, report entry).
+
+    Values are k_A for "ao" and the mean of R, G, B (W/m²) for "irradiance"."""
     kw.setdefault("uv_layer", PLANAR)
     kw.setdefault("overwrite", True)
     t = time.perf_counter()
-    rep = bake_lightmaps([floor], ["ao"], out, BakeOptions(**kw), scene=scene)
+    rep = bake_lightmaps([floor], [kind], out, BakeOptions(**kw), scene=scene)
     seconds = time.perf_counter() - t                    # the whole call, validation included
-    e = rep["objects"][floor.name]["ao"]
+    e = rep["objects"][floor.name][kind]
     ch, _ = exr.read_exr(e["file"])
-    return seconds, np.flipud(ch["Y"]), e
+    values = ch["Y"] if kind == "ao" else (ch["R"] + ch["G"] + ch["B"]) / 3.0
+    return seconds, np.flipud(values), e
+
+
+def _uniform_sky(scene, radiance):
+    """Lights off, a uniform white world of ``radiance``: then E = pi L k_A exactly (0 bounces)."""
+    for o in scene.objects:
+        if o.type == "LIGHT":
+            o.hide_render = True
+    bg = scene.world.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    bg.inputs["Strength"].default_value = radiance
 
 
 def _time_to(seconds, errors, goal):
@@ -187,7 +202,7 @@ def sweeps(out_dir, quick=False):
     try:
         return _sweeps(scene, floor, out_dir, work, quick)
     finally:
-        bpy.data.scenes.remove(scene)
+        remove_scene(scene)
 
 
 def _sweeps(scene, floor, out_dir, work, quick):
@@ -228,6 +243,27 @@ def _sweeps(scene, floor, out_dir, work, quick):
             ys.append(err)
         series[method] = (xs, ys)
     tables["bake_time_to_error"] = rows
+    # 3. irradiance under a uniform sky of radiance L, 0 bounces: E = pi L k_A; errors relative to pi L
+    radiance = 1.0
+    _uniform_sky(scene, radiance)
+    e_open = math.pi * radiance
+    irr_rows, irr_series = [], {}
+    for method, runs in plans.items():
+        xs, ys = [], []
+        for kw in runs:
+            kw = dict(kw, bounces=0)
+            if "target_error" in kw:
+                kw["target_error"] *= e_open
+            secs, e_map, e = _pipeline(scene, floor, work, "irradiance", resolution=n, margin=0, **kw)
+            err = lm.rms(e_map, e_open * ref, mask) / e_open
+            irr_rows.append({"method": method, "samples": e["samples"], "seconds": secs, "relative_rms": err,
+                             "estimated_error": e["estimated_error"] / e_open})
+            xs.append(secs)
+            ys.append(err)
+        irr_series[f"irradiance {method}"] = (xs, ys)
+    tables["bake_irradiance_time_to_error"] = irr_rows
+    irr_times = {m: _time_to(*irr_series[m], goal) for m in irr_series}
+    figures["irradiance_time_to_rel_rms_0.01_s"] = irr_times
     times = {m: _time_to(*series[m], goal) for m in series}
     figures["bake_time_to_rms_0.01_s"] = times
     figures["bake_texels_compared"] = int(mask.sum())
@@ -238,4 +274,8 @@ def _sweeps(scene, floor, out_dir, work, quick):
                               f"AO light map of the demo floor ({n}x{n}): error against time",
                               "seconds (whole pipeline)", "RMS error vs analytic k_A", logx=True, logy=True,
                               marks={f"goal RMS {goal}": (plain or (min(series['plain'][0])), goal)})
-    return {"tables": tables, "charts": [chart], "figures": figures}
+    irr_chart = charts.line_chart(os.path.join(out_dir, "bake_irradiance_error_vs_seconds.png"), irr_series,
+                                  f"Irradiance map of the demo floor ({n}x{n}) under a uniform sky: error "
+                                  "against time", "seconds (whole pipeline)", "RMS error / (pi L)",
+                                  logx=True, logy=True)
+    return {"tables": tables, "charts": [chart, irr_chart], "figures": figures}

@@ -119,7 +119,8 @@ def stability_table(results, shading_rows):
          "measured": f"all finite: {all_finite}; largest output {worst_shading:.3g} x I",
          "what the project does": "dot products clamped, roughness >= 1e-3, terms zero where n.l <= 0"},
         {"method": "AO / irradiance bake", "fails at": "few samples (noise)",
-         "measured": f"error ~ samples^{_get(bk, 'figures', 'mc_slope', default=float('nan')):.2f} "
+         "measured": f"AO error ~ N^{_get(bk, 'figures', 'mc_slope', default=float('nan')):.2f}, irradiance "
+                     f"~ N^{_get(bk, 'figures', 'mc_slope_irradiance', default=float('nan')):.2f} "
                      "(plain Monte Carlo: -0.50; Cycles' quasi-random sequences may do better)",
          "what the project does": "--target-error picks samples from pilot variance; --denoise"},
         {"method": "SH9 irradiance", "fails at": "small bright lights (high frequency)",
@@ -191,9 +192,11 @@ def run(out, quick=False, areas=None):
             results["shadows"]["tables"]["shadow_methods"] = rows
             results["shadows"]["charts"].append(chart)
         if "lightmaps" in results:
-            plain = [r for r in results["lightmaps"]["tables"].get("bake_time_to_error", []) if r["method"] == "plain"]
-            results["lightmaps"]["figures"]["mc_slope"] = monte_carlo_slope(
-                [r["samples"] for r in plain], [r["rms"] for r in plain])
+            lm = results["lightmaps"]
+            for table, column, key in (("bake_time_to_error", "rms", "mc_slope"),
+                                       ("bake_irradiance_time_to_error", "relative_rms", "mc_slope_irradiance")):
+                plain = [r for r in lm["tables"].get(table, []) if r["method"] == "plain"]
+                lm["figures"][key] = monte_carlo_slope([r["samples"] for r in plain], [r[column] for r in plain])
         shading_rows = shading_edges()
         stability = stability_table(results, shading_rows)
     for key, r in results.items():
