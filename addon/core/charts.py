@@ -45,7 +45,7 @@ def _finish(fig, ax, path, title, xlabel, ylabel, logx, logy):
     if logy:
         ax.set_yscale("log")
     ax.grid(True, which="both", alpha=0.3)
-    if ax.get_legend_handles_labels()[0]:
+    if ax.get_legend_handles_labels()[0] and ax.get_legend() is None:
         ax.legend(fontsize="small")
     fig.tight_layout()
     with atomic_path(path) as tmp:
@@ -66,17 +66,34 @@ def line_chart(path, series, title, xlabel, ylabel, logx=False, logy=False, mark
 
 
 def scatter_chart(path, points, title, xlabel, ylabel, logx=False, logy=False, front=True):
-    """``points``: {label: (x, y)} one point per method; the Pareto front (lower x and y better) is drawn."""
+    """``points``: {label: (x, y)}; the Pareto front (lower x and y better) is drawn and labelled.
+
+    Labels ending in a number ("gtao 16") share one colour and legend entry per method ("gtao").
+    """
     plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
-    for label, (x, y) in points.items():
-        ax.plot([x], [y], marker="o", ls="none", label=label)
-        ax.annotate(label, (x, y), textcoords="offset points", xytext=(4, 4), fontsize="x-small")
-    if front and points:
-        idx = pareto_front([p[0] for p in points.values()], [p[1] for p in points.values()])
-        xy = np.array(list(points.values()), dtype=float)[idx]
-        ax.plot(xy[:, 0], xy[:, 1], "k--", lw=1, label="Pareto front")
-    return _finish(fig, ax, path, title, xlabel, ylabel, logx, logy)
+    fig, ax = plt.subplots(figsize=(8.0, 4.6))
+    labels = list(points)
+    xy = np.array([points[k] for k in labels], dtype=float).reshape(-1, 2)
+    groups = [_group(k) for k in labels]
+    for g in dict.fromkeys(groups):
+        idx = [i for i, h in enumerate(groups) if h == g]
+        ax.plot(xy[idx, 0], xy[idx, 1], marker="o", ls="none", label=g)
+    on_front = pareto_front(xy[:, 0], xy[:, 1]) if (front and len(labels)) else []
+    if on_front:
+        ax.plot(xy[on_front, 0], xy[on_front, 1], "k--", lw=1, label="Pareto front")
+    for i in (on_front if len(labels) > 8 else range(len(labels))):
+        ax.annotate(labels[i], tuple(xy[i]), textcoords="offset points", xytext=(4, 4), fontsize="x-small")
+    if logx:
+        ax.set_xscale("log")
+    if logy:
+        ax.set_yscale("log")
+    ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+    return _finish(fig, ax, path, title, xlabel, ylabel, False, False)
+
+
+def _group(label):
+    head, _, tail = label.rpartition(" ")
+    return head if head and tail.replace(".", "", 1).isdigit() else label
 
 
 def pareto_front(cost, error):
