@@ -8,6 +8,7 @@ import pytest
 
 from addon.core import envmap as E
 from addon.core import exr
+from addon.core.errors import InputError
 from addon.lab import envmap as L
 from addon.lab import render, scene as S
 
@@ -35,6 +36,28 @@ def test_equirectangular_convention_matches_cycles(tmp_path):
         got = render.render_layers(sc)["Combined"][1, 1, :2]
         assert got[0] == pytest.approx((col + 0.5) / W, abs=1e-4), (col, row)
         assert got[1] == pytest.approx((row + 0.5) / H, abs=1e-4), (col, row)
+
+
+def test_8bit_srgb_environment_reads_as_cycles_renders_it(tmp_path):
+    """Image.pixels of an 8-bit image are sRGB-encoded; the world's radiance must be what Cycles shows."""
+    codes = np.array([30, 128, 250])           # one 8-bit code per channel, uniform over the map
+    png = bpy.data.images.new("ldr", 8, 4, alpha=False)
+    png.pixels.foreach_set(np.tile(np.r_[codes / 255.0, 1.0], 32).astype(np.float32))
+    png.filepath_raw, png.file_format = str(tmp_path / "ldr.png"), "PNG"
+    png.save()
+    img = bpy.data.images.load(str(tmp_path / "ldr.png"))
+    assert not img.is_float and img.colorspace_settings.name == "sRGB"
+    sc = S.new_scene("ldr", (3, 3))
+    L.set_world_environment(sc, img)
+    S.camera(sc, "cam", (0, 0, 0), target=(1, 0, 0))
+    render.cycles_cpu(sc, 1)
+    seen = render.render_layers(sc)["Combined"][1, 1, :3]
+    env, _ = L.world_environment(sc)
+    assert np.allclose(env, seen, rtol=1e-3)
+    assert np.max(np.abs(seen - codes / 255.0)) > 0.2    # not the encoded values
+    img.colorspace_settings.name = "Filmic Log"
+    with pytest.raises(InputError, match="8-bit in colour space"):
+        L.world_environment(sc)
 
 
 def _asymmetric_env(h=32, w=64):
@@ -74,12 +97,14 @@ def test_node_group_gives_ambient_term(tmp_path):
     emap = E.irradiance_map_brute(env, 64)
     path = tmp_path / "irr.exr"
     exr.write_exr(path, {c: emap[..., k].astype(np.float32) for k, c in enumerate("RGB")})
-    group = L.ensure_node_group(L.load_irradiance_image(str(path)))
+    image = L.load_irradiance_image(str(path))
+    group = L.ensure_node_group(image)
     sc = S.new_scene("node", (8, 8))
     S.world(sc, 0.0)
     sphere = S.sphere(sc, "Ball", 1.0, segments=16, rings=8)
     mat = L.irradiance_material("amb", group, diffuse=(0.5, 0.25, 1.0))
     next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeGroup").inputs["AO"].default_value = 0.6
+    assert L.ensure_node_group(image) == group   # running the operator again keeps the material's inputs
     sphere.data.materials.append(mat)
     me = sphere.data
     me.color_attributes.new("emit", "FLOAT_COLOR", "POINT")

@@ -5,9 +5,12 @@ import bpy
 import numpy as np
 import pytest
 
+from addon import compat
 from addon.core import exr
 from addon.core import radiosity as R
+from addon.core.errors import InputError
 from addon.lab import radiosity as L
+from addon.lab import scene as S
 
 
 @pytest.mark.both_versions
@@ -24,7 +27,8 @@ def test_cornell_run_against_cycles_and_outputs(tmp_path):
     r = L.run(str(tmp_path), cornell=True, max_edge=0.5, samples=32, solver="gauss_seidel")
     rep = json.loads((tmp_path / "radiosity_report.json").read_text())
     assert rep["patches"] == len(r["patches"]) and rep["solver"] == "gauss_seidel" and rep["iterations"] > 1
-    # the bake and the solution agree on the mean irradiance within a few percent, patch by patch within 25%
+    # the bake and the solution agree on the mean irradiance within 6 % and patch by patch to an RMS of 20 % of
+    # the mean (constant patches and one visibility ray per pair against a 32-sample bake)
     H, Hc = r["H"], r["cycles"]
     ok = np.isfinite(Hc).all(axis=1)
     assert ok.all()                        # the bake pipeline bakes emitters (albedo 0) too
@@ -57,10 +61,8 @@ def test_cornell_run_against_cycles_and_outputs(tmp_path):
 
 def test_closed_emissive_box_in_blender_gives_e_over_one_minus_rho():
     """A user-style scene read from bpy data: a closed box whose every face emits L_e and reflects rho."""
-    from addon.lab import scene as S
     sc = bpy.context.scene
     box = S.box(sc, "Room", 2.0)
-    from addon import compat
     mat = bpy.data.materials.new("glow")
     compat.ensure_use_nodes(mat)
     nt = mat.node_tree
@@ -76,7 +78,7 @@ def test_closed_emissive_box_in_blender_gives_e_over_one_minus_rho():
     # the cube's faces point outward: turn them inward to make a closed room
     assert patches.normal[0] @ patches.center[0] > 0
     patches = R.Patches(patches.corners[:, ::-1], patches.rho, patches.emission, patches.owner,
-                            patches.is_tri, patches.source, patches.names)
+                        patches.is_tri, patches.source, patches.names)
     F = R.form_factors(patches, L.visibility_bvh(patches))
     B = R.solve_jacobi(F, patches.rho, patches.emission, tol=1e-9).B
     assert np.allclose(B, np.pi * 2.0 / (1 - 0.5), rtol=1e-3)
@@ -88,6 +90,10 @@ def test_script_errors_and_help(script, tmp_path):
     assert bad.returncode == 2 and "--max-edge" in bad.stderr.strip().splitlines()[-1]
     bad = script("radiosity.py", "--scene", "kitchen", "--out", tmp_path)
     assert bad.returncode == 2
+    for kwargs, option in ((dict(tol=0.0), "--tol"), (dict(adaptive=-1), "--adaptive")):
+        with pytest.raises(InputError, match=option):     # refused before any scene is built
+            L.run(str(tmp_path), cornell=True, **kwargs)
+    assert "IL Cornell" not in bpy.data.scenes
 
 
 def test_script_cornell_without_bake(script, tmp_path):

@@ -48,11 +48,7 @@ def lit(n_l):
     return (np.asarray(n_l) > 0.0).astype(float)
 
 
-def _color(c):
-    return np.asarray(c, float)
-
-
-def _scalar(x):
+def _array(x):
     return np.asarray(x, float)
 
 
@@ -90,20 +86,20 @@ def blinn_normalization(shininess, n_l, normalized):
 
 def ambient_term(ka, ambient_light):
     """k_a I_a (seed 004, eq. 1)."""
-    return _scalar(ka)[..., None] * _color(ambient_light)
+    return _array(ka)[..., None] * _array(ambient_light)
 
 
 def _phong_family(n, l, v, I, ka, ambient_light, kd, ks, shininess, emission, normalized, blinn):
     n, l, v, n_l, _ = _frames(n, l, v)
-    shininess, normalized = _scalar(shininess), _scalar(normalized)
+    shininess, normalized = _array(shininess), _array(normalized)
     if blinn:
         lobe = blinn_lobe(dot(n, half_vector(l, v)), shininess) * blinn_normalization(shininess, n_l, normalized)
     else:
         lobe = phong_lobe(dot(reflect(l, n), v), shininess) * phong_normalization(shininess, n_l, normalized)
     mask = lit(n_l)
-    diffuse = _color(kd) * (mask * np.maximum(n_l, 0.0))[..., None]
-    specular = _scalar(ks)[..., None] * (mask * lobe)[..., None]
-    return ambient_term(ka, ambient_light) + _color(I) * (diffuse + specular) + _color(emission)
+    diffuse = _array(kd) * (mask * np.maximum(n_l, 0.0))[..., None]
+    specular = _array(ks)[..., None] * (mask * lobe)[..., None]
+    return ambient_term(ka, ambient_light) + _array(I) * (diffuse + specular) + _array(emission)
 
 
 def phong(n, l, v, I, ka=0.0, ambient_light=(0, 0, 0), kd=(0.8, 0.8, 0.8), ks=0.5, shininess=32.0,
@@ -122,13 +118,13 @@ def blinn_phong(n, l, v, I, ka=0.0, ambient_light=(0, 0, 0), kd=(0.8, 0.8, 0.8),
 
 def oren_nayar_A(sigma):
     """A = 1 - 0.5 sigma^2 / (sigma^2 + 0.33)."""
-    s2 = np.square(_scalar(sigma))
+    s2 = np.square(_array(sigma))
     return 1.0 - 0.5 * s2 / (s2 + 0.33)
 
 
 def oren_nayar_B(sigma):
     """B = 0.45 sigma^2 / (sigma^2 + 0.09)."""
-    s2 = np.square(_scalar(sigma))
+    s2 = np.square(_array(sigma))
     return 0.45 * s2 / (s2 + 0.09)
 
 
@@ -143,20 +139,20 @@ def oren_nayar(n, l, v, I, albedo=(0.8, 0.8, 0.8), sigma=0.3):
     """L = rho I (n.l) (A + B max(0, cos dphi) sin alpha tan beta); sigma = 0 is Lambert exactly."""
     n, l, v, n_l, n_v = _frames(n, l, v)
     factor = oren_nayar_A(sigma) + oren_nayar_B(sigma) * oren_nayar_angular(n_l, n_v, dot(l, v))
-    return _color(I) * _color(albedo) * (lit(n_l) * np.maximum(n_l, 0.0) * factor)[..., None]
+    return _array(I) * _array(albedo) * (lit(n_l) * np.maximum(n_l, 0.0) * factor)[..., None]
 
 
 def lambert(n, l, I, albedo=(1.0, 1.0, 1.0)):
     """L = rho I (n.l)+ : the white Lambertian surface facing the light returns I (REFERENCE.md §1)."""
     n_l = dot(normalize(n), normalize(l))
-    return _color(I) * _color(albedo) * np.maximum(n_l, 0.0)[..., None]
+    return _array(I) * _array(albedo) * np.maximum(n_l, 0.0)[..., None]
 
 
 # -- Cook-Torrance microfacet specular (Walter et al. 2007; REFERENCE.md §2) ---------------------
 
 def clamp_roughness(roughness):
     """m or alpha clamped to >= MIN_ROUGHNESS so that D never becomes a delta."""
-    return np.maximum(_scalar(roughness), MIN_ROUGHNESS)
+    return np.maximum(_array(roughness), MIN_ROUGHNESS)
 
 
 def D_beckmann(n_h, m):
@@ -229,10 +225,10 @@ def microfacet_terms(n_l, n_v, n_h, v_h, F0, roughness, distribution, geometry):
     Both switches are blended linearly, so 0 and 1 select one term exactly.
     """
     r = clamp_roughness(roughness)
-    distribution, geometry = _scalar(distribution), _scalar(geometry)
+    distribution, geometry = _array(distribution), _array(geometry)
     D = (1 - distribution) * D_beckmann(n_h, r) + distribution * D_ggx(n_h, r)
     G = (1 - geometry) * G_cook_torrance(n_h, n_v, n_l, v_h) + geometry * G_smith(n_l, n_v, r, distribution)
-    return F_schlick(v_h, _scalar(F0)), D, G
+    return F_schlick(v_h, _array(F0)), D, G
 
 
 def cook_torrance_brdf(n, l, v, F0=0.04, roughness=0.3, distribution=1.0, geometry=1.0):
@@ -251,9 +247,9 @@ def cook_torrance(n, l, v, I, kd=(0.5, 0.5, 0.5), ks=1.0, F0=0.04, roughness=0.3
     h = half_vector(l, v)
     F, D, G = microfacet_terms(n_l, n_v, dot(n, h), dot(v, h), F0, roughness, distribution, geometry)
     mask = lit(n_l)
-    specular = mask * lit(n_v) * np.pi * _scalar(ks) * F * D * G / (4.0 * np.maximum(n_v, EPS))
+    specular = mask * lit(n_v) * np.pi * _array(ks) * F * D * G / (4.0 * np.maximum(n_v, EPS))
     diffuse = mask * np.maximum(n_l, 0.0)
-    return _color(I) * (_color(kd) * diffuse[..., None] + specular[..., None])
+    return _array(I) * (_array(kd) * diffuse[..., None] + specular[..., None])
 
 
 # -- integration helpers (for albedo checks and charts) ------------------------------------------

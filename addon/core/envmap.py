@@ -231,20 +231,6 @@ def downsample_latlong(env, factor):
     return num / den
 
 
-def resize_latlong(env, width):
-    """Lat-long map resampled to ``width`` x ``width/2``: box filter when shrinking by a whole factor, else bilinear."""
-    env = np.asarray(env, np.float64)
-    h, w = env.shape[:2]
-    width = int(width)
-    if width < 2 or width % 2:
-        raise InputError(f"width must be an even number >= 2, got {width}")
-    if width == w:
-        return env
-    if width < w and w % width == 0:
-        return downsample_latlong(env, w // width)
-    return sample_latlong(env, latlong_directions(width // 2, width))
-
-
 # ----------------------------------------------------------------------------
 # Irradiance E(n) by brute force
 
@@ -254,11 +240,10 @@ def clamped_cosine(n, l):
     return np.maximum(np.einsum("...k,...k->...", n, l), 0.0)
 
 
-def irradiance_brute(env, normals, max_width=256, chunk=512):
-    """E(n) = Σ_pixels L_p (n·l_p)⁺ Δω_p for each normal (…, 3) -> (…, C) W/m² (quadrature of seed 002's integral).
+def quadrature(env, max_width):
+    """Quadrature of ∫ L(l) g(l) dl over a lat-long map: (directions l_p (P, 3), L_p Δω_p (P, C)).
 
-    The environment is first box-filtered to at most ``max_width`` columns: the
-    cosine kernel is smooth, so this costs nothing in accuracy for E.
+    The map is first box-filtered by powers of two to at most ``max_width`` columns.
     """
     env = np.asarray(env, np.float64)
     h, w, c = env.shape
@@ -267,8 +252,17 @@ def irradiance_brute(env, normals, max_width=256, chunk=512):
         f *= 2
     env = downsample_latlong(env, f)
     h, w = env.shape[:2]
-    dirs = latlong_directions(h, w).reshape(-1, 3)
-    weighted = (env * latlong_row_solid_angles(h, w)[:, None, None]).reshape(-1, c)
+    return latlong_directions(h, w).reshape(-1, 3), (env * latlong_row_solid_angles(h, w)[:, None, None]).reshape(-1, c)
+
+
+def irradiance_brute(env, normals, max_width=256, chunk=512):
+    """E(n) = Σ_pixels L_p (n·l_p)⁺ Δω_p for each normal (…, 3) -> (…, C) W/m² (quadrature of seed 002's integral).
+
+    The environment is first box-filtered to at most ``max_width`` columns: the
+    cosine kernel is smooth, so this costs nothing in accuracy for E.
+    """
+    dirs, weighted = quadrature(env, max_width)
+    c = weighted.shape[1]
     n = np.asarray(normals, np.float64)
     flat = n.reshape(-1, 3)
     out = np.empty((flat.shape[0], c))
@@ -384,15 +378,8 @@ def prefilter_phong(env, n, width=64, max_width=256, chunk=256):
     environment is box-filtered to at most ``max_width`` columns: keep its pixel
     well below the lobe width (about 1/sqrt(n) radians).
     """
-    env = np.asarray(env, np.float64)
-    h, w, c = env.shape
-    f = 1
-    while w // f > max_width and h % (2 * f) == 0 and w % (2 * f) == 0:
-        f *= 2
-    env = downsample_latlong(env, f)
-    h, w = env.shape[:2]
-    dirs = latlong_directions(h, w).reshape(-1, 3)
-    weighted = (env * latlong_row_solid_angles(h, w)[:, None, None]).reshape(-1, c)
+    dirs, weighted = quadrature(env, max_width)
+    c = weighted.shape[1]
     r = latlong_directions(width // 2, width).reshape(-1, 3)
     out = np.empty((r.shape[0], c))
     for s in range(0, r.shape[0], chunk):

@@ -43,6 +43,12 @@ def decode_png(data):
     return a[:, :, 0] if c == 1 else a
 
 
+def srgb_decode(encoded):
+    """Inverse sRGB transfer function (IEC 61966-2-1): c/12.92 below 0.04045, else ((c + 0.055)/1.055)^2.4."""
+    c = np.clip(encoded, 0.0, 1.0)
+    return np.where(c <= 0.04045, c / 12.92, np.power((c + 0.055) / 1.055, 2.4))
+
+
 def to_uint8(values):
     """Clip display values in [0, 1] and quantise to 8 bits."""
     return np.round(np.clip(np.nan_to_num(values), 0.0, 1.0) * 255.0).astype(np.uint8)

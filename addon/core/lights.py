@@ -36,12 +36,12 @@ def point_intensity(power):
 
 
 def spot_falloff(spot_dir, to_surface, cutoff, exponent):
-    """(s.s')^k inside the cone (angle between s and s' <= cutoff), 0 outside (seed 004).
+    """(s.s')^k inside the cone (s.s' > cos(cutoff)), 0 outside (seed 004).
 
     ``spot_dir`` s is where the spot points, ``to_surface`` s' the unit direction from light to surface.
     """
     c = dot(normalize(spot_dir), normalize(to_surface))
-    inside = (c >= np.cos(cutoff)).astype(float)
+    inside = (c > np.cos(cutoff)).astype(float)
     return inside * np.power(np.maximum(c, 0.0), exponent)
 
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import ILError, InputError
+from .errors import InputError
 
 
 # ----------------------------------------------------------------------------
@@ -189,14 +189,20 @@ def clip_to_hemisphere(poly, point, normal, eps=1e-9):
 def lambert_polygon(rel, normal):
     """Point-to-polygon form factor (Lambert; REFERENCE.md §3): |Σ γ_m n·(R_m × R_{m+1})/|R_m × R_{m+1}|| / 2π.
 
-    ``rel`` (..., k, 3): polygon corners relative to the point, all in front of it.
+    ``rel`` (..., k, 3): polygon corners relative to the point, all in front of it; ``normal`` (..., 3).
+    Written on component arrays: it is the hot loop of the form factors.
     """
-    u = rel / np.maximum(np.linalg.norm(rel, axis=-1, keepdims=True), 1e-300)
-    v = np.roll(u, -1, axis=-2)
-    cr = np.cross(u, v)
-    s = np.linalg.norm(cr, axis=-1)
-    gamma = np.arctan2(s, np.einsum("...k,...k->...", u, v))
-    term = np.where(s > 1e-12, gamma * np.einsum("...mk,...k->...m", cr, normal) / np.maximum(s, 1e-300), 0.0)
+    rel = np.asarray(rel, np.float64)
+    n = np.broadcast_to(normal, rel.shape[:-2] + (3,))
+    x, y, z = rel[..., 0], rel[..., 1], rel[..., 2]
+    inv = 1.0 / np.maximum(np.sqrt(x * x + y * y + z * z), 1e-300)
+    x, y, z = x * inv, y * inv, z * inv
+    x2, y2, z2 = np.roll(x, -1, -1), np.roll(y, -1, -1), np.roll(z, -1, -1)
+    cx, cy, cz = y * z2 - z * y2, z * x2 - x * z2, x * y2 - y * x2
+    s = np.sqrt(cx * cx + cy * cy + cz * cz)
+    gamma = np.arctan2(s, x * x2 + y * y2 + z * z2)
+    proj = cx * n[..., None, 0] + cy * n[..., None, 1] + cz * n[..., None, 2]
+    term = np.where(s > 1e-12, gamma * proj / np.maximum(s, 1e-300), 0.0)
     return np.abs(term.sum(axis=-1)) / (2 * np.pi)
 
 
@@ -220,7 +226,7 @@ def point_polygon_form_factors(points, normals, polys, chunk_elems=4_000_000):
         front = (d > 1e-9).any(axis=-1) & facing
         simple = front & (d >= -1e-9).all(axis=-1)
         block = np.zeros(front.shape)
-        block[simple] = _lambert_fast(r[simple], np.broadcast_to(n[:, None, :], front.shape + (3,))[simple])
+        block[simple] = lambert_polygon(r[simple], np.broadcast_to(n[:, None, :], front.shape + (3,))[simple])
         clip = front & ~simple
         if clip.any():
             pi, qi = np.nonzero(clip)
@@ -228,20 +234,6 @@ def point_polygon_form_factors(points, normals, polys, chunk_elems=4_000_000):
             block[pi, qi] = lambert_polygon(rel, n[pi])
         out[s:s + step] = block
     return out
-
-
-def _lambert_fast(r, n):
-    """:func:`lambert_polygon` on component arrays (M, k, 3), (M, 3): the hot loop of the form factors."""
-    x, y, z = r[..., 0], r[..., 1], r[..., 2]
-    inv = 1.0 / np.maximum(np.sqrt(x * x + y * y + z * z), 1e-300)
-    x, y, z = x * inv, y * inv, z * inv
-    x2, y2, z2 = np.roll(x, -1, -1), np.roll(y, -1, -1), np.roll(z, -1, -1)
-    cx, cy, cz = y * z2 - z * y2, z * x2 - x * z2, x * y2 - y * x2
-    s = np.sqrt(cx * cx + cy * cy + cz * cz)
-    gamma = np.arctan2(s, x * x2 + y * y2 + z * z2)
-    proj = cx * n[:, None, 0] + cy * n[:, None, 1] + cz * n[:, None, 2]
-    term = np.where(s > 1e-12, gamma * proj / np.maximum(s, 1e-300), 0.0)
-    return np.abs(term.sum(axis=-1)) / (2 * np.pi)
 
 
 def quadrature_points(patches, q):
@@ -253,7 +245,7 @@ def quadrature_points(patches, q):
     s, t = np.meshgrid(g, g, indexing="ij")
     s, t = s.ravel(), t.ravel()
     # quads: bilinear map of the unit square, weight = |Jacobian| at the cell centre
-    pq = (np.outer((1 - s) * (1 - t), 1)[None] * c[:, 0, None] + (s * (1 - t))[None, :, None] * c[:, 1, None]
+    pq = (((1 - s) * (1 - t))[None, :, None] * c[:, 0, None] + (s * (1 - t))[None, :, None] * c[:, 1, None]
           + (s * t)[None, :, None] * c[:, 2, None] + ((1 - s) * t)[None, :, None] * c[:, 3, None])
     ds = ((1 - t)[None, :, None] * (c[:, 1, None] - c[:, 0, None]) + t[None, :, None] * (c[:, 2, None] - c[:, 3, None]))
     dt = ((1 - s)[None, :, None] * (c[:, 3, None] - c[:, 0, None]) + s[None, :, None] * (c[:, 2, None] - c[:, 1, None]))
@@ -369,9 +361,10 @@ class Solution:
     converged: bool
 
 
-def residual(F, rho, E, B):
-    """Relative residual of the radiosity equation: ‖E + ρ ∘ (F B) − B‖ / ‖E‖."""
-    return float(np.linalg.norm(E + rho * (F @ B) - B) / max(np.linalg.norm(E), 1e-300))
+def residual(F, rho, E, B, FB=None):
+    """Relative residual of the radiosity equation: ‖E + ρ ∘ (F B) − B‖ / ‖E‖ (``FB`` = F B if already known)."""
+    FB = F @ B if FB is None else FB
+    return float(np.linalg.norm(E + rho * FB - B) / max(np.linalg.norm(E), 1e-300))
 
 
 def _check(F, rho, E):
@@ -397,9 +390,11 @@ def solve_jacobi(F, rho, E, tol=1e-6, max_iter=10000):
     F, rho, E = _check(F, rho, E)
     t = time.perf_counter()
     B, res = E.copy(), []
+    FB = F @ B
     for k in range(1, max_iter + 1):
-        B = E + rho * (F @ B)
-        res.append(residual(F, rho, E, B))
+        B = E + rho * FB
+        FB = F @ B                                    # the residual's product is the next sweep's
+        res.append(residual(F, rho, E, B, FB))
         if res[-1] < tol:
             break
     return Solution(B, "jacobi", len(res), res, time.perf_counter() - t, res[-1] < tol)
@@ -695,8 +690,3 @@ def _box(name, xy, side, height, angle, rho):
 def cornell_patches(max_edge=0.25, light_radiance=15.0):
     """The built-in scene split into patches no longer than ``max_edge``."""
     return subdivide_to_size(patches_from_meshes(cornell_box(light_radiance)), max_edge)
-
-
-def require(cond, message):
-    if not cond:
-        raise ILError(message)

@@ -12,9 +12,11 @@ import numpy as np
 
 from .. import compat
 from ..core import envmap as core
-from ..core import exr
+from ..core import exr, imageio
 from ..core.errors import ILError, InputError
 from ..core.fileio import write_json
+from ..nodes import groups
+from ..nodes.builder import Graph
 
 GROUP = "IL Irradiance Env"
 IMAGE = "IL Irradiance"
@@ -22,15 +24,29 @@ EXR_NAME = "irradiance_latlong.exr"
 REPORT = "envmap_report.json"
 
 
+#: Colour spaces whose stored 8-bit values Cycles renders as they are (linear, Rec.709 primaries).
+LINEAR_SPACES = {"Linear Rec.709", "Non-Color", "scene_linear"}
+
+
 def image_pixels(image):
-    """A Blender image's float RGB (H, W, 3), row 0 at the top (Blender stores the bottom row first)."""
+    """A Blender image's linear RGB (H, W, 3), row 0 at the top (Blender stores the bottom row first).
+
+    ``Image.pixels`` gives a float image's linear values but an 8-bit image's encoded ones: an sRGB
+    8-bit image is decoded as Cycles does; other non-linear 8-bit colour spaces are refused.
+    """
     w, h = image.size
     if w == 0 or h == 0:
         raise InputError(f"image '{image.name}' has no pixels (missing file?)")
+    space = image.colorspace_settings.name
+    if not image.is_float and space != "sRGB" and space not in LINEAR_SPACES:
+        raise InputError(f"image '{image.name}' is 8-bit in colour space '{space}': use sRGB, a linear space "
+                         "or an HDR/EXR file")
     px = np.empty(w * h * image.channels, np.float32)
     image.pixels.foreach_get(px)
     px = px.reshape(h, w, image.channels)
     rgb = px[..., :3] if image.channels >= 3 else np.repeat(px[..., :1], 3, axis=-1)
+    if not image.is_float and space == "sRGB":
+        rgb = imageio.srgb_decode(rgb)
     return np.flipud(rgb).astype(np.float32)
 
 
@@ -54,10 +70,12 @@ def world_environment(scene):
     if node.inputs["Vector"].is_linked:
         raise InputError("the Environment Texture has a Vector input (Mapping): remove it, or give the "
                          "environment as a file (Environment field, --env)")
-    strength = 1.0
     for link in node.outputs["Color"].links:
         if link.to_node.bl_idname == "ShaderNodeBackground":
-            strength = float(link.to_node.inputs["Strength"].default_value)
+            socket = link.to_node.inputs["Strength"]
+            if socket.is_linked:
+                raise InputError("the Background's Strength is driven by other nodes: set it to a number")
+            strength = float(socket.default_value)
             break
     else:
         raise InputError("the Environment Texture must feed a Background node's Color directly")
@@ -117,61 +135,39 @@ def load_irradiance_image(path):
     return img
 
 
-def _socket(tree, name, in_out, kind, default=None):
-    s = tree.interface.new_socket(name=name, in_out=in_out, socket_type=kind)
-    if default is not None:
-        s.default_value = default
-    return s
+#: Interface of "IL Irradiance Env": (name, socket type, default, (min, max) or None, description).
+GROUP_INPUTS = [
+    ("Diffuse Color", "NodeSocketColor", (0.8, 0.8, 0.8, 1.0), None, "Diffuse albedo c_diff"),
+    ("AO", "NodeSocketFloat", 1.0, (0.0, 1.0), "Ambient occlusion k_A (1 = open): link a baked AO map"),
+    ("Strength", "NodeSocketFloat", 1.0, None, "Scale of the environment's radiance")]
+GROUP_OUTPUTS = [("Color", "NodeSocketColor"), ("Emission", "NodeSocketShader")]
 
 
 def ensure_node_group(image):
-    """Node group "IL Irradiance Env" (rebuilt each time): inputs "Diffuse Color" (c_diff), "AO" (k_A, 1 = open),
-    "Strength"; outputs "Color" = c_diff · k_A · E(n)/π · Strength (radiance) and "Emission" (that as a shader).
+    """Node group "IL Irradiance Env" (rebuilt each time, sockets and the materials' links kept): inputs
+    "Diffuse Color" (c_diff), "AO" (k_A, 1 = open), "Strength"; outputs "Color" = c_diff · k_A · E(n)/π ·
+    Strength (radiance, the ambient term of seed 003) and "Emission" (that as a shader).
 
     E(n) is looked up in the irradiance lat-long ``image`` by the world-space shading normal.
     """
-    group = bpy.data.node_groups.get(GROUP)
-    if group is None:
-        group = bpy.data.node_groups.new(GROUP, "ShaderNodeTree")
-    group.nodes.clear()
-    group.interface.clear()
-    _socket(group, "Diffuse Color", "INPUT", "NodeSocketColor", (0.8, 0.8, 0.8, 1.0))
-    ao = _socket(group, "AO", "INPUT", "NodeSocketFloat", 1.0)
-    ao.min_value, ao.max_value = 0.0, 1.0
-    _socket(group, "Strength", "INPUT", "NodeSocketFloat", 1.0)
-    _socket(group, "Color", "OUTPUT", "NodeSocketColor")
-    _socket(group, "Emission", "OUTPUT", "NodeSocketShader")
-    n, L = group.nodes, group.links
-    gin, gout = n.new("NodeGroupInput"), n.new("NodeGroupOutput")
-    geo = n.new("ShaderNodeNewGeometry")
-    tex = n.new("ShaderNodeTexEnvironment")
-    tex.image = image
-    tex.interpolation = "Linear"
-    L.new(geo.outputs["Normal"], tex.inputs["Vector"])
-    scale = n.new("ShaderNodeMath")
-    scale.operation = "MULTIPLY"
-    L.new(gin.outputs["AO"], scale.inputs[0])
-    L.new(gin.outputs["Strength"], scale.inputs[1])
-    scale2 = n.new("ShaderNodeMath")
-    scale2.operation = "MULTIPLY"
-    L.new(scale.outputs[0], scale2.inputs[0])
-    scale2.inputs[1].default_value = 1.0 / np.pi
-    mix1 = n.new("ShaderNodeVectorMath")
-    mix1.operation = "MULTIPLY"
-    L.new(tex.outputs["Color"], mix1.inputs[0])
-    L.new(gin.outputs["Diffuse Color"], mix1.inputs[1])
-    mix2 = n.new("ShaderNodeVectorMath")
-    mix2.operation = "SCALE"
-    L.new(mix1.outputs["Vector"], mix2.inputs[0])
-    L.new(scale2.outputs[0], mix2.inputs["Scale"])
-    em = n.new("ShaderNodeEmission")
-    em.inputs["Strength"].default_value = 1.0
-    L.new(mix2.outputs["Vector"], em.inputs["Color"])
-    L.new(mix2.outputs["Vector"], gout.inputs["Color"])
-    L.new(em.outputs["Emission"], gout.inputs["Emission"])
-    for k, node in enumerate((gin, geo, tex, scale, scale2, mix1, mix2, em, gout)):
-        node.location = (200 * k, 0)
-    return group
+    tree = groups.fresh_tree(GROUP, GROUP_INPUTS, GROUP_OUTPUTS, "Ambient term c_diff k_A E(n)/pi of seed 003")
+    g = Graph(tree)
+    i = g.node("NodeGroupInput").outputs
+    o = g.node("NodeGroupOutput").inputs
+    with g.block("E(n): irradiance map looked up by the normal"):
+        geo = g.node("ShaderNodeNewGeometry")
+        tex = g.node("ShaderNodeTexEnvironment", label="E(n) in W/m^2", image=image, interpolation="Linear")
+        g.feed(geo.outputs["Normal"], tex.inputs["Vector"])
+    with g.block("c_diff k_A E(n) / pi"):
+        k = g.mul(g.mul(i["AO"], i["Strength"]), 1.0 / np.pi, label="k_A Strength / pi")
+        color = g.scale(g.vmul(tex.outputs["Color"], i["Diffuse Color"]), k, label="radiance")
+        em = g.node("ShaderNodeEmission")
+        g.feed(color, em.inputs["Color"])
+        em.inputs["Strength"].default_value = 1.0
+    g.feed(color, o["Color"])
+    g.feed(em.outputs[0], o["Emission"])
+    g.layout()
+    return tree
 
 
 def irradiance_material(name, group, diffuse=(0.8, 0.8, 0.8), ao_image=None, uv_layer=""):
@@ -263,23 +259,20 @@ def sweeps(out_dir, quick=False):
 
     # SH9 timing on a 1024x512 environment (best of 3), brute force for scale
     env = _sharp_env(512, 1024)
-    best = min(_timed(lambda: core.irradiance_map_sh9(env, 64)) for _ in range(3))
+    best = min(_timed(lambda: core.irradiance_map_sh9(env, 64))[1] for _ in range(3))
     figs["sh9_1024x512_seconds"] = best
     n64 = core.latlong_directions(32, 64)
-    tb = _timed(lambda: core.irradiance_brute(env, n64, max_width=256))
+    _, tb = _timed(lambda: core.irradiance_brute(env, n64, max_width=256))
     figs["brute_1024x512_seconds"] = tb
 
     # accuracy of SH9 against brute force as the light gets sharper
     rows = []
-    small = _sharp_env(128, 256, 1.0, 0.0)
     for r in ((5, 20, 60) if quick else (2, 5, 10, 20, 40, 60, 90)):
         e = _sharp_env(128, 256, r, 40.0)
         ref = core.irradiance_brute(e, n64)
-        ts = _timed(lambda: core.irradiance_map_sh9(e, 64))
-        sh = core.irradiance_map_sh9(e, 64)
+        sh, ts = _timed(lambda: core.irradiance_map_sh9(e, 64))
         rows.append({"light_radius_deg": r, "sh9_rel_rms": float(np.sqrt(np.mean((sh - ref) ** 2)) / np.mean(ref)),
                      "sh9_rel_max": float(np.max(np.abs(sh - ref)) / np.max(ref)), "sh9_seconds": ts})
-    del small
     tables["envmap_sh9_accuracy"] = rows
     pngs.append(ch.line_chart(os.path.join(out_dir, "envmap_sh9_accuracy.png"),
                               {"relative RMS": ([r["light_radius_deg"] for r in rows], [r["sh9_rel_rms"] for r in rows]),
@@ -290,8 +283,7 @@ def sweeps(out_dir, quick=False):
     rows = []
     ref = core.irradiance_brute(env, n64, max_width=512)
     for mw in ((32, 64, 128) if quick else (16, 32, 64, 128, 256)):
-        t = _timed(lambda: core.irradiance_brute(env, n64, max_width=mw))
-        e = core.irradiance_brute(env, n64, max_width=mw)
+        e, t = _timed(lambda: core.irradiance_brute(env, n64, max_width=mw))
         rows.append({"max_width": mw, "seconds": t, "rel_rms": float(np.sqrt(np.mean((e - ref) ** 2)) / np.mean(ref))})
     tables["envmap_brute_speed"] = rows
     pngs.append(ch.scatter_chart(os.path.join(out_dir, "envmap_brute_speed.png"),
@@ -332,6 +324,7 @@ def sweeps(out_dir, quick=False):
 
 
 def _timed(fn):
+    """(fn(), seconds it took)."""
     t = time.perf_counter()
-    fn()
-    return time.perf_counter() - t
+    out = fn()
+    return out, time.perf_counter() - t

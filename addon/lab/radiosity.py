@@ -96,7 +96,7 @@ def meshes_from_scene(scene, objects=None):
     deps = scene.view_layers[0].depsgraph
     deps.update()
     objs = [o for o in (objects or scene.objects) if o.type == "MESH" and not o.hide_render
-            and o.users_collection and (not o.users_collection or o.users_collection[0].name != COLLECTION)]
+            and o.users_collection and o.users_collection[0].name != COLLECTION]
     if not objs:
         raise InputError(f"scene '{scene.name}' has no mesh objects")
     meshes, used = [], []
@@ -225,7 +225,7 @@ def result_objects(scene, patches, H, meshes, cell=4, gutter=2):
         me.from_pydata([tuple(p) for p in pos[verts_global]], [], faces)
         me.update()
         atlas = core.make_atlas(len(sel), cell, gutter)
-        uv = atlas_uvs = core.atlas_uvs(atlas, patches.is_tri[sel])
+        atlas_uvs = core.atlas_uvs(atlas, patches.is_tri[sel])
         layer = me.uv_layers.new(name=UV)
         loop_uv = np.concatenate([atlas_uvs[i, :3] if patches.is_tri[p] else atlas_uvs[i]
                                   for i, p in enumerate(sel)])
@@ -236,8 +236,8 @@ def result_objects(scene, patches, H, meshes, cell=4, gutter=2):
         rgba[:, :3] = cv
         col.data.foreach_set("color", rgba.ravel())
         me.color_attributes.active_color_name = ATTRIBUTE
-        obj = bpy.data.objects.get(f"{name} radiosity")
-        if obj is not None:
+        obj = coll.objects.get(f"{name} radiosity")
+        if obj is not None:      # the result of an earlier run; an object of the user's with that name stays
             bpy.data.objects.remove(obj)
         obj = bpy.data.objects.new(f"{name} radiosity", me)
         coll.objects.link(obj)
@@ -247,7 +247,6 @@ def result_objects(scene, patches, H, meshes, cell=4, gutter=2):
                 me.materials.append(slot.material)
             me.polygons.foreach_set("material_index", [0] * len(me.polygons))
         out[name] = (obj, sel, atlas)
-        del uv
     return out
 
 
@@ -314,6 +313,10 @@ def run(out, scene=None, cornell=False, solver="jacobi", max_edge=0.25, adaptive
         raise InputError(f"--max-edge must be positive, got {max_edge}")
     if samples < 1:
         raise InputError(f"--samples must be at least 1, got {samples}")
+    if not 0 < tol < 1:
+        raise InputError(f"--tol must be between 0 and 1, got {tol}")
+    if adaptive < 0:
+        raise InputError(f"--adaptive must be 0 or more, got {adaptive}")
     os.makedirs(out, exist_ok=True)
     steps = 5 if compare else 4
     with Progress("radiosity", steps) as p:

@@ -61,6 +61,7 @@ def group_material(name, group_name, inputs, output="Emission"):
 
 
 def set_inputs(node, inputs):
+    """Set a group node's inputs from {name: value}; an RGB triple fills a colour socket with alpha 1."""
     for key, value in inputs.items():
         socket = node.inputs[key]
         if isinstance(value, (tuple, list)) and len(socket.default_value) == 4 and len(value) == 3:
@@ -86,6 +87,7 @@ def closure_material(name, kind, color=(1.0, 1.0, 1.0), roughness=0.0, distribut
 
 
 def assign(obj, mat):
+    """Make ``mat`` the mesh's only material."""
     obj.data.materials.clear()
     obj.data.materials.append(mat)
 

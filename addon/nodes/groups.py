@@ -81,7 +81,7 @@ DESCRIPTIONS = {
 
 # -- interface --------------------------------------------------------------------------------------
 
-def _sync_interface(tree, inputs, outputs):
+def sync_interface(tree, inputs, outputs):
     """Make the interface exactly ``inputs`` + ``outputs``, keeping sockets whose name and type match."""
     wanted = [(n, "OUTPUT", t) for n, t in outputs] + [(n, "INPUT", t) for n, t, *_ in inputs]
     items = [i for i in tree.interface.items_tree if i.item_type == "SOCKET"]
@@ -107,7 +107,11 @@ def _sync_interface(tree, inputs, outputs):
                 item.hide_value = True
 
 
-def _fresh(name):
+def fresh_tree(name, inputs, outputs, description):
+    """The shader node group ``name``, emptied, with exactly this interface (links to kept sockets survive).
+
+    A node group of another kind that holds the name is renamed out of the way.
+    """
     tree = bpy.data.node_groups.get(name)
     if tree is not None and tree.bl_idname != "ShaderNodeTree":
         tree.name = name + " (not shader)"
@@ -115,8 +119,13 @@ def _fresh(name):
     if tree is None:
         tree = bpy.data.node_groups.new(name, "ShaderNodeTree")
     tree.nodes.clear()
-    _sync_interface(tree, INPUTS[name], OUTPUTS[name])
-    tree.description = DESCRIPTIONS[name]
+    sync_interface(tree, inputs, outputs)
+    tree.description = description
+    return tree
+
+
+def _fresh(name):
+    tree = fresh_tree(name, INPUTS[name], OUTPUTS[name], DESCRIPTIONS[name])
     tree["il_version"] = GROUP_VERSION
     return tree
 
@@ -282,7 +291,6 @@ def _build_light(tree):
     with g.block("Spot: cutoff and (s.s')^k"):
         cos_ss = g.dot(g.normalize(i["Direction"]), g.scale(g.normalize(lvec_p), -1.0), label="s.s'")
         inside = g.math("GREATER_THAN", cos_ss, g.math("COSINE", i["Spot Cutoff"]), label="inside cone")
-        # >= as in the twin: s.s' > cos(cutoff) - 0 differs only exactly on the cone, a set of measure zero
         fall = g.mul(inside, g.pow(g.max(cos_ss, 0.0), i["Spot Exponent"]), label="spot falloff")
         spot_i = g.mul(point_i, fall, label="spot intensity")
     with g.block("Sun and hemisphere"):

@@ -290,6 +290,7 @@ def assign_shading_model(scene, objects, model, lights="ALL", attenuation="PHYSI
 
 
 def il_materials():
+    """Every material built by :func:`build_material` (it carries "il_model")."""
     return [m for m in bpy.data.materials if m.get("il_model") and m.node_tree is not None]
 
 

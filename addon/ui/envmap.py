@@ -8,6 +8,14 @@ from ..core.errors import ILError
 from . import common, polls
 
 
+def _output_folder_ok(op):
+    """False (and an error report) when ``op.out_dir`` is relative to a file never saved."""
+    if op.out_dir.startswith("//") and not bpy.data.filepath:
+        op.report({"ERROR"}, "Save the file first, or choose an absolute output folder")
+        return False
+    return True
+
+
 class IL_OT_envmap_irradiance(bpy.types.Operator):
     """Write the irradiance map E(n) of the world's environment texture (or a file) as EXR and build the node
     group "IL Irradiance Env" that looks it up by the normal"""
@@ -33,8 +41,7 @@ class IL_OT_envmap_irradiance(bpy.types.Operator):
 
     def execute(self, context):
         from ..lab import envmap
-        if self.out_dir.startswith("//") and not bpy.data.filepath:
-            self.report({"ERROR"}, "Save the file first, or choose an absolute output folder")
+        if not _output_folder_ok(self):
             return {"CANCELLED"}
         try:
             s = envmap.run(bpy.path.abspath(self.out_dir), scene=context.scene,
@@ -77,8 +84,7 @@ class IL_OT_radiosity(bpy.types.Operator):
     def execute(self, context):
         from ..core import charts
         from ..lab import radiosity
-        if self.out_dir.startswith("//") and not bpy.data.filepath:
-            self.report({"ERROR"}, "Save the file first, or choose an absolute output folder")
+        if not _output_folder_ok(self):
             return {"CANCELLED"}
         chart = charts.available()
         if not chart:

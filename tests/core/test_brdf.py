@@ -69,23 +69,33 @@ def test_D_peaks_at_closed_forms():
     assert brdf.D_ggx(0.5, 0.5) == pytest.approx(0.25 / (np.pi * (0.25 * -0.75 + 1) ** 2))
 
 
+def _directional_albedo(v, grid=(512, 64), **kw):
+    """Integral of f_s (n.l) over l, in half-vector space: l = 2 (v.h) h - v, dl = 4 (v.h) dh. D is smooth in h,
+    so the grid resolves even a near-mirror lobe seen at grazing angles (an l grid misses most of it)."""
+    h, w = brdf.hemisphere_grid(*grid)
+    v_h = brdf.dot(h, v)
+    l = 2 * v_h[..., None] * h - v
+    f = brdf.cook_torrance_brdf(N, l, v, **kw)
+    return np.sum(np.where(v_h > 0, f * np.maximum(l[..., 2], 0) * 4 * v_h * w, 0.0))
+
+
 @pytest.mark.parametrize("dist", [0.0, 1.0])
 @pytest.mark.parametrize("geom", [0.0, 1.0])
 def test_white_furnace_albedo_of_cook_torrance_with_F1_at_most_one(dist, geom):
-    d, w = brdf.hemisphere_grid(512, 256)
     for rough in (0.05, 0.3, 0.7, 1.0):
         for tv in (0.0, 0.6, 1.2, 1.5):
-            v = brdf.direction(tv)
-            f = brdf.cook_torrance_brdf(N, d, v, F0=1.0, roughness=rough, distribution=dist, geometry=geom)
-            albedo = np.sum(f * d[..., 2] * w)
-            assert np.isfinite(albedo) and albedo <= 1.0 + 5e-3, (rough, tv, albedo)
+            albedo = _directional_albedo(brdf.direction(tv), F0=1.0, roughness=rough, distribution=dist,
+                                         geometry=geom)
+            assert np.isfinite(albedo) and albedo <= 1.0 + 1e-3, (rough, tv, albedo)
             if tv == 0.0:
                 # at v = n, l = reflect(v, h) leaves the hemisphere once theta_h > 45 deg; with G <= 1 the
                 # albedo is at most the projected D mass inside 45 deg: GGX 1/(1 + a^2), Beckmann 1 - e^(-1/m^2)
                 cap = 1 / (1 + rough ** 2) if dist else 1 - np.exp(-1 / rough ** 2)
-                assert albedo <= cap + 2e-3
+                assert albedo <= cap + 1e-3
                 if rough <= 0.05:
                     assert albedo > 0.99  # a near-smooth mirror reflects almost everything
+            if rough <= 0.05:
+                assert albedo > 0.85, (tv, albedo)  # also at 86 deg, where shadowing starts to bite
 
 
 @pytest.mark.parametrize("shininess", [1.0, 10.0, 100.0])
@@ -100,10 +110,11 @@ def test_normalized_phong_albedo_is_ks_at_normal_incidence(shininess):
 def test_classic_phong_is_not_energy_conserving():
     d, w = brdf.hemisphere_grid(1024, 8)
     L = brdf.phong(N, d, N, WHITE, kd=(0, 0, 0), ks=1.0, shininess=1.0)[..., 0]
-    # classic: f = (r.v)^n / (pi n.l); at n = 1, v = n, the albedo is integral of cos / pi = 1 ... times 1/pi * pi
+    # L = pi I f (n.l), so the albedo is the integral of L / (pi I); with v = n, r.v = n.l:
+    # n = 1 gives the integral of cos / pi = 1, n = 0 the integral of 1 / pi = 2
     assert np.sum(L / np.pi * w) == pytest.approx(1.0, rel=2e-3)
     L0 = brdf.phong(N, d, N, WHITE, kd=(0, 0, 0), ks=1.0, shininess=0.0)[..., 0]
-    assert np.sum(L0 / np.pi * w) == pytest.approx(2.0, rel=2e-3)  # albedo 2 > 1
+    assert np.sum(L0 / np.pi * w) == pytest.approx(2.0, rel=2e-3)
 
 
 def test_phong_blinn_closed_values():
@@ -169,8 +180,9 @@ def test_every_output_finite_and_bounded_at_the_edges(model, kwargs, bound):
     l, v = _pairs()
     out = model(N, l, v, WHITE, **kwargs)
     assert np.all(np.isfinite(out)) and np.all(out >= 0) and np.max(out) <= bound
+    # a light below the horizon contributes nothing (no ambient or emission here), whatever the view
     back = np.array([0.0, 0.3, -1.0])
-    assert np.all(model(N, back, N, WHITE, **kwargs) == 0) or model is not brdf.oren_nayar
+    assert np.all(model(N, back, v, WHITE, **kwargs) == 0)
 
 
 def test_point_light_units_and_attenuation():

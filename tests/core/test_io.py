@@ -53,6 +53,12 @@ def test_srgb_encode_matches_the_standard_at_known_points():
     np.testing.assert_allclose(imageio.srgb_encode(x), expected, atol=1e-6)
 
 
+def test_srgb_decode_inverts_encode():
+    x = np.linspace(0.0, 1.0, 1001)
+    np.testing.assert_allclose(imageio.srgb_decode(imageio.srgb_encode(x)), x, atol=1e-12)
+    assert imageio.srgb_decode(np.array([128 / 255]))[0] == pytest.approx(0.21586, abs=1e-5)
+
+
 def test_tonemap_is_finite_on_bad_values():
     out = imageio.tonemap(np.array([np.nan, np.inf, -1.0, 0.5, 2.0]))
     assert np.all(np.isfinite(out)) and out.min() >= 0 and out.max() <= 1
