@@ -98,3 +98,7 @@ def eevee_ao_distance_owner(scene, view_layer):
 #: 5.0 warns when such a value is set on a path property that does not declare it; 4.5 has no such flag.
 BLEND_RELATIVE_PATH = ({"PATH_SUPPORTS_BLEND_RELATIVE"}
                        if "is_path_supports_blend_relative" in bpy.types.Property.bl_rna.properties else set())
+
+
+#: Name of Cycles' Diffuse Direct pass in a multilayer EXR (and render_layers' dict), renamed in 5.0.
+DIFFUSE_DIRECT_PASS = "Diffuse Direct" if IS_5 else "DiffDir"

@@ -17,19 +17,15 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import _cli  # noqa: E402
 
 from addon.core import ssao as core_ssao  # noqa: E402  (numpy only)
+from addon.core.choices import parse_choices  # noqa: E402
 from addon.core.errors import InputError  # noqa: E402
 
 
 def _validate(args):
     """Every bad-input check that needs no Blender (fast exit 2)."""
-    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-    for m in methods:
-        if m not in core_ssao.ALL_METHODS:
-            raise InputError(f"unknown SSAO method '{m}' (choose from {', '.join(core_ssao.ALL_METHODS)})")
-    if not methods:
-        raise InputError("--methods is empty")
-    if args.scene is not None and args.scene not in core_ssao.SCENES:
-        raise InputError(f"unknown SSAO scene '{args.scene}' (choose from {', '.join(core_ssao.SCENES)})")
+    methods = parse_choices(args.methods, core_ssao.ALL_METHODS, "SSAO method")
+    if args.scene is not None:
+        core_ssao.check_scene(args.scene)
     if args.scene is not None and args.blend:
         raise InputError("give either FILE.blend or --scene, not both")
     for name in ("samples", "reference_samples"):

@@ -6,7 +6,7 @@ import os
 import numpy as np
 import pytest
 
-from addon.lab import bench
+from addon.lab import bench, shadows
 
 CHARTS = {
     "lightmaps": ["bake_error_vs_seconds.png", "bake_irradiance_error_vs_seconds.png"],
@@ -75,7 +75,7 @@ def test_quick_bench_writes_every_chart_and_table(script, tmp_path):
         assert word in failures, word
     # The timings that let a user choose: every shadow method has finite seconds and error.
     shadow_rows, _ = _floats(tmp_path / "shadows" / "shadow_methods.csv")
-    assert {r["method"] for r in shadow_rows} == set(bench.SHADOW_METHODS)
+    assert {r["method"] for r in shadow_rows} == set(shadows.METHODS)
     assert all(float(r["seconds"]) > 0 and 0 <= float(r["error"]) <= 1 for r in shadow_rows)
     assert os.path.exists(tmp_path / "report.json")
     # The bakes converge on the closed forms: per-texel noise is at most 0.5/sqrt(N) (REFERENCE.md §3),

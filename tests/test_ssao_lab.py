@@ -1,7 +1,5 @@
 """SSAO lab under bpy: Cycles' AO reference against closed forms, methods against the reference, UI."""
 import json
-import os
-import sys
 
 import bpy
 import numpy as np
@@ -14,22 +12,6 @@ from addon.lab import ssao as lab
 from addon.lab import ssao_scenes
 from addon.lab.scene import remove_scene
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "core"))
-from test_ssao_synthetic import quadrant, segment  # noqa: E402  (closed forms, independent of the lab)
-
-
-def _corner_closed_form(world, radius):
-    """REFERENCE.md §3 with AO distance R, for the corner scene's floor/wall pixels away from the box."""
-    x, y, z = world[..., 0], world[..., 1], world[..., 2]
-    floor, wx, wy = np.abs(z) < 1e-3, np.abs(x) < 1e-3, np.abs(y) < 1e-3
-    a = np.where(floor, x, np.where(wx, y, x)) / radius
-    b = np.where(floor, y, z) / radius
-    c, h = np.array(ssao_scenes.BOX_CENTRE), ssao_scenes.BOX_SIZE / 2
-    gap = np.linalg.norm(np.maximum(np.abs(world - c) - h, 0), axis=-1)
-    lim = ssao_scenes.ROOM - radius
-    ok = (floor | wx | wy) & (gap > radius) & (x < lim) & (y < lim) & (z < ssao_scenes.WALL - radius)
-    return np.where(ok, 1 - (segment(a) + segment(b) - quadrant(a, b)) / np.pi, np.nan)
-
 
 @pytest.mark.both_versions
 def test_reference_matches_closed_forms_on_plane_and_corner(tmp_path):
@@ -41,7 +23,8 @@ def test_reference_matches_closed_forms_on_plane_and_corner(tmp_path):
 
     scene = ssao_scenes.build_scene("corner", 64, 1.0)
     gb, world, ref = lab.frame(scene, 1.0, n, 64, cache_dir=str(tmp_path))
-    closed = _corner_closed_form(np.nan_to_num(world, nan=1e9), 1.0)
+    # REFERENCE.md §3 with AO distance R (core.ssao.corner_k_a, checked by Monte Carlo in tests/core)
+    closed = ssao_scenes.corner_closed_form(np.nan_to_num(world, nan=1e9), 1.0)
     ok = np.isfinite(closed) & gb.mask
     occluded = ok & (closed < 0.97)
     assert occluded.sum() > 200 and ok.sum() > 1000
@@ -103,6 +86,24 @@ def test_workbench_cavity_and_settings_restored(tmp_path):
     assert scene.render.resolution_x == 200 and not scene.view_layers[0].use_pass_z
     assert scene.world.light_settings.distance == pytest.approx(3.5)
     assert scene.cycles.filter_width == pytest.approx(1.5)
+
+
+@pytest.mark.both_versions
+def test_reference_cache_key_follows_modifiers_and_their_settings():
+    scene = ssao_scenes.build_scene("corner", 24, 1.0)
+    keys = [lab.scene_key(scene, 1.0, 16)]
+    bevel = scene.objects["Box"].modifiers.new("Bevel", "BEVEL")
+    keys.append(lab.scene_key(scene, 1.0, 16))
+    bevel.width = 0.2                                             # changes the evaluated mesh
+    keys.append(lab.scene_key(scene, 1.0, 16))
+    subsurf = scene.objects["Box"].modifiers.new("Subdivision", "SUBSURF")
+    subsurf.levels = 0                                            # the viewport mesh stays as it was ...
+    keys.append(lab.scene_key(scene, 1.0, 16))
+    subsurf.render_levels = 3                                     # ... only the render differs
+    keys.append(lab.scene_key(scene, 1.0, 16))
+    assert len(set(keys)) == len(keys), keys
+    assert lab.scene_key(scene, 1.0, 16) == keys[-1]             # and it is stable
+    remove_scene(scene)
 
 
 def test_failure_restores_settings_and_reports_clearly(tmp_path):

@@ -1,4 +1,5 @@
 """scripts/ssao.py as a pipeline runs it (subprocess), and the sweeps used by the bench."""
+import importlib.util
 import json
 import os
 
@@ -6,6 +7,7 @@ import numpy as np
 import pytest
 
 from addon.core import exr
+from addon.core.errors import InputError
 
 
 def test_script_writes_report_and_pixel_aligned_images(script, tmp_path):
@@ -32,19 +34,33 @@ def test_script_writes_report_and_pixel_aligned_images(script, tmp_path):
     assert r.returncode == 0 and json.load(open(out / "ssao_report.json"))["reference"]["cached"] is True
 
 
+def _script_module(name):
+    """scripts/<name>.py imported in this process (its bpy-free argument checks run without a subprocess)."""
+    path = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "scripts", f"{name}.py")
+    spec = importlib.util.spec_from_file_location(f"il_script_{name}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_script_bad_input_exit_2_with_one_line(script, tmp_path):
+    r = script("ssao.py", "--radius", "0", "--out", tmp_path)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1 and "--radius must be positive" in lines[0]
+
+
 @pytest.mark.parametrize("args, message", [
     (["--methods", "gtao,ssdo"], "unknown SSAO method 'ssdo'"),
+    (["--methods", ","], "no SSAO method given"),
     (["--scene", "attic"], "unknown SSAO scene 'attic'"),
-    (["--radius", "0"], "--radius must be positive"),
     (["--radius", "-2"], "--radius must be positive"),
     (["--samples", "0"], "--samples must be positive"),
     (["--reference-samples", "-1"], "--reference-samples must be positive"),
 ])
-def test_script_bad_input_exit_2_with_one_line(script, tmp_path, args, message):
-    r = script("ssao.py", *args, "--out", tmp_path)
-    assert r.returncode == 2
-    lines = r.stderr.strip().splitlines()
-    assert len(lines) == 1 and message in lines[0]
+def test_script_rejects_bad_input_before_rendering(args, message):
+    mod = _script_module("ssao")
+    with pytest.raises(InputError, match=message):
+        mod._validate(mod.build_parser().parse_args(args))
 
 
 def test_quick_sweeps_write_charts_tables_and_failures(tmp_path):
@@ -61,6 +77,13 @@ def test_quick_sweeps_write_charts_tables_and_failures(tmp_path):
     assert fail[("plane", "crytek")]["region_bias"] < -0.3
     assert fail[("plane", "gtao")]["region_rmse"] < 0.01
     assert fail[("discontinuity", "crytek")]["region_bias"] < -0.3
+    # thin occluders: the floor behind the pole and the plate reads darker than the truth, the floor
+    # in front of the pole (where the pole's face is the true horizon) does not; the gap between the
+    # two mean errors exceeds 4 standard errors (per-pixel spread over the region's pixels)
+    for m in ("gtao", "hbao"):
+        r = fail[("thin", m)]
+        se = [np.sqrt((r[f"{k}_rmse"] ** 2 - r[f"{k}_bias"] ** 2) / r[f"{k}_pixels"]) for k in ("region", "control")]
+        assert r["region_bias"] < 0 and r["control_bias"] - r["region_bias"] > 4 * np.hypot(*se), r
     # radius sweep: GTAO is best with its radius matched to the AO distance
     gt = {r["radius_over_ao_distance"]: r["rmse"] for r in result["tables"]["ssao_radius"] if r["method"] == "gtao"}
     assert min(gt, key=gt.get) == 1.0

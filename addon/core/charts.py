@@ -91,6 +91,18 @@ def scatter_chart(path, points, title, xlabel, ylabel, logx=False, logy=False, f
     return _finish(fig, ax, path, title, xlabel, ylabel, False, False)
 
 
+def bar_chart(path, labels, bars, title, xlabel, ylabel):
+    """Grouped bars: ``bars`` {series label: values, one per entry of ``labels``}."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    x = np.arange(len(labels))
+    width = 0.8 / max(len(bars), 1)
+    for i, (name, values) in enumerate(bars.items()):
+        ax.bar(x + (i - (len(bars) - 1) / 2) * width, values, width, label=name)
+    ax.set_xticks(x, labels)
+    return _finish(fig, ax, path, title, xlabel, ylabel, False, False)
+
+
 def _group(label):
     head, _, tail = label.rpartition(" ")
     return head if head and tail.replace(".", "", 1).isdigit() else label

@@ -10,9 +10,10 @@ import numpy as np
 
 from .errors import InputError
 
-#: Error image colours (8-bit sRGB): agreement in greys, the two failures in two hues.
+#: Error image colours (8-bit sRGB): agreement in greys, the two failures in two hues, and the
+#: pixels that are not scored (sky: no receiver) in dark green so they never read as shadow.
 COLOURS = {
-    "background": (0, 0, 0),
+    "background": (30, 80, 50),
     "lit": (200, 200, 200),
     "shadow": (70, 70, 70),
     "false_shadow": (230, 30, 30),
@@ -57,14 +58,17 @@ def confusion(mask, reference, receiver):
 
 
 def mask_image(mask):
-    """8-bit grey image: 255 lit, 0 shadow (or background)."""
+    """8-bit grey image: 255 lit, 0 in shadow -- and 0 where there is no receiver (sky), which the
+    light under test does not light either; :func:`error_image` marks those pixels apart."""
     return np.where(np.asarray(mask, bool), 255, 0).astype(np.uint8)
 
 
 def error_image(mask, reference, receiver):
-    """(H, W, 3) uint8: greys where method and reference agree, red false shadow, blue false light."""
+    """(H, W, 3) uint8: greys where method and reference agree, red false shadow, blue false light,
+    dark green where there is no receiver (not scored)."""
     mask, reference, receiver = (np.asarray(a, bool) for a in (mask, reference, receiver))
-    img = np.zeros(mask.shape + (3,), np.uint8)
+    img = np.empty(mask.shape + (3,), np.uint8)
+    img[:] = COLOURS["background"]
     for name, sel in (("lit", mask & reference), ("shadow", ~mask & ~reference),
                       ("false_shadow", ~mask & reference), ("false_light", mask & ~reference)):
         img[receiver & sel] = COLOURS[name]

@@ -39,26 +39,29 @@ def projection_matrix(plane, light_h):
 
 
 def project(points, s):
-    """Apply S to (..., 3) points; return (..., 3) projected points and the homogeneous w'."""
+    """Apply S to (..., 3) points: X' = S [X, 1], returned divided by its w' (> 0 for clipped occluders)."""
     p = np.asarray(points, np.float64)
     h = np.concatenate([p, np.ones(p.shape[:-1] + (1,))], -1) @ s.T
     with np.errstate(divide="ignore", invalid="ignore"):
-        return h[..., :3] / h[..., 3:4], h[..., 3]
+        return h[..., :3] / h[..., 3:4]
 
 
 def shadow_triangles(tris, plane, light_h, offset):
     """Occluder triangles (T, 3, 3) -> their shadows on the plane, lifted by ``offset`` along the normal.
 
-    Triangles with a vertex on the far side of the plane (P·X < 0) or beyond the light (w' <= 0,
-    point light) would cast "anti-shadows" and are dropped, as a real implementation must.
+    Only the parts of the occluders between the plane and the light cast a shadow: the triangles
+    are clipped at the plane (P·X >= 0; parts beyond it would cast "anti-shadows") and, for a point
+    light, at the light's own level parallel to the plane (w' = P·L - P·X > 0; parts above the
+    light project to the far side). Vertices on the plane (an object standing on it) stay.
     """
     plane = oriented_toward_light(plane, light_h)
-    tris = np.asarray(tris, np.float64).reshape(-1, 3, 3)
-    s = projection_matrix(plane, light_h)
-    flat, w = project(tris, s)
-    side = np.concatenate([tris, np.ones(tris.shape[:-1] + (1,))], -1) @ plane
-    keep = (side > 0).all(1) & (w > 1e-12).all(1)
-    return flat[keep] + offset * plane[:3]
+    light_h = np.asarray(light_h, np.float64)
+    tris = shadow_raster.clip_triangles(tris, plane)
+    pl = plane @ light_h
+    if light_h[3] != 0:
+        tris = shadow_raster.clip_triangles(tris, np.append(np.zeros(3), pl * (1 - 1e-6)) - light_h[3] * plane)
+    flat = project(tris, projection_matrix(plane, light_h))
+    return flat + offset * plane[:3]
 
 
 def planar_shadow_mask(tris, plane, light_h, world_to_view, proj, width, height, scene_depth, offset=1e-3):

@@ -1,6 +1,6 @@
-"""Screen-space helpers shared by the numpy shadow methods: triangle bounding boxes on the
-pixel grid, candidate (triangle, pixel) pairs in bounded chunks, ray-triangle hits, and a
-depth-tested triangle rasteriser.
+"""Screen-space helpers shared by the numpy shadow methods: clipping triangles at a plane,
+triangle bounding boxes on the pixel grid, candidate (triangle, pixel) pairs in bounded chunks,
+ray-triangle hits, and a depth-tested triangle rasteriser.
 
 Pixel conventions are those of :mod:`core.camera`: pixel (0, 0) is the centre of the
 top-left pixel, x right, y down; ``proj`` is OpenGL clip space (Blender's calc_matrix_camera).
@@ -31,6 +31,44 @@ def view_depth_to_ndc_z(depth, proj):
     """Planar view depth d (> 0 in front, Cycles' Depth pass) -> NDC z of the same camera."""
     z = -np.asarray(depth, dtype=np.float64)
     return (proj[2, 2] * z + proj[2, 3]) / (proj[3, 2] * z + proj[3, 3])
+
+
+def clip_triangles(tris, plane):
+    """The parts of triangles (T, 3, 3) on the side P·[x, 1] >= 0 of ``plane`` P = (a, b, c, d).
+
+    Sutherland-Hodgman against one plane: a triangle with one vertex inside keeps the triangle
+    (a, a + t_b (b - a), a + t_c (c - a)), t = d_a / (d_a - d_out); one with two inside keeps the
+    quad they cut off, as two triangles. Winding is kept; wholly outside triangles vanish.
+    """
+    tris = np.asarray(tris, np.float64).reshape(-1, 3, 3)
+    plane = np.asarray(plane, np.float64)
+    d = tris @ plane[:3] + plane[3]
+    inside = d >= 0
+    n_in = inside.sum(1)
+    parts = [tris[n_in == 3]]
+    for count in (1, 2):
+        sel = n_in == count
+        if not sel.any():
+            continue
+        t, dd, ins = tris[sel], d[sel], inside[sel]
+        # roll each triangle so that its odd vertex (the lone inside or lone outside one) comes first
+        first = np.argmax(ins if count == 1 else ~ins, axis=1)
+        order = (first[:, None] + np.arange(3)) % 3
+        t = np.take_along_axis(t, order[..., None], 1)
+        dd = np.take_along_axis(dd, order, 1)
+        v0, v1, v2 = t[:, 0], t[:, 1], t[:, 2]
+        p01 = v0 + (dd[:, 0] / (dd[:, 0] - dd[:, 1]))[:, None] * (v1 - v0)
+        p02 = v0 + (dd[:, 0] / (dd[:, 0] - dd[:, 2]))[:, None] * (v2 - v0)
+        if count == 1:
+            parts.append(np.stack([v0, p01, p02], 1))
+        else:
+            parts += [np.stack([v1, v2, p02], 1), np.stack([v1, p02, p01], 1)]
+    return np.concatenate(parts, 0)
+
+
+def near_plane(world_to_view, near):
+    """The world-space plane P with P·[x, 1] = (view depth of x) - near: >= 0 in front of the near plane."""
+    return -np.asarray(world_to_view, np.float64)[2] - np.array([0.0, 0.0, 0.0, near])
 
 
 def triangle_boxes(tris, world_to_view, proj, width, height, near):
@@ -163,22 +201,17 @@ def rasterize_depth_tested(tris, world_to_view, proj, width, height, scene_depth
     """Cover mask of world triangles (T, 3, 3) drawn with a LESS_EQUAL depth test against the scene.
 
     Pixel centres inside a triangle (edges inclusive) whose interpolated NDC z (linear in screen
-    space for perspective and orthographic cameras) is <= the scene's NDC z pass. Triangles
-    touching the near plane are dropped (no clipping: the planar shadows this serves lie in front).
+    space for perspective and orthographic cameras) is <= the scene's NDC z pass. Triangles are
+    clipped at the near plane first (a shadow on the floor reaches behind the camera).
     """
-    tris = np.asarray(tris, np.float64).reshape(-1, 3, 3)
     cover = np.zeros((height, width), bool)
-    if len(tris) == 0:
-        return cover
-    v = tris @ world_to_view[:3, :3].T + world_to_view[:3, 3]
-    keep = (-v[..., 2] > near).all(1)
-    tris = tris[keep]
+    tris = clip_triangles(tris, near_plane(world_to_view, near))
     if len(tris) == 0:
         return cover
     clip = to_clip(tris, world_to_view, proj)
     x, y, z = clip_to_pixels(clip, width, height)
     scene_z = view_depth_to_ndc_z(scene_depth, proj)
-    boxes = triangle_boxes(tris, world_to_view, proj, width, height, near)
+    boxes = triangle_boxes(tris, world_to_view, proj, width, height, 0.5 * near)   # clipped vertices sit at near
     area = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
     for tri, px, py in candidates(boxes):
         a = area[tri]

@@ -39,6 +39,13 @@ ALL_METHODS = METHODS + ("eevee", "workbench")
 SCENES = ("plane", "corner", "thin", "edge", "discontinuity")
 
 
+def check_scene(name):
+    """``name`` if it is one of :data:`SCENES`, else InputError (checked before Blender is needed)."""
+    if name not in SCENES:
+        raise InputError(f"unknown SSAO scene '{name}' (choose from {', '.join(SCENES)})")
+    return name
+
+
 @dataclass
 class GBuffer:
     """What a screen-space method sees: per-pixel view-space position and normal, depth, mask, camera.
@@ -456,6 +463,7 @@ _FUNCS = {"crytek": crytek, "hemisphere": hemisphere, "hbao": hbao, "gtao": gtao
 
 
 def check_method(name):
+    """The function of the numpy method ``name`` (InputError for any other name)."""
     if name not in _FUNCS:
         raise InputError(f"unknown SSAO method '{name}' (choose from {', '.join(METHODS)})")
     return _FUNCS[name]
@@ -484,7 +492,7 @@ def run_method(name, gb, radius, samples, blur=False, seed=0, **params):
 
 def behind_silhouette(gb, jump, reach=3):
     """Geometry pixels p with a pixel q within ``reach`` px (square window) in front of them by more
-    than ``jump`` metres: z_q < z_p - jump. Where halos and thin-occluder over-darkening show."""
+    than ``jump`` metres: z_q < z_p - jump. Where halos at depth discontinuities show."""
     h, w = gb.depth.shape
     zp = np.pad(gb.depth, reach, mode="edge")
     near = np.full((h, w), np.inf, np.float32)
@@ -502,6 +510,35 @@ def error_metrics(k_a, reference, mask):
     d = np.asarray(k_a, np.float64)[mask] - np.asarray(reference, np.float64)[mask]
     return {"rmse": float(np.sqrt(np.mean(d * d))), "bias": float(np.mean(d)),
             "mean": float(np.mean(np.asarray(k_a, np.float64)[mask])), "pixels": int(mask.sum())}
+
+
+def disk_segment(c):
+    """Area of the unit disk where x > c (0 <= c <= 1): acos c - c√(1 - c²)."""
+    c = np.clip(c, 0.0, 1.0)
+    return np.arccos(c) - c * np.sqrt(1.0 - c * c)
+
+
+def disk_quadrant(a, b):
+    """Area of the unit disk where x > a and y > b (a, b >= 0): ∫_a^t (√(1 - x²) - b) dx, t = √(1 - b²)."""
+    a, b = np.clip(a, 0.0, 1.0), np.clip(b, 0.0, 1.0)
+    top = np.sqrt(np.clip(1.0 - b * b, 0.0, 1.0))
+
+    def g(t):      # ∫ √(1 - x²) dx
+        return 0.5 * (t * np.sqrt(np.clip(1 - t * t, 0, 1)) + np.arcsin(np.clip(t, -1, 1)))
+    return np.where(a < top, g(top) - g(a) - b * (top - a), 0.0)
+
+
+def corner_k_a(a, b):
+    """k_A, AO distance R, of a point at distances a R and b R from two perpendicular infinite planes
+    meeting at a right angle to its own surface (a room's floor by two walls; a = ∞ for one wall).
+
+    A cosine-weighted direction projects uniformly onto the unit disk of the tangent plane
+    (Nusselt); the plane at distance d blocks, within R, exactly the directions whose component
+    toward it exceeds d/R: a disk segment. Two planes block the union of two segments:
+    k_A = 1 - (seg(a) + seg(b) - quad(a, b))/π. R -> ∞ gives REFERENCE.md §3's 1/2 (one wall
+    through the point) and 1/4 (the corner).
+    """
+    return 1.0 - (disk_segment(a) + disk_segment(b) - disk_quadrant(a, b)) / np.pi
 
 
 def reference_noise(reference, samples, mask):

@@ -33,7 +33,6 @@ SSAO_REMEDY = {
     "discontinuity": "range check (samples past the radius ignored); crytek + range check shown",
     "thin": "reported: a depth buffer cannot see thickness",
 }
-SHADOW_METHODS = ("raytraced", "planar", "shadowmap", "volume_zpass", "volume_zfail", "eevee", "workbench")
 
 
 def _sweeps(module):
@@ -144,7 +143,7 @@ def _shadow_pareto(out, quick):
     res = 96 if quick else 256
     with tempfile.TemporaryDirectory(prefix="il_warmup_") as tmp:
         shadows.compare_builtin("sphere", "sun", ["raytraced", "eevee"], tmp, resolution=32)
-    rep = shadows.compare_builtin("sphere", "sun", list(SHADOW_METHODS), os.path.join(out, "methods"),
+    rep = shadows.compare_builtin("sphere", "sun", list(shadows.METHODS), os.path.join(out, "methods"),
                                   resolution=res, shadowmap_size=1024 if quick else 2048)
     rows = [{"method": m, "error": e["error"], "false_shadow": e["false_shadow"], "false_light": e["false_light"],
              "seconds": e["seconds"]} for m, e in rep["methods"].items()]

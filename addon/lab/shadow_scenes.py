@@ -53,7 +53,7 @@ def _stairs(scene, segments, rings):
 
 
 def _acne(scene, segments, rings):
-    sc.box(scene, "Box", (1.0, 1.0, 1.0), location=(0.0, 0.0, 0.5), rotation=sc.deg(0, 0, 20))
+    sc.box(scene, "Box", (1.0, 1.0, 1.0), location=(0.0, 0.0, 0.5), rotation=sc.deg(0, 0, 35))
     sc.camera(scene, "Camera", (0.0, -6.0, 3.5), target=(0.6, 1.0, 0.0), lens=40)
     return {"target": (0.0, 0.0, 0.5), "sun": (75.0, 0.0, 110.0), "distance": 5.0}
 

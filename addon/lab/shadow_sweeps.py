@@ -2,10 +2,9 @@
 
 sweeps(out_dir, quick) -> {"tables": {name: [rows]}, "charts": [png paths], "figures": {...}}
 """
+import contextlib
 import os
 import time
-
-import numpy as np
 
 from ..core import charts, shadow_metrics
 from ..core.fileio import write_json
@@ -18,9 +17,17 @@ def _score(s, mask):
     return shadow_metrics.confusion(mask, s.reference, s.receiver)
 
 
-def _session_scene(name, light, res, **kw):
-    scene = shadow_scenes.build(name, light, (res, res), **kw)
-    return scene
+@contextlib.contextmanager
+def _reference(name, res, **kw):
+    """A built-in scene under a sun, an open :class:`Session` with its reference rendered; the scene
+    is removed afterwards."""
+    scene = shadow_scenes.build(name, "sun", (res, res), **kw)
+    try:
+        with Session(scene, scene["il_shadow_light"], res) as s:
+            s.render_reference()
+            yield s
+    finally:
+        sc.remove_scene(scene)
 
 
 def sweeps(out_dir, quick=False):
@@ -37,23 +44,17 @@ def sweeps(out_dir, quick=False):
     base = dict(lab.DEFAULTS)
     with Progress("shadow sweeps", 6) as progress:
         progress.step("shadow-map resolution")
-        scene = _session_scene("sphere", "sun", res)
-        rows = []
-        try:
-            with Session(scene, scene["il_shadow_light"], res) as s:
-                s.render_reference()
-                for n in sizes:
-                    maps, render_s = s.depth_maps(n)
-                    mask, lookup_s = lab.shadowmap_mask(s, maps, base)
-                    rows.append(dict(size=n, **_score(s, mask), render_seconds=render_s, lookup_seconds=lookup_s))
-                progress.step("PCF kernel size")
-                maps, _ = s.depth_maps(256 if quick else 512)
-                pcf_rows = []
-                for k in pcfs:
-                    mask, lookup_s = lab.shadowmap_mask(s, maps, dict(base, pcf=k))
-                    pcf_rows.append(dict(pcf=k, map_size=maps[0].size, **_score(s, mask), lookup_seconds=lookup_s))
-        finally:
-            sc.remove_scene(scene)
+        rows, pcf_rows = [], []
+        with _reference("sphere", res) as s:
+            for n in sizes:
+                maps, render_s = s.depth_maps(n)
+                mask, lookup_s = lab.shadowmap_mask(s, maps, base)
+                rows.append(dict(size=n, **_score(s, mask), render_seconds=render_s, lookup_seconds=lookup_s))
+            progress.step("PCF kernel size")
+            maps, _ = s.depth_maps(256 if quick else 512)
+            for k in pcfs:
+                mask, lookup_s = lab.shadowmap_mask(s, maps, dict(base, pcf=k))
+                pcf_rows.append(dict(pcf=k, map_size=maps[0].size, **_score(s, mask), lookup_seconds=lookup_s))
         tables["shadowmap_resolution"] = rows
         tables["shadowmap_pcf"] = pcf_rows
         x = [r["size"] for r in rows]
@@ -75,17 +76,12 @@ def sweeps(out_dir, quick=False):
         figures["shadowmap_error_by_size"] = {r["size"]: r["error"] for r in rows}
 
         progress.step("bias sweep (acne to peter-panning)")
-        scene = _session_scene("acne", "sun", res)
         rows = []
-        try:
-            with Session(scene, scene["il_shadow_light"], res) as s:
-                s.render_reference()
-                maps, _ = s.depth_maps(256 if quick else 1024)
-                for b in biases:
-                    mask, _ = lab.shadowmap_mask(s, maps, dict(base, bias=b, slope_bias=0.0))
-                    rows.append(dict(bias=b, slope_bias=0.0, map_size=maps[0].size, **_score(s, mask)))
-        finally:
-            sc.remove_scene(scene)
+        with _reference("acne", res) as s:
+            maps, _ = s.depth_maps(256 if quick else 1024)
+            for b in biases:
+                mask, _ = lab.shadowmap_mask(s, maps, dict(base, bias=b, slope_bias=0.0))
+                rows.append(dict(bias=b, slope_bias=0.0, map_size=maps[0].size, **_score(s, mask)))
         tables["shadowmap_bias"] = rows
         best = min(rows, key=lambda r: r["error"])
         xb = [max(r["bias"], 1e-4) for r in rows]
@@ -103,16 +99,11 @@ def sweeps(out_dir, quick=False):
         progress.step("shadow-volume cost against triangle count")
         rows = []
         for u, v in segs:
-            scene = _session_scene("sphere", "sun", res, segments=u, rings=v)
-            try:
-                with Session(scene, scene["il_shadow_light"], res) as s:
-                    s.render_reference()
-                    t = time.perf_counter()
-                    volume, info = lab.volume_inputs(s)
-                    mask = lab.volume_mask(s, volume, "zfail")
-                    rows.append(dict(**info, seconds=time.perf_counter() - t, **_score(s, mask)))
-            finally:
-                sc.remove_scene(scene)
+            with _reference("sphere", res, segments=u, rings=v) as s:
+                t = time.perf_counter()
+                volume, info = lab.volume_inputs(s)
+                mask = lab.volume_mask(s, volume, "zfail")
+                rows.append(dict(**info, seconds=time.perf_counter() - t, **_score(s, mask)))
         for r in rows:
             r.pop("skipped_open_meshes", None)
         tables["volume_cost"] = rows
@@ -125,14 +116,9 @@ def sweeps(out_dir, quick=False):
         progress.step("planar shadows on planar and stepped receivers")
         rows = []
         for name in ("sphere", "stairs"):
-            scene = _session_scene(name, "sun", res)
-            try:
-                with Session(scene, scene["il_shadow_light"], res) as s:
-                    s.render_reference()
-                    mask, _, _ = lab.run_method(s, "planar", base)
-                    rows.append(dict(scene=name, receiver="planar" if name == "sphere" else "stairs", **_score(s, mask)))
-            finally:
-                sc.remove_scene(scene)
+            with _reference(name, res) as s:
+                mask, _, _ = lab.run_method(s, "planar", base)
+                rows.append(dict(scene=name, receiver="planar" if name == "sphere" else "stairs", **_score(s, mask)))
         tables["planar_receivers"] = rows
         chart_paths.append(_bar(os.path.join(out_dir, "planar_receivers.png"), rows, "scene",
                                 "Planar shadows: planar floor vs stairs"))
@@ -140,16 +126,11 @@ def sweeps(out_dir, quick=False):
         progress.step("z-pass against z-fail, camera outside and inside a volume")
         rows = []
         for name in ("sphere", "inside"):
-            scene = _session_scene(name, "sun", res)
-            try:
-                with Session(scene, scene["il_shadow_light"], res) as s:
-                    s.render_reference()
-                    volume, _ = lab.volume_inputs(s)
-                    for mode in ("zpass", "zfail"):
-                        rows.append(dict(scene=name, camera="inside" if name == "inside" else "outside", mode=mode,
-                                         **_score(s, lab.volume_mask(s, volume, mode))))
-            finally:
-                sc.remove_scene(scene)
+            with _reference(name, res) as s:
+                volume, _ = lab.volume_inputs(s)
+                for mode in ("zpass", "zfail"):
+                    rows.append(dict(scene=name, camera="inside" if name == "inside" else "outside", mode=mode,
+                                     **_score(s, lab.volume_mask(s, volume, mode))))
         tables["zpass_zfail"] = rows
         chart_paths.append(_bar(os.path.join(out_dir, "zpass_zfail.png"), rows, ("camera", "mode"),
                                 "Shadow volumes: z-pass vs z-fail"))
@@ -160,12 +141,8 @@ def sweeps(out_dir, quick=False):
 
 
 def _bar(path, rows, key, title):
-    """Grouped bars of false shadow / false light per row (matplotlib, the charts module's look)."""
-    plt = charts._pyplot()
+    """Grouped bars of false shadow / false light per row."""
     labels = [" ".join(str(r[k]) for k in key) if isinstance(key, tuple) else str(r[key]) for r in rows]
-    x = np.arange(len(rows))
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
-    ax.bar(x - 0.2, [r["false_shadow"] for r in rows], 0.4, label="false shadow")
-    ax.bar(x + 0.2, [r["false_light"] for r in rows], 0.4, label="false light")
-    ax.set_xticks(x, labels)
-    return charts._finish(fig, ax, path, title, "case", "fraction of receiver pixels", False, False)
+    return charts.bar_chart(path, labels, {"false shadow": [r["false_shadow"] for r in rows],
+                                           "false light": [r["false_light"] for r in rows]},
+                            title, "case", "fraction of receiver pixels")

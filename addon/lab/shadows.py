@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from ..core import imageio, shadow_map, shadow_metrics, shadow_planar, shadow_volume
+from ..core import choices, imageio, shadow_map, shadow_metrics, shadow_planar, shadow_volume
 from ..core.errors import InputError
 from ..core.fileio import write_json
 from ..progress import Progress
@@ -27,18 +27,8 @@ DEFAULTS = {"resolution": 128, "shadowmap_size": 1024, "bias": 0.01, "slope_bias
 
 
 def parse_methods(methods):
-    """"a,b" or ["a", "b"] -> validated list in the given order (duplicates dropped)."""
-    if isinstance(methods, str):
-        methods = [m.strip() for m in methods.split(",") if m.strip()]
-    out = []
-    for m in methods:
-        if m not in METHODS:
-            raise InputError(f"unknown shadow method '{m}' (choose from {', '.join(METHODS)})")
-        if m not in out:
-            out.append(m)
-    if not out:
-        raise InputError("no shadow method given")
-    return out
+    """"a,b" or ["a", "b"] -> validated list of shadow methods in the given order (duplicates dropped)."""
+    return choices.parse_choices(methods, METHODS, "shadow method")
 
 
 def check_params(params):
@@ -110,6 +100,8 @@ def volume_inputs(s):
 
 
 def volume_mask(s, volume, mode):
+    """Lit mask from the stencil count of ``volume`` along the camera rays: lit where count = 0
+    (and the light reaches the surface at all); ``mode`` "zpass" or "zfail" (core.shadow_volume)."""
     tau = shadow_volume.surface_distance(s.position, s.origins, s.dirs)
     count = shadow_volume.stencil(volume, s.origins, s.dirs, tau, s.world_to_view, s.proj,
                                   s.width, s.height, s.near, s.receiver, mode)
@@ -175,6 +167,7 @@ def compare(scene, light, methods, out, **params):
 
 def compare_builtin(name, light_kind, methods, out, keep=False, **params):
     """Build the built-in scene ``name`` with a ``light_kind`` light, compare, remove it unless ``keep``."""
+    parse_methods(methods)
     p = check_params(params)
     scene = shadow_scenes.build(name, light_kind, (p["resolution"], p["resolution"]))
     try:

@@ -24,7 +24,7 @@ import bpy
 import numpy as np
 
 from .. import compat
-from ..core import exr, imageio, ssao, ssao_figures
+from ..core import choices, exr, imageio, ssao, ssao_figures
 from ..core.errors import ILError, InputError
 from ..core.fileio import write_json
 from ..progress import Progress
@@ -39,18 +39,8 @@ FILTER_WIDTH = 0.01
 # ---------------------------------------------------------------- parameters
 
 def parse_methods(methods):
-    """``"a,b"`` or a list -> validated list of method names, in the given order, no duplicates."""
-    if isinstance(methods, str):
-        methods = [m.strip() for m in methods.split(",") if m.strip()]
-    out = []
-    for m in methods:
-        if m not in ssao.ALL_METHODS:
-            raise InputError(f"unknown SSAO method '{m}' (choose from {', '.join(ssao.ALL_METHODS)})")
-        if m not in out:
-            out.append(m)
-    if not out:
-        raise InputError("no SSAO method given")
-    return out
+    """``"a,b"`` or a list -> validated list of SSAO methods, in the given order, no duplicates."""
+    return choices.parse_choices(methods, ssao.ALL_METHODS, "SSAO method")
 
 
 def check_params(samples=16, radius=1.0, reference_samples=1024, resolution=None):
@@ -136,6 +126,7 @@ def set_resolution(scene, resolution):
 
 
 def _cycles(scene, samples):
+    """Cycles on the CPU, ``samples`` per pixel, seed 0, every sample through the pixel centre, no sky."""
     render.cycles_cpu(scene, samples=samples, seed=0)
     scene.cycles.filter_width = FILTER_WIDTH
     scene.render.film_transparent = True
@@ -163,34 +154,63 @@ def render_gbuffer(scene):
 
 
 def scene_key(scene, radius, samples):
-    """Cache key: every renderable object's type, transform, evaluated mesh and modifiers, the camera,
-    the resolution, AO distance, samples, Blender version and REFERENCE_VERSION."""
+    """Cache key of the reference: the geometry Cycles would render (each visible object's name, type,
+    evaluated transform, every modifier setting and the evaluated mesh), the camera, the resolution,
+    AO distance, samples, Blender version and REFERENCE_VERSION.
+
+    The evaluated mesh is the viewport's; the modifier settings add what differs in a render
+    (render levels, show_render)."""
     h = hashlib.sha256()
     h.update(repr((REFERENCE_VERSION, bpy.app.version, float(radius), int(samples), FILTER_WIDTH,
                    scene.render.resolution_x, scene.render.resolution_y,
                    scene.render.resolution_percentage)).encode())
-    depsgraph = bpy.context.evaluated_depsgraph_get() if bpy.context.scene == scene else None
+    view_layer = scene.view_layers[0]
+    view_layer.update()
+    depsgraph = view_layer.depsgraph
     for obj in sorted(scene.objects, key=lambda o: o.name):
         if obj.hide_render:
             continue
-        h.update(repr((obj.name, obj.type, [tuple(r) for r in obj.matrix_world],
-                       [(m.type, m.show_render) for m in getattr(obj, "modifiers", [])])).encode())
-        if obj.type == "MESH":
-            me = obj.data
-            if depsgraph is not None and len(obj.modifiers):
-                me = obj.evaluated_get(depsgraph).data
-            co = np.empty(len(me.vertices) * 3, np.float32)
-            me.vertices.foreach_get("co", co)
-            idx = np.empty(len(me.loops), np.int32)
-            me.loops.foreach_get("vertex_index", idx)
-            h.update(co.tobytes())
-            h.update(idx.tobytes())
+        ev = obj.evaluated_get(depsgraph)
+        h.update(repr((obj.name, obj.type, [tuple(r) for r in ev.matrix_world],
+                       [_settings(m) for m in getattr(obj, "modifiers", ())])).encode())
+        if obj.type in {"MESH", "CURVE", "SURFACE", "META", "FONT"}:
+            h.update(_mesh_bytes(ev))
     cam = scene.camera
     data = cam.data
     h.update(repr((cam.name, [tuple(r) for r in cam.matrix_world], data.type, data.lens, data.sensor_width,
                    data.sensor_fit, data.ortho_scale, data.shift_x, data.shift_y,
                    data.clip_start, data.clip_end)).encode())
     return h.hexdigest()[:20]
+
+
+def _settings(struct):
+    """Every plain RNA property of ``struct`` (a modifier) as a tuple; ID pointers by name."""
+    values = []
+    for prop in struct.bl_rna.properties:
+        if prop.identifier == "rna_type" or prop.type == "COLLECTION":
+            continue
+        value = getattr(struct, prop.identifier, None)
+        if prop.type == "POINTER":
+            value = getattr(value, "name", None)
+        elif hasattr(value, "__len__") and not isinstance(value, str):
+            value = tuple(value)
+        values.append((prop.identifier, value))
+    return tuple(values)
+
+
+def _mesh_bytes(evaluated):
+    """Vertex positions and face corners of an evaluated object's mesh (b"" when it has none)."""
+    me = evaluated.to_mesh()
+    try:
+        if me is None:
+            return b""
+        co = np.empty(len(me.vertices) * 3, np.float32)
+        me.vertices.foreach_get("co", co)
+        idx = np.empty(len(me.loops), np.int32)
+        me.loops.foreach_get("vertex_index", idx)
+        return co.tobytes() + idx.tobytes()
+    finally:
+        evaluated.to_mesh_clear()
 
 
 def render_reference(scene, radius, samples, cache_dir=None, progress=None):
@@ -376,7 +396,7 @@ def blender_method(scene, method, radius, samples, resolution=None):
 
 def run_builtin(name, methods, out=None, resolution=128, **kwargs):
     """Build the built-in scene ``name``, compare, remove the scene again; return the report."""
-    ssao_scenes.check_scene_name(name)
+    ssao.check_scene(name)
     methods = parse_methods(methods)
     check_params(kwargs.get("samples", 16), kwargs.get("radius", 1.0), kwargs.get("reference_samples", 1024),
                  resolution)
@@ -388,6 +408,7 @@ def run_builtin(name, methods, out=None, resolution=128, **kwargs):
 
 
 def summary_lines(report):
+    """One line for the reference (samples, noise, seconds) and one per method (RMSE, bias, seconds)."""
     ref = report["reference"]
     lines = [f"reference: {ref['samples']} samples, noise {ref['noise_rms']:.4f} rms, "
              f"{ref['seconds']:.2f} s{' (cached)' if ref['cached'] else ''}"]

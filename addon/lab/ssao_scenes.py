@@ -4,15 +4,16 @@
 - ``corner``: a box in a room corner (floor + two walls 3 m high; closed forms of
   REFERENCE.md §3 away from the box);
 - ``thin``: a thin pole and a thin plate over a floor (depth buffers treat them
-  as infinitely thick: over-darkening behind them);
+  as infinitely thick: the floor behind them, seen from the camera, is over-darkened);
 - ``edge``: a box cut by the right screen edge (occluders off screen are lost);
 - ``discontinuity``: a ball floating far in front of a wall (halos on the wall).
 
 Every scene: a camera, an empty world (strength 1) whose AO distance is the
 given radius, metres as units, and ``scene["il_ssao_scene"]`` = its name.
 ``REGIONS`` gives, per failure scene, functions of the world positions (H, W, 3)
-and the G-buffer that pick the pixels where the failure shows (and, for the
-screen edge, the same situation fully on screen as a control).
+and the G-buffer that pick the pixels where the failure shows and, where one
+exists, a control: the same kind of pixels where the method's assumption holds
+(the box fully on screen; the floor in front of the pole).
 """
 import bmesh
 import numpy as np
@@ -82,15 +83,9 @@ _BUILDERS = {"plane": _plane_scene, "corner": _corner_scene, "thin": _thin_scene
 assert tuple(_BUILDERS) == SCENES
 
 
-def check_scene_name(name):
-    if name not in _BUILDERS:
-        raise InputError(f"unknown SSAO scene '{name}' (choose from {', '.join(SCENES)})")
-    return name
-
-
 def build_scene(name, resolution=128, radius=1.0):
     """A new scene ``SSAO <name>`` (square ``resolution``), world AO distance = ``radius``."""
-    check_scene_name(name)
+    ssao_core.check_scene(name)
     if radius <= 0:
         raise InputError(f"radius must be positive, got {radius}")
     scene = sc.new_scene(f"SSAO {name}", (int(resolution), int(resolution)))
@@ -124,13 +119,31 @@ def _halo(world, gb, radius):
     return wall & ssao_core.behind_silhouette(gb, jump=radius)
 
 
-def _thin_region(world, gb, radius):
-    """Floor pixels within R of the pole or the plate and right behind their silhouettes."""
+def _behind_pole(world, radius, sign):
+    """Floor within R of the pole's surface, beyond it (sign +1) or before it (sign -1) seen from
+    the camera (which looks along +y)."""
     x, y, z = world[..., 0], world[..., 1], world[..., 2]
-    pole = np.hypot(x - POLE[0], y - POLE[1]) < POLE[2] + radius
-    gap = np.sqrt(np.maximum(np.abs(x - PLATE[0]) - PLATE_HALF[0], 0) ** 2
-                  + np.maximum(np.abs(y - PLATE[1]) - PLATE_HALF[1], 0) ** 2 + (PLATE[2] - z) ** 2)
-    return (z < 1e-3) & (pole | (gap < radius)) & ssao_core.behind_silhouette(gb, jump=0.1 * radius)
+    near = np.hypot(x - POLE[0], y - POLE[1]) < POLE[2] + radius
+    return (z < 1e-3) & near & (sign * (y - POLE[1]) > POLE[2])
+
+
+def _thin_region(world, gb, radius):
+    """Floor within R beyond the pole or beyond the plate's far edge, seen from the camera.
+
+    The depth buffer fills the free space behind a thin occluder: horizon and depth tests there
+    meet the occluder's front face and count everything behind it as solid, so SSAO darkens
+    floor that is truly open (k_A near 1). Floor under the plate is left out: what hides it
+    there is a different failure (geometry the camera cannot see)."""
+    x, y, z = world[..., 0], world[..., 1], world[..., 2]
+    edge = PLATE[1] + PLATE_HALF[1]
+    gap_x = np.maximum(np.abs(x - PLATE[0]) - PLATE_HALF[0], 0.0)
+    plate = (z < 1e-3) & (y > edge) & (np.hypot(gap_x, y - edge) < radius)
+    return _behind_pole(world, radius, +1) | plate
+
+
+def _thin_control(world, gb, radius):
+    """Floor within R in front of the pole: the pole's front face is the true horizon there."""
+    return _behind_pole(world, radius, -1)
 
 
 def _open_plane(world, gb, radius):
@@ -138,7 +151,7 @@ def _open_plane(world, gb, radius):
 
 
 REGIONS = {"plane": ("open plane", _open_plane, None),
-           "thin": ("floor behind thin occluders", _thin_region, None),
+           "thin": ("floor behind thin occluders", _thin_region, _thin_control),
            "edge": ("floor next to the box cut by the screen edge", _edge_region, _edge_control),
            "discontinuity": ("wall next to the ball's silhouette", _halo, None)}
 
@@ -146,12 +159,8 @@ REGIONS = {"plane": ("open plane", _open_plane, None),
 def corner_closed_form(world, radius):
     """k_A of the corner scene's floor and wall pixels where REFERENCE.md §3 has a closed form; NaN elsewhere.
 
-    With AO distance R a plane at distance d blocks exactly the cosine-weighted
-    directions whose component toward it exceeds c = d/R; projected onto the
-    tangent disk (Nusselt) that is a segment of area acos c - c√(1 - c²), and
-    two perpendicular planes block the union of two segments: k_A = 1 -
-    (seg(a) + seg(b) - quad(a, b))/π. Valid where the box and the room's open
-    edges are more than R away (walls count as infinite there).
+    core.ssao.corner_k_a of the distances to the two other room planes, valid where the box and
+    the room's open edges are more than R away (the planes count as infinite there).
     """
     x, y, z = world[..., 0], world[..., 1], world[..., 2]
     eps = 1e-3
@@ -166,21 +175,4 @@ def corner_closed_form(world, radius):
                   + np.maximum(np.abs(z - bz) - half, 0) ** 2)
     far = ROOM - radius
     ok = (on_floor | on_wx | on_wy) & (gap > radius) & (x < far) & (y < far) & (z < WALL - radius)
-    blocked = (_segment(a) + _segment(b) - _quadrant(a, b)) / np.pi
-    return np.where(ok, 1.0 - blocked, np.nan)
-
-
-def _segment(c):
-    """Area of the unit disk where x > c."""
-    c = np.clip(c, 0.0, 1.0)
-    return np.arccos(c) - c * np.sqrt(1.0 - c * c)
-
-
-def _quadrant(a, b):
-    """Area of the unit disk where x > a and y > b (a, b >= 0)."""
-    a, b = np.clip(a, 0.0, 1.0), np.clip(b, 0.0, 1.0)
-    top = np.sqrt(np.clip(1.0 - b * b, 0.0, 1.0))
-
-    def g(t):
-        return 0.5 * (t * np.sqrt(np.clip(1 - t * t, 0, 1)) + np.arcsin(np.clip(t, -1, 1)))
-    return np.where(a < top, g(top) - g(a) - b * (top - a), 0.0)
+    return np.where(ok, ssao_core.corner_k_a(a, b), np.nan)

@@ -115,13 +115,13 @@ def sweeps(out_dir, quick=False, radius=1.0, samples=16):
                 k, sec, _ = ssao.run_method(m, gb, radius, samples, **params)
                 e = ssao.error_metrics(k, ref["k"], gb.mask)
                 er = ssao.error_metrics(k, ref["k"], region)
+                ec = ssao.error_metrics(k, ref["k"], control if control is not None else np.zeros_like(region))
                 frows.append({"scene": name, "failure": what, "region": label, "method": label_m,
                               "rmse": e["rmse"], "bias": e["bias"], "region_pixels": er["pixels"],
                               "region_rmse": er["rmse"], "region_bias": er["bias"],
                               "region_reference_mean": float(np.mean(ref["k"][region])) if region.any() else float("nan"),
-                              "region_mean": er["mean"],
-                              "control_bias": (ssao.error_metrics(k, ref["k"], control)["bias"]
-                                               if control is not None else float("nan"))})
+                              "region_mean": er["mean"], "control_pixels": ec["pixels"],
+                              "control_rmse": ec["rmse"], "control_bias": ec["bias"]})
                 ao_cols.append((label_m, ssao_figures.ao_grey(k, gb.mask)))
                 err_cols.append((f"{label_m} error", ssao_figures.error_rgb(k, ref["k"], gb.mask)))
             ao_rows.append((name, ao_cols))

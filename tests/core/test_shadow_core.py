@@ -4,8 +4,10 @@ import math
 import numpy as np
 import pytest
 
-from addon.core import camera, shadow_map, shadow_metrics, shadow_planar, shadow_volume
+from addon.core import camera, shadow_map, shadow_metrics, shadow_planar, shadow_raster, shadow_volume
 from addon.core.errors import InputError
+
+from test_ssao_synthetic import look_at, perspective
 
 
 def _look_down(eye, width=48, height=48, fov=math.radians(60), ortho=None):
@@ -45,13 +47,13 @@ def test_planar_projection_lands_on_the_plane_along_the_light_ray():
     light = np.array([1.0, 2.0, 5.0, 1.0])
     s = shadow_planar.projection_matrix(plane, light)
     p = np.array([[0.3, -0.2, 1.5], [-1.0, 0.4, 2.0]])
-    q, _ = shadow_planar.project(p, s)
+    q = shadow_planar.project(p, s)
     np.testing.assert_allclose(q[:, 2], 0.5, atol=1e-12)
     # closed form: q = L + (p - L) * (L_z - 0.5) / (L_z - p_z)
     expect = light[:3] + (p - light[:3]) * ((light[2] - 0.5) / (light[2] - p[:, 2]))[:, None]
     np.testing.assert_allclose(q, expect, atol=1e-12)
     sun = np.array([0.0, 0.6, 0.8, 0.0])                      # toward the light, w = 0
-    q, _ = shadow_planar.project(p, shadow_planar.projection_matrix(plane, sun))
+    q = shadow_planar.project(p, shadow_planar.projection_matrix(plane, sun))
     np.testing.assert_allclose(q, p - (p[:, 2:] - 0.5) / 0.8 * sun[:3], atol=1e-12)
 
 
@@ -68,6 +70,64 @@ def test_planar_mask_covers_the_projected_square_only():
     hidden = shadow_planar.planar_shadow_mask(v[t], shadow_planar.plane_from_point_normal((0, 0, 0), (0, 0, 1)),
                                               np.array([0, 0, 1.0, 0]), w2v, proj, w, h, depth - 0.5)
     assert not hidden.any()                                    # a raised receiver hides the shadow (stairs)
+
+
+def _area(tris):
+    return 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
+
+
+def test_clipping_keeps_exactly_the_part_in_front_of_a_plane_with_its_winding():
+    tri = np.array([[[0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [0.0, 4.0, 0.0]]])       # area 8, normal +z
+    # keep P.[x, 1] >= 0 for P = (0, s, 0, d): the part of the triangle with s*y >= -d;
+    # the width of the triangle at height y is 4 - y, so the kept areas are integrals of it
+    cases = [((0, -1, 0, 1), 3.5),     # y <= 1: two vertices in, a quad (two triangles)
+             ((0, 1, 0, -3), 0.5),     # y >= 3: one vertex in, a smaller triangle
+             ((0, 1, 0, 1), 8.0),      # all in
+             ((0, 1, 0, -5), 0.0)]     # all out
+    for plane, area in cases:
+        for swap in (False, True):     # the same cut along x (other vertex order)
+            p = np.array(plane, float)
+            if swap:
+                p[[0, 1]] = p[[1, 0]]
+            kept = shadow_raster.clip_triangles(tri, p)
+            rest = shadow_raster.clip_triangles(tri, -p)
+            assert abs(_area(kept).sum() - area) < 1e-12 and abs(_area(rest).sum() - (8 - area)) < 1e-12
+            assert np.all(kept @ p[:3] + p[3] >= -1e-12)
+            normals = np.cross(kept[:, 1] - kept[:, 0], kept[:, 2] - kept[:, 0])
+            assert np.all(normals[:, 2] >= 0) and np.allclose(normals[:, :2], 0)   # winding kept
+
+
+def test_planar_shadow_of_a_box_standing_on_the_plane_and_reaching_behind_the_camera():
+    """A box standing on the floor under a tilted sun: its shadow is the base swept along the light
+    (vertices on the plane stay). The camera stands in the shadow of a wide slab, so shadow
+    triangles cross its near plane and must be clipped, not dropped."""
+    w2v = look_at((0.3, -0.4, 1.0), (0.3, 3.0, 0.0))
+    proj = perspective(lens=20.0)
+    w, h = 48, 48
+    o, d = camera.pixel_rays(w2v, proj, w, h)
+    t = -o[..., 2] / d[..., 2]
+    hit = o + t[..., None] * d
+    floor = t > 0
+    c2w = np.linalg.inv(w2v)
+    depth = np.where(floor, (hit - c2w[:3, 3]) @ -c2w[:3, 2], 1e9)    # planar view depth of the floor
+    to_sun = np.array([0.3, 0.2, 1.0]) / np.linalg.norm([0.3, 0.2, 1.0])
+    plane = shadow_planar.plane_from_point_normal((0, 0, 0), (0, 0, 1))
+    sun = np.append(to_sun, 0.0)
+    v, tt = _cube((-0.4, 1.5, 0.0), (0.4, 2.3, 0.8))               # stands on the floor
+    slab_v, slab_t = _cube((-20, -20, 3.0), (20, 1.2, 3.2))          # shades the floor around the camera
+    tris = np.concatenate([v[tt], slab_v[slab_t]])
+    cover = shadow_planar.planar_shadow_mask(tris, plane, sun, w2v, proj, w, h, depth)
+    # analytic: floor point p is shadowed iff p + s to_sun meets the box (0 <= s to_sun_z <= 0.8)
+    # or the slab
+    s = np.linspace(0.0, 0.8 / to_sun[2], 401)
+    ray = hit[..., None, :2] + s[:, None] * to_sun[:2]
+    in_box = ((np.abs(ray[..., 0]) <= 0.4) & (ray[..., 1] >= 1.5) & (ray[..., 1] <= 2.3)).any(-1)
+    at_slab = hit[..., :2] + (3.1 / to_sun[2]) * to_sun[:2]
+    in_slab = (np.abs(at_slab[..., 0]) <= 20) & (at_slab[..., 1] >= -20) & (at_slab[..., 1] <= 1.2)
+    truth = floor & (in_box | in_slab)
+    assert truth[floor].mean() > 0.2 and (~truth[floor]).mean() > 0.2
+    wrong = np.mean(cover[floor] != truth[floor])
+    assert wrong < 0.03, wrong                                       # only the edge pixels may differ
 
 
 def test_open_mesh_is_rejected_for_shadow_volumes():

@@ -1,14 +1,13 @@
 """Analytic G-buffers for the SSAO core tests: rays cast in numpy against planes (no bpy).
 
-The closed form of the corner (REFERENCE.md §3 with an AO distance R): a cosine-weighted
-direction projects uniformly onto the unit disk of the tangent plane (Nusselt), and the
-wall at distance d blocks within R exactly the directions whose component toward it
-exceeds c = d/R. So the blocked fraction of one wall is the disk segment
-(acos c - c√(1-c²))/π, and of two perpendicular walls the union of two segments.
+The closed form of the corner (REFERENCE.md §3 with an AO distance R) is core.ssao.corner_k_a;
+its disk segment and quadrant are checked here against Monte Carlo on the disk and against the
+limits REFERENCE.md §3 states.
 """
 import numpy as np
+import pytest
 
-from addon.core import camera
+from addon.core import camera, ssao
 from addon.core.ssao import SKY_DEPTH, GBuffer
 
 
@@ -74,31 +73,17 @@ def corner(size=64, eye=(4.0, 3.5, 2.8), target=(0.6, 0.5, 0.3)):
     return render(planes, eye, target, size)
 
 
-def segment(c):
-    """Area of the unit disk where x > c (c >= 0)."""
-    c = np.clip(c, 0.0, 1.0)
-    return np.arccos(c) - c * np.sqrt(1.0 - c * c)
-
-
-def quadrant(a, b):
-    """Area of the unit disk where x > a and y > b (a, b >= 0)."""
-    a, b = np.clip(a, 0.0, 1.0), np.clip(b, 0.0, 1.0)
-    top = np.sqrt(np.clip(1.0 - b * b, 0.0, 1.0))
-    g = lambda x: 0.5 * (x * np.sqrt(np.clip(1 - x * x, 0, 1)) + np.arcsin(np.clip(x, -1, 1)))  # noqa: E731
-    area = g(top) - g(a) - b * (top - a)
-    return np.where(a < top, area, 0.0)
-
-
 def corner_k_a(world, pid, radius):
     """Closed-form k_A with AO distance R at the corner's pixels: distances to the two other planes."""
     x, y, z = world[..., 0], world[..., 1], world[..., 2]
     a = np.choose(np.maximum(pid, 0), [x, y, x]) / radius
     b = np.choose(np.maximum(pid, 0), [y, z, z]) / radius
-    blocked = (segment(a) + segment(b) - quadrant(a, b)) / np.pi
-    return np.where(pid >= 0, 1.0 - blocked, 1.0)
+    return np.where(pid >= 0, ssao.corner_k_a(a, b), 1.0)
 
 
-# ------------------------------------------------------------------ the oracles themselves
+# ------------------------------------------------------------------ the oracles themselves (core.ssao)
+segment, quadrant = ssao.disk_segment, ssao.disk_quadrant
+
 
 def test_segment_and_quadrant_match_monte_carlo_on_the_disk():
     rng = np.random.default_rng(1)
@@ -120,3 +105,4 @@ def test_closed_forms_reduce_to_reference_section_3():
     # R -> infinity: a wall at any finite distance blocks half the hemisphere, as the long-wall form
     # F = (1 - d/sqrt(d^2 + H^2))/2 gives for H -> infinity
     assert abs(segment(1e-6) / np.pi - 0.5) < 1e-6
+    assert ssao.corner_k_a(0.0, 0.0) == pytest.approx(0.25) and ssao.corner_k_a(0.0, 1.0) == pytest.approx(0.5)
