@@ -1,4 +1,22 @@
 """Small helpers shared by the panel sections (no classes to register)."""
+from ..core.errors import ILError
+
+
+def open_built_scene(op, context, build):
+    """Run ``build()`` (returns a new scene); give it the user's settings, show it, report.
+
+    Returns ``(operator result, scene or None)``; a failed build is reported and cancelled.
+    """
+    try:
+        scene = build()
+    except ILError as e:
+        op.report({"ERROR"}, str(e))
+        return {"CANCELLED"}, None
+    copy_settings(context.scene, scene)
+    if context.window is not None:
+        context.window.scene = scene
+    op.report({"INFO"}, f"Built scene '{scene.name}'")
+    return {"FINISHED"}, scene
 
 
 def copy_settings(src, dst):

@@ -111,16 +111,7 @@ class IL_OT_build_cornell(bpy.types.Operator):
 
     def execute(self, context):
         from ..lab import radiosity
-        try:
-            sc = radiosity.build_cornell_scene()
-        except ILError as e:
-            self.report({"ERROR"}, str(e))
-            return {"CANCELLED"}
-        common.copy_settings(context.scene, sc)
-        if context.window:
-            context.window.scene = sc
-        self.report({"INFO"}, f"Built scene '{sc.name}'")
-        return {"FINISHED"}
+        return common.open_built_scene(self, context, radiosity.build_cornell_scene)[0]
 
 
 class IL_PT_envmap(bpy.types.Panel):

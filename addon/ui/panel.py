@@ -1,7 +1,6 @@
 """The sidebar panel "Illumination" (3D viewport > N panel) and its Comparisons parent."""
 import bpy
 
-from ..core.errors import ILError
 from ..lab import demo
 from . import common, polls
 
@@ -18,16 +17,7 @@ class IL_OT_build_demo_scene(bpy.types.Operator):
         return polls.object_mode(cls, context)
 
     def execute(self, context):
-        try:
-            scene = demo.build_demo_scene(new_scene=True)
-        except ILError as e:
-            self.report({"ERROR"}, str(e))
-            return {"CANCELLED"}
-        common.copy_settings(context.scene, scene)
-        if context.window:
-            context.window.scene = scene
-        self.report({"INFO"}, f"Built scene '{scene.name}'")
-        return {"FINISHED"}
+        return common.open_built_scene(self, context, lambda: demo.build_demo_scene(new_scene=True))[0]
 
 
 class IL_PT_main(bpy.types.Panel):

@@ -52,19 +52,13 @@ class IL_OT_build_shadow_scene(bpy.types.Operator):
     def execute(self, context):
         from ..lab import shadow_scenes
         st = context.scene.illumination.shadows
-        try:
-            scene = shadow_scenes.build(st.scene_name, st.light_type, (st.resolution, st.resolution))
-        except ILError as e:
-            self.report({"ERROR"}, str(e))
-            return {"CANCELLED"}
-        common.copy_settings(context.scene, scene)
-        new = scene.illumination.shadows
-        new.light = scene["il_shadow_light"]
-        new.receiver = scene["il_shadow_receiver"]
-        if context.window is not None:
-            context.window.scene = scene
-        self.report({"INFO"}, f"Built '{scene.name}'")
-        return {"FINISHED"}
+        result, scene = common.open_built_scene(
+            self, context, lambda: shadow_scenes.build(st.scene_name, st.light_type, (st.resolution, st.resolution)))
+        if scene is not None:
+            new = scene.illumination.shadows
+            new.light = scene["il_shadow_light"]
+            new.receiver = scene["il_shadow_receiver"]
+        return result
 
 
 class IL_OT_run_shadow_comparison(bpy.types.Operator):

@@ -57,16 +57,9 @@ class IL_OT_ssao_build_scene(bpy.types.Operator):
     def execute(self, context):
         from ..lab import ssao_scenes
         settings = context.scene.illumination.ssao
-        try:
-            scene = ssao_scenes.build_scene(settings.scene_kind, settings.resolution, settings.radius)
-        except ILError as e:
-            self.report({"ERROR"}, str(e))
-            return {"CANCELLED"}
-        common.copy_settings(context.scene, scene)
-        if context.window:
-            context.window.scene = scene
-        self.report({"INFO"}, f"Built scene '{scene.name}'")
-        return {"FINISHED"}
+        return common.open_built_scene(
+            self, context, lambda: ssao_scenes.build_scene(settings.scene_kind, settings.resolution,
+                                                           settings.radius))[0]
 
 
 class IL_OT_ssao_compare(bpy.types.Operator):
