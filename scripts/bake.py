@@ -31,8 +31,9 @@ def main(args):
         for m, e in maps.items():
             err = e["estimated_error"]
             err = "n/a" if err is None else f"{err:.4g}"
+            kind = e["error_estimate"].split(":")[0] + (", before denoising" if e.get("denoised") else "")
             print(f"{obj} {m}: {e['file']} {e['resolution'][0]}x{e['resolution'][1]} "
-                  f"{e['samples']} samples {e['seconds']:.2f} s est. error {err}")
+                  f"{e['samples']} samples {e['seconds']:.2f} s est. error {err} ({kind})")
     print(f"report: {report['report']}")
 
 

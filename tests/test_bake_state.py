@@ -13,8 +13,18 @@ from addon.core.errors import InputError
 from addon.lab import scene as sc
 
 
+def black_metal():
+    m = bpy.data.materials.new("Black metal")
+    compat.ensure_use_nodes(m)
+    bsdf = m.node_tree.nodes.get("Principled BSDF")
+    bsdf.inputs["Base Color"].default_value = (0, 0, 0, 1)
+    bsdf.inputs["Metallic"].default_value = 1.0
+    return m
+
+
 def user_file():
-    """A scene as a user leaves it: black metallic material, two UV layers, EEVEE, odd settings."""
+    """A scene as a user leaves it: black metallic material, two UV layers, an old "Lightmap" layer,
+    face selection, EEVEE, odd settings."""
     scene = bpy.context.scene
     scene.render.engine = compat.EEVEE
     scene.cycles.samples = 7
@@ -27,17 +37,16 @@ def user_file():
     a = sc.box(scene, "A", 1.0)
     b = sc.plane(scene, "B", 4.0)
     c = sc.sphere(scene, "C", 0.3, location=(2, 0, 1), segments=8, rings=4)
-    m = bpy.data.materials.new("Black metal")
-    compat.ensure_use_nodes(m)
-    bsdf = m.node_tree.nodes.get("Principled BSDF")
-    bsdf.inputs["Base Color"].default_value = (0, 0, 0, 1)
-    bsdf.inputs["Metallic"].default_value = 1.0
-    a.data.materials.append(m)
+    a.data.materials.append(black_metal())
     a.data.uv_layers.new(name="First")
     a.data.uv_layers.new(name="Second")
     a.data.uv_layers.active_index = 1
     a.data.uv_layers["First"].active_render = True
     a.data.color_attributes.new("Col", "BYTE_COLOR", "CORNER")
+    a.data.polygons.foreach_set("select", [True, False, True, False, False, False])
+    a.data.polygons.foreach_set("hide", [False, False, False, False, False, True])
+    old = b.data.uv_layers.new(name="Lightmap")                   # an earlier bake's layer, hand-edited
+    old.data.foreach_set("uv", [0.1, 0.1, 0.3, 0.1, 0.3, 0.3, 0.1, 0.3])
     img = bpy.data.images.new("User image", 8, 8)
     vl = bpy.context.view_layer
     c.select_set(True)
@@ -74,6 +83,9 @@ def snapshot(scene):
             "uv": uv, "uv_active": me.uv_layers.active_index,
             "uv_render": [l.name for l in me.uv_layers if l.active_render],
             "colors": [c.name for c in me.color_attributes], "color_active": me.color_attributes.active_color_name,
+            "attributes": sorted(a.name for a in me.attributes),
+            "select": [[bool(x.select) for x in items] for items in (me.vertices, me.edges, me.polygons)],
+            "hide": [[bool(x.hide) for x in items] for items in (me.vertices, me.edges, me.polygons)],
             "mode": o.mode}
     return s
 
@@ -91,6 +103,10 @@ def test_state_restored_after_success(tmp_path):
     after = snapshot(scene)
     a = after["objects"]["A"]
     assert list(a["uv"]) == ["First", "Second", "Lightmap"] and a["uv_render"] == ["First"] and a["uv_active"] == 1
+    # every face got its chart, the one the user hid too
+    uv = np.array(a["uv"]["Lightmap"]).reshape(6, 4, 2)
+    e1, e2 = uv[:, 1] - uv[:, 0], uv[:, 3] - uv[:, 0]
+    assert np.all(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) > 1e-3)
     for k in ("engine", "cycles", "selected", "active", "data", "distance", "bake_margin"):
         assert after[k] == before[k]
 
@@ -100,11 +116,7 @@ def test_black_metal_bakes_the_same_irradiance_as_white(tmp_path, bounces):
     scene = sc.new_scene("T")
     p = sc.plane(scene, "P", 2.0)
     sc.world(scene, strength=0.5)
-    m = bpy.data.materials.new("Black metal")
-    compat.ensure_use_nodes(m)
-    bsdf = m.node_tree.nodes.get("Principled BSDF")
-    bsdf.inputs["Base Color"].default_value = (0, 0, 0, 1)
-    bsdf.inputs["Metallic"].default_value = 1.0
+    m = black_metal()
     p.data.materials.append(m)
     bake_lightmaps([p], ["irradiance"], tmp_path, BakeOptions(resolution=8, samples=2, bounces=bounces),
                    scene=scene)
@@ -113,8 +125,9 @@ def test_black_metal_bakes_the_same_irradiance_as_white(tmp_path, bounces):
     assert p.material_slots[0].material == m
 
 
-@pytest.mark.parametrize("error", [RuntimeError, KeyboardInterrupt])
-def test_state_restored_after_failure_and_interruption(tmp_path, error):
+@pytest.mark.parametrize("error,atlas", [(RuntimeError, False), (KeyboardInterrupt, True)])
+def test_state_restored_after_failure_and_interruption(tmp_path, error, atlas):
+    """The atlas run re-unwraps B's old "Lightmap" layer: its hand-edited UVs must come back too."""
     scene, objs, _ = user_file()
     before = snapshot(scene)
     calls = []
@@ -125,7 +138,7 @@ def test_state_restored_after_failure_and_interruption(tmp_path, error):
             raise error("injected")
 
     with pytest.raises(error):
-        bake_lightmaps(objs, ["ao", "irradiance"], tmp_path, BakeOptions(resolution=16, samples=2),
+        bake_lightmaps(objs, ["ao", "irradiance"], tmp_path, BakeOptions(resolution=16, samples=2, atlas=atlas),
                        scene=scene, on_step=on_step)
     assert snapshot(scene) == before
     assert len(calls) == 3
@@ -161,10 +174,11 @@ def test_bad_input_fails_clearly_and_changes_nothing(tmp_path):
     locked = tmp_path / "locked"
     locked.mkdir()
     os.chmod(locked, 0o500)
+    # root ignores permission bits: /proc takes no new files for anyone
+    unwritable = locked / "maps" if os.geteuid() != 0 else "/proc/il_lab_maps"
     try:
-        if not os.access(locked, os.W_OK):     # root ignores permissions
-            with pytest.raises(InputError, match="cannot be written"):
-                bake_lightmaps([objs[0]], ["ao"], locked / "maps", BakeOptions(resolution=8, samples=1), scene=scene)
+        with pytest.raises(InputError, match="output folder cannot be written"):
+            bake_lightmaps([objs[0]], ["ao"], unwritable, BakeOptions(resolution=8, samples=1), scene=scene)
     finally:
         os.chmod(locked, 0o700)
     with pytest.raises(InputError, match="cannot be written|is a file"):
@@ -182,6 +196,7 @@ def test_bad_input_fails_clearly_and_changes_nothing(tmp_path):
 def test_operator_bakes_selected_meshes_and_reports_errors(tmp_path):
     scene = bpy.context.scene
     p = sc.plane(scene, "P", 2.0)
+    worlds = list(bpy.data.worlds)                                # none: the bake adds a black one for a while
     s = scene.illumination.lightmaps
     s.out_dir = str(tmp_path)
     s.resolution, s.samples, s.bake_irradiance = 8, 1, False
@@ -193,6 +208,7 @@ def test_operator_bakes_selected_meshes_and_reports_errors(tmp_path):
     with pytest.raises(RuntimeError, match=r"exists: turn on Overwrite \(--overwrite\)"):
         bpy.ops.illumination.bake_lightmaps()
     assert p.select_get() and bpy.context.view_layer.objects.active == p
+    assert list(bpy.data.worlds) == worlds and scene.world is None
 
 
 def test_script_bakes_a_blend_without_modifying_it(tmp_path, script):
@@ -206,7 +222,7 @@ def test_script_bakes_a_blend_without_modifying_it(tmp_path, script):
     r = script("bake.py", blend, "--objects", "Floor", "Box", "--maps", "ao", "irradiance", "--out", out,
                "--resolution", "16", "--samples", "4")
     assert r.returncode == 0, r.stderr
-    assert "[bake" in r.stderr and "report:" in r.stdout
+    assert "[bake" in r.stderr and "report:" in r.stdout and "(binomial bound)" in r.stdout
     rep = json.loads((out / "bake_report.json").read_text())
     assert set(rep["objects"]) == {"Floor", "Box"} and rep["objects"]["Box"]["irradiance"]["samples"] == 4
     for k in ("file", "resolution", "samples", "seconds", "estimated_error"):

@@ -1,6 +1,7 @@
 """Bake options: one dataclass shared by the operator, scripts/bake.py and other tools."""
 import dataclasses
 import os
+import tempfile
 
 from ..core.errors import InputError
 from ..core.lightmap import MAX_RESOLUTION
@@ -17,10 +18,10 @@ class BakeOptions:
     texel_density   texels per metre; the side is then T √(area / UV coverage), capped
     max_resolution  the cap for texel_density
     samples         Cycles samples (ignored when target_error is set)
-    target_error    wanted RMS Monte Carlo error (k_A units for AO, W/m² for irradiance);
-                    the samples then come from a pilot bake's variance
-    pilot_samples   samples of the pilot bake(s) for target_error
-    max_samples     upper bound of the samples target_error may choose
+    target_error    wanted RMS Monte Carlo error over the covered texels (k_A units for AO, W/m² for
+                    irradiance); the samples then come from pilot bakes (pipeline._bake_to_error)
+    pilot_samples   samples per texel of the pilot pair of bakes (half each)
+    max_samples     upper bound of the samples (pilots included) target_error may spend
     ao_distance     AO ray length in metres (World > Light Settings > Distance)
     bounces         diffuse bounces of the irradiance bake (0 = direct light only)
     margin          dilation in texels beyond the covered texels
@@ -40,7 +41,7 @@ class BakeOptions:
     max_resolution: int = 4096
     samples: int = 64
     target_error: float = None
-    pilot_samples: int = 16
+    pilot_samples: int = 8
     max_samples: int = 4096
     ao_distance: float = 10.0
     bounces: int = 3
@@ -68,8 +69,9 @@ class BakeOptions:
                 raise InputError(f"samples must be at least 1, got {self.samples}")
         elif not self.target_error > 0:
             raise InputError(f"target error must be positive, got {self.target_error}")
-        if int(self.pilot_samples) < 2 or int(self.max_samples) < 1:
-            raise InputError("pilot samples must be at least 2 and maximum samples at least 1")
+        if int(self.pilot_samples) < 2 or int(self.max_samples) < int(self.pilot_samples):
+            raise InputError(f"pilot samples must be at least 2 and maximum samples at least the pilot samples, "
+                             f"got {self.pilot_samples} and {self.max_samples}")
         if not self.ao_distance > 0:
             raise InputError(f"AO distance must be positive, got {self.ao_distance}")
         if not 0 <= int(self.bounces) <= 1024:
@@ -98,16 +100,23 @@ def validate_maps(maps):
 
 
 def check_out_dir(out):
-    """The output folder exists or can be created, and is writable."""
+    """The output folder exists or can be created, and is writable: a probe file is created and removed in
+    the folder or its nearest existing parent (permission bits alone say nothing for root or read-only mounts)."""
     out = os.path.abspath(os.fspath(out))
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise InputError(f"output folder is a file: {out}")
     probe = out
     while not os.path.exists(probe):
         parent = os.path.dirname(probe)
         if parent == probe:
             break
         probe = parent
-    if os.path.exists(out) and not os.path.isdir(out):
-        raise InputError(f"output folder is a file: {out}")
-    if not os.path.isdir(probe) or not os.access(probe, os.W_OK | os.X_OK):
-        raise InputError(f"output folder cannot be written: {out}")
+    if not os.path.isdir(probe):
+        raise InputError(f"output folder cannot be written: {out} ({probe} is not a folder)")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=".il_probe_", dir=probe)
+    except OSError as e:
+        raise InputError(f"output folder cannot be written: {out} ({probe}: {e.strerror})") from None
+    os.close(fd)
+    os.remove(tmp)
     return out

@@ -1,6 +1,7 @@
 """The light-map pipeline: validate, UVs, temporary materials (white at the baked point), Cycles bakes, files,
 restore."""
 import json
+import math
 import os
 import time
 
@@ -20,19 +21,37 @@ REPORT = "bake_report.json"
 ATLAS = "atlas"
 ATTRIBUTE = {"ao": "IL AO", "irradiance": "IL Irradiance"}
 QUANTITY = {"ao": ("ambient occlusion k_A (1 = open)", "1"), "irradiance": ("irradiance E", "W/m^2")}
+# what "estimated_error" is, per mode (bake_report.json "error_estimate", EXR "il:error_estimate")
+ESTIMATES = {
+    "binomial": "binomial bound: sqrt(mean k_A(1 - k_A)/N) (REFERENCE.md section 3); Cycles' stratified sampler "
+                "stays below it",
+    "halves": "measured: RMS of the difference of two independent half bakes, halved",
+    "pilots": "measured: pairs of independent bakes (a pilot first), each pair's error from its halves' "
+              "difference, inverse-variance combined",
+    "none": "not estimated: a single sample of a non-binary quantity",
+}
+ALPHA = 0.7        # err ∝ N^-α of Cycles' AO and irradiance bakes (measured; stratified sampling of a 2-D
+                   # integrand with visibility edges converges as N^-3/4, Mitchell 1996)
+MAX_PAIRS = 4      # pairs of bakes target_error may spend (pilot included)
+DENOISED = "; noise of the map before denoising: the denoised map's error is lower (measured) but not estimated"
 
 
 class BakeResult:
     """One baked map of one object group, in Blender's pixel order (row 0 at v = 0).
 
-    values  (H, W) k_A or (H, W, 3) E in W/m² for images; {object: (V,) or (V, 3)} for vertices
-    mask    (H, W) bool covered texels (images) / None (vertices)
-    samples total Cycles samples per texel; seconds; estimated_error (RMS, same units as values)
+    values          (H, W) k_A or (H, W, 3) E in W/m² for images; {object: (V,) or (V, 3)} for vertices
+    mask            (H, W) bool covered texels (images) / None (vertices)
+    samples         total Cycles samples per texel (pilots included); pilot_samples: the pilots' share
+    seconds         the whole map (bakes, read-back, denoising); cycles_seconds: inside the Cycles bake calls
+    estimated_error RMS over covered texels, same units as values (NaN when not estimated)
+    estimate        which estimate ``estimated_error`` is (one of ESTIMATES, plus DENOISED when denoised)
     """
 
-    def __init__(self, values, mask, samples, seconds, estimated_error, pilot_samples=0):
+    def __init__(self, values, mask, samples, seconds, estimated_error, estimate, pilot_samples=0,
+                 cycles_seconds=0.0):
         self.values, self.mask, self.samples = values, mask, samples
         self.seconds, self.estimated_error, self.pilot_samples = seconds, estimated_error, pilot_samples
+        self.estimate, self.cycles_seconds = estimate, cycles_seconds
 
 
 # ------------------------------------------------------------------ validation
@@ -92,6 +111,12 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     interruptions; only the products (generated "Lightmap" UV layer, "IL AO" /
     "IL Irradiance" colour attributes) stay when ``options.keep_products``.
     ``on_step(message)`` is called at every step (progress hooks, tests).
+
+    Report entry per object and map: DESIGN.md's "file", "resolution", "samples" (per texel, all bakes),
+    "seconds" (the map's bakes, denoising and files) and "estimated_error" (RMS over covered texels,
+    None when not estimated), plus "error_estimate" (which estimate that is, see ESTIMATES),
+    "cycles_seconds" (inside the Cycles bake calls), "pilot_samples" (target_error runs) and, for
+    images, "preview", "uv_layer", "coverage", "denoised".
     """
     options = options or BakeOptions()
     scene = scene or bpy.context.scene
@@ -107,21 +132,21 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
             if on_step:
                 on_step(message)
 
-        _setup_render(scene, options)
-        layers = {}
+        _setup_render(scene, options, state)
+        layers, sides = {}, {}
         materials = TemporaryMaterials(state)
         if options.target == "image":
             step("light-map UVs")
-            margin_uv = options.margin / max(options.resolution if options.texel_density is None else 256, 1)
-            layers = uvmod.prepare(scene, objects, state, options.uv_layer, margin_uv=max(margin_uv, 0.002),
-                                   together=options.atlas)
+            layers, sides = uvmod.prepare(scene, objects, state, options, together=options.atlas)
         for name, group in groups:
-            size = _map_size(group, layers, options)
+            size = _map_size(group, layers, sides, options)
             for m in maps:
                 step(f"{name}: {m}" + (f" {size[0]}x{size[1]}" if size else " (vertices)"))
+                t_map = time.perf_counter()
                 result = bake_map(scene, group, m, options, layers, size, materials.assign(group, m), state)
                 entries = _write(name, group, m, result, out, options, layers)
                 for o in group:
+                    entries[o.name]["seconds"] = round(time.perf_counter() - t_map, 4)    # files included
                     report["objects"].setdefault(o.name, {})[m] = entries[o.name]
         if options.keep_products:       # products stay only when the whole bake succeeded
             state.keep |= {(o.data.name, uvmod.LIGHTMAP) for o in objects}
@@ -133,18 +158,20 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
 
 # ------------------------------------------------------------------ bakes
 
-def _map_size(group, layers, options):
-    """(width, height) of the group's image map (None for the vertex target)."""
+def _map_size(group, layers, sides, options):
+    """(width, height) of the group's image map (None for the vertex target): ``options.sizes``, else the
+    fixed resolution or the texel-density side, never below the side a generated layout's margin was made for."""
     if options.target != "image":
         return None
     if options.sizes and group[0].name in options.sizes:
         w, h = options.sizes[group[0].name]
         return int(w), int(h)
-    res = uvmod.resolution(group, layers, options)
+    res = max(uvmod.resolution(group, layers, options), sides.get(group[0].name, 0))
     return res, res
 
 
-def _setup_render(scene, options):
+def _setup_render(scene, options, state):
+    """Cycles on the CPU, no denoising or adaptive sampling, fixed seed, AO distance; a black world if none."""
     scene.render.engine = compat.CYCLES
     cy = scene.cycles
     cy.device = "CPU"
@@ -153,7 +180,7 @@ def _setup_render(scene, options):
     if hasattr(cy, "use_animated_seed"):
         cy.use_animated_seed = False
     if scene.world is None:
-        scene.world = bpy.data.worlds.new("IL temporary world")
+        scene.world = state.track(bpy.data.worlds, bpy.data.worlds.new("IL temporary world"))
         scene.world.color = (0.0, 0.0, 0.0)
     scene.world.light_settings.distance = float(options.ao_distance)
 
@@ -263,7 +290,16 @@ class TemporaryMaterials:
 
 
 def bake_map(scene, group, kind, options, layers, size, image_nodes, state):
-    """Bake one map of one object group (UVs and materials in place); return a :class:`BakeResult`."""
+    """Bake one map of one object group (UVs and materials in place); return a :class:`BakeResult`.
+
+    Samples and the error estimate (``ESTIMATES``), per mode:
+    - target_error: pilot pairs and a final pair (:func:`_bake_to_error`), error measured;
+    - irradiance, N >= 2 samples: two independent half bakes, error measured from their difference
+      (E is not a binary quantity: there is no a-priori bound);
+    - AO: one N-sample bake (Cycles' stratified sampler converges faster than two independent halves
+      would), error = the binomial bound √(mean k_A(1 - k_A)/N) of REFERENCE.md §3.
+    Denoising (image target) runs last; the estimate then stays that of the map before denoising.
+    """
     t0 = time.perf_counter()
     image_target = options.target == "image"
     image = None
@@ -281,48 +317,76 @@ def bake_map(scene, group, kind, options, layers, size, image_nodes, state):
                 state.created_attribute(me, name)
             me.color_attributes.active_color_name = name
     uv_name = layers.get(group[0].name) if image_target else None
+    timer = {"cycles": 0.0}
 
     def once(samples, seed):
-        return _bake_once(scene, group, kind, samples, seed, image, uv_name, options)
+        values, mask, seconds = _bake_once(scene, group, kind, samples, seed, image, uv_name, options)
+        timer["cycles"] += seconds
+        return values, mask
 
     pilot = 0
-    if options.target_error is None:
+    if options.target_error is not None:
+        values, mask, n, pilot, err = _bake_to_error(once, options)
+        estimate = "pilots"
+    elif kind == "irradiance" and options.samples >= 2:
         n = int(options.samples)
-        if kind == "irradiance" and n >= 2:
-            h = n // 2
-            (a, mask), (b, _) = once(h, options.seed), once(n - h, options.seed + 1)
-            var = lightmap.per_sample_variance_pair(_flat(a), _flat(b), h, n - h, _flat_mask(mask, a))
-            values = _combine([a, b], [h, n - h])
-        else:
-            values, mask = once(n, options.seed)
-            var = _variance_single(kind, values, mask)
+        h = n // 2
+        (a, mask), (b, _) = once(h, options.seed), once(n - h, options.seed + 1)
+        var = lightmap.per_sample_variance_pair(_flat(a), _flat(b), h, n - h, _flat_mask(mask, a))
+        values, err, estimate = _combine([a, b], [h, n - h]), lightmap.expected_error(var, n), "halves"
     else:
-        # two independent half pilots: their difference measures the real noise of Cycles'
-        # (quasi-)Monte Carlo sampler, lower than the binomial bound for AO
-        pilot = int(options.pilot_samples)
-        h = pilot // 2
-        (a, mask), (b, _) = once(h, options.seed), once(pilot - h, options.seed + 1)
-        var = lightmap.per_sample_variance_pair(_flat(a), _flat(b), h, pilot - h, _flat_mask(mask, a))
-        parts, counts = [a, b], [h, pilot - h]
-        n = lightmap.samples_for_error(var, options.target_error, minimum=pilot, maximum=max(options.max_samples, pilot))
-        if n > pilot:
-            c, _ = once(n - pilot, options.seed + 2)
-            parts.append(c)
-            counts.append(n - pilot)
-        values = _combine(parts, counts)
-    err = lightmap.expected_error(var, n)
+        n = int(options.samples)
+        values, mask = once(n, options.seed)
+        if kind == "ao":
+            var = lightmap.per_sample_variance_ao(_flat(values), _flat_mask(mask, values))
+            err, estimate = lightmap.expected_error(var, n), "binomial"
+        else:
+            err, estimate = float("nan"), "none"
+    estimate = ESTIMATES[estimate]
     if image_target and options.denoise:
         filled, _ = lightmap.nearest_fill(values, mask)
         from .denoise import denoise
         values = np.where((mask[..., None] if values.ndim == 3 else mask), denoise(filled), 0.0).astype(np.float32)
-    return BakeResult(values, mask, n, time.perf_counter() - t0, err, pilot)
+        estimate += DENOISED
+    return BakeResult(values, mask, n, time.perf_counter() - t0, err, estimate, pilot, timer["cycles"])
 
 
-def _variance_single(kind, values, mask):
-    """Per-sample variance from one bake: binomial k_A(1 - k_A) for AO (REFERENCE.md §3)."""
-    if kind == "ao":
-        return lightmap.per_sample_variance_ao(_flat(values), _flat_mask(mask, values))
-    return float("nan")
+def _bake_to_error(once, options):
+    """Bake pairs until the RMS error meets ``options.target_error``; return (values, mask, samples, pilot, error).
+
+    Every bake is one of a pair of independent bakes (different seeds) with the same samples; the RMS
+    error of a pair's mean is measured from the difference of its halves
+    (:func:`lightmap.per_sample_variance_pair`), and all pairs are combined with inverse-variance weights
+    (:func:`lightmap.inverse_variance_weights`, 1/e² = Σ 1/e_i²), so the reported error is measured.
+    The pilot pair has pilot_samples / 2 samples per bake; each next pair gets the samples predicted to
+    bring the combination to the target, from err ∝ N^-α: α = ALPHA for the first prediction, then α
+    measured between the last two pairs (:func:`lightmap.convergence_exponent`), rounded to the nearest
+    power of two (Cycles' tabulated Sobol sequence is stratified best there: measured 16 samples beat 19,
+    32 beat 28). Assuming independent samples (α = 1/2, N = σ²/E²) would bake several times too many
+    samples with Cycles' stratified sampler.
+    Up to MAX_PAIRS pairs and max_samples samples in all.
+    """
+    target = float(options.target_error)
+    per, errors, parts, seed, mask = [], [], [], int(options.seed), None
+    total = 0
+    m = max(1, int(options.pilot_samples) // 2)
+    while True:
+        (a, mask_a), (b, _) = once(m, seed), once(m, seed + 1)
+        seed, total = seed + 2, total + 2 * m
+        mask = mask_a if mask is None else mask
+        var = lightmap.per_sample_variance_pair(_flat(a), _flat(b), m, m, _flat_mask(mask, a))
+        per.append(m)
+        parts.append(_combine([a, b], [1, 1]))
+        errors.append(lightmap.expected_error(var, 2 * m))
+        weights, err = lightmap.inverse_variance_weights(errors)
+        left = int(options.max_samples) - total
+        if err <= target or len(per) == MAX_PAIRS or left < 2:
+            break
+        wanted = 1.0 / math.sqrt(1.0 / target ** 2 - 1.0 / err ** 2)     # error the next pair must reach
+        alpha = ALPHA if len(per) == 1 else lightmap.convergence_exponent(errors[-2], per[-2], errors[-1], per[-1])
+        m = lightmap.samples_for_error(errors[-1], per[-1], wanted, alpha, minimum=1, maximum=left // 2)
+        m = min(2 ** round(math.log2(m)), left // 2)      # Cycles' Sobol sampler is best at powers of two
+    return _combine(parts, weights), mask, total, 2 * per[0], err
 
 
 def _flat(values):
@@ -337,10 +401,11 @@ def _flat_mask(mask, values):
     return mask
 
 
-def _combine(parts, counts):
+def _combine(parts, weights):
+    """Weighted mean of independent bakes (image arrays or {object: vertex values})."""
     if isinstance(parts[0], dict):
-        return {k: lightmap.combine([p[k] for p in parts], counts) for k in parts[0]}
-    return lightmap.combine(parts, counts).astype(np.float32)
+        return {k: lightmap.combine([p[k] for p in parts], weights) for k in parts[0]}
+    return lightmap.combine(parts, weights).astype(np.float32)
 
 
 def _set_bounces(cy, kind, options):
@@ -354,7 +419,7 @@ def _set_bounces(cy, kind, options):
 
 
 def _bake_once(scene, group, kind, samples, seed, image, uv_name, options):
-    """One Cycles bake call; returns (values, mask) with E already multiplied by π."""
+    """One Cycles bake call; returns (values, mask, seconds inside the call) with E already multiplied by π."""
     cy = scene.cycles
     cy.samples, cy.seed = int(samples), int(seed)
     _set_bounces(cy, kind, options)
@@ -377,11 +442,13 @@ def _bake_once(scene, group, kind, samples, seed, image, uv_name, options):
         kwargs["pass_filter"] = {"DIRECT", "INDIRECT"} if options.bounces > 0 else {"DIRECT"}
     ctx = dict(scene=scene, view_layer=vl, active_object=group[0], object=group[0],
                selected_objects=list(group), selected_editable_objects=list(group))
+    t = time.perf_counter()
     try:
         with bpy.context.temp_override(**ctx):
             result = bpy.ops.object.bake(**kwargs)
     except RuntimeError as e:
         raise ILError(f"Cycles bake failed: {str(e).strip().splitlines()[-1]}") from e
+    seconds = time.perf_counter() - t
     if "FINISHED" not in result:
         raise ILError(f"Cycles bake did not finish ({', '.join(result)})")
     scale = np.pi if kind == "irradiance" else 1.0
@@ -392,7 +459,7 @@ def _bake_once(scene, group, kind, samples, seed, image, uv_name, options):
         px = px.reshape(h, w, 4)
         mask = px[..., 3] > 0.5
         values = px[..., 0] if kind == "ao" else px[..., :3] * scale
-        return values.astype(np.float32), mask
+        return values.astype(np.float32), mask, seconds
     values = {}
     for o in group:
         attr = o.data.color_attributes[ATTRIBUTE[kind]]
@@ -400,7 +467,7 @@ def _bake_once(scene, group, kind, samples, seed, image, uv_name, options):
         attr.data.foreach_get("color", c)
         c = c.reshape(-1, 4)
         values[o.name] = c[:, 0].copy() if kind == "ao" else c[:, :3] * scale
-    return values, None
+    return values, None, seconds
 
 
 # ------------------------------------------------------------------ files
@@ -411,7 +478,7 @@ def _attributes(kind, result, options, uv_name):
             "il:ao_distance": options.ao_distance, "il:uv_layer": uv_name or "",
             "il:blender_version": bpy.app.version_string, "il:bounces": options.bounces if kind != "ao" else "",
             "il:denoised": int(bool(options.denoise and options.target == "image")),
-            "il:estimated_error": result.estimated_error}
+            "il:estimated_error": result.estimated_error, "il:error_estimate": result.estimate}
 
 
 def _channels(kind, values, alpha):
@@ -430,8 +497,10 @@ def _preview(kind, values, mask):
 
 
 def _entry(path, res, result, extra=None):
+    """One bake_report.json entry (DESIGN.md keys first; "error_estimate" says what estimated_error is)."""
     e = {"file": path, "resolution": list(res), "samples": int(result.samples), "seconds": round(result.seconds, 4),
-         "estimated_error": None if not np.isfinite(result.estimated_error) else float(result.estimated_error)}
+         "estimated_error": None if not np.isfinite(result.estimated_error) else float(result.estimated_error),
+         "error_estimate": result.estimate, "cycles_seconds": round(result.cycles_seconds, 4)}
     if result.pilot_samples:
         e["pilot_samples"] = int(result.pilot_samples)
     e.update(extra or {})
@@ -455,9 +524,8 @@ def _write(name, group, kind, result, out, options, layers):
                  "denoised": bool(options.denoise)}
         return {o.name: _entry(path, res, result, extra) for o in group}
     entries = {}
-    scale = 1.0
     for o in group:
-        v = np.asarray(result.values[o.name], np.float32) * scale
+        v = np.asarray(result.values[o.name], np.float32)
         row = v[None, :] if v.ndim == 1 else v[None, :, :]
         path = os.path.join(out, f"{o.name}_{kind}_vertex.exr")
         attrs = _attributes(kind, result, options, None)
@@ -473,6 +541,8 @@ def _write(name, group, kind, result, out, options, layers):
 
 
 def _merge_report(path, report):
+    """Merge this run's entries into ``path`` (bakes of other objects into the same folder keep theirs);
+    the top-level "seconds" is this run's."""
     old = {}
     if os.path.exists(path):
         try:

@@ -3,15 +3,18 @@
 Usage::
 
     with SavedState(scene, objects) as state:
-        state.track_image(img)          # temporary data-blocks removed on exit
+        state.track(bpy.data.images, img)   # temporary data-blocks removed on exit
         ...
 
-On exit (normal, exception or KeyboardInterrupt) the render settings, the world's
-AO distance, selection, active object, material slots, active UV layer / render UV
-layer, active colour attributes and the mode are restored, and every temporary
-data-block registered with ``track_*`` is removed.
+On exit (normal, exception or KeyboardInterrupt) the render engine, Cycles sampling settings and bake
+settings, the world and its AO distance, selection, active object, material slots, active UV layer /
+render UV layer, active colour attributes and the mode are restored; every temporary data-block
+registered with ``track`` is removed, and so are UV layers / colour attributes registered with
+``created_uv`` / ``created_attribute``, and layers saved with ``save_uv`` get their UVs back, unless
+their (mesh name, name) is in ``keep`` (the products of a successful bake).
 """
 import bpy
+import numpy as np
 
 _CYCLES = ("device", "samples", "seed", "use_denoising", "use_adaptive_sampling", "max_bounces",
            "diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces",
@@ -43,12 +46,15 @@ def _set_rna_values(struct, values):
 
 
 class SavedState:
+    """Context manager: the state of ``scene`` and of ``objects`` (and their meshes) as the user left it."""
+
     def __init__(self, scene, objects):
         self.scene = scene
         self.objects = list(objects)
         self.temp = []            # (collection, id) removed on exit
         self.uv_created = []      # (mesh, layer name) removed on exit unless kept
         self.attr_created = []    # (mesh, attribute name) removed on exit unless kept
+        self.uv_saved = {}        # (mesh name, layer name) -> (mesh, UVs) of a rewritten layer, put back unless kept
         self.keep = set()         # (mesh name, layer/attribute name) to keep
 
     # ---- save
@@ -88,6 +94,13 @@ class SavedState:
     def created_attribute(self, mesh, name):
         self.attr_created.append((mesh, name))
 
+    def save_uv(self, mesh, name):
+        """Remember the UVs of an existing layer about to be rewritten (first call wins)."""
+        if (mesh.name, name) not in self.uv_saved and (mesh, name) not in self.uv_created:
+            data = np.zeros(len(mesh.loops) * 2, np.float32)
+            mesh.uv_layers[name].data.foreach_get("uv", data)
+            self.uv_saved[(mesh.name, name)] = (mesh, data)
+
     # ---- restore
     def __exit__(self, *exc):
         sc = self.scene
@@ -118,6 +131,9 @@ class SavedState:
         for me, name in self.uv_created:
             if (me.name, name) not in self.keep and name in me.uv_layers:
                 me.uv_layers.remove(me.uv_layers[name])
+        for key, (me, data) in self.uv_saved.items():
+            if key not in self.keep and key[1] in me.uv_layers:
+                me.uv_layers[key[1]].data.foreach_set("uv", data)
         for me, name in self.attr_created:
             if (me.name, name) not in self.keep and name in me.color_attributes:
                 me.color_attributes.remove(me.color_attributes[name])

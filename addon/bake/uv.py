@@ -1,9 +1,11 @@
 """Light-map UVs: an existing layer used as it is, or a generated non-overlapping "Lightmap" layer.
 
-The generated layer comes from Blender's Smart UV Project (islands packed without
-overlap, an island margin in UV units) run on that layer only: the user's other
-layers, the active layer and the layer that renders are left as they were (the
-caller's SavedState restores the active index).
+The generated layer comes from Blender's Smart UV Project run on that layer only (the user's
+other layers, the active layer and the layer that renders are left as they were; the caller's
+SavedState restores the active index). Its islands are packed with a margin given as a fraction
+of the map ("FRACTION"): ``margin`` texels of empty space around every chart at the side the map
+gets, so charts lie 2 × margin texels apart and the dilation by ``margin`` texels never reaches
+into a neighbour's gutter.
 """
 import bpy
 import numpy as np
@@ -48,18 +50,18 @@ def check_layer(obj, name):
         raise InputError(f"object '{obj.name}' has no UV layer '{name}' (it has: {have})")
 
 
-def prepare(scene, objects, state, uv_layer=None, margin_uv=0.01, together=False):
-    """Return ``{object name: layer name}``; generate "Lightmap" where needed.
+def prepare(scene, objects, state, options, together=False):
+    """Return ``({object name: layer name}, {object name: map side the generated layout was made for})``.
 
-    An existing layer named "Lightmap" (from an earlier bake) is reused as it is.
-    With ``together`` the objects that need a layer are unwrapped in one go, so
-    their charts share one UV square (an atlas) without overlapping.
+    ``options.uv_layer`` is used as it is; otherwise an existing "Lightmap" layer (from an earlier
+    bake) is reused as it is, or one is generated. With ``together`` the objects are unwrapped in
+    one go, so their charts share one UV square (an atlas) without overlapping.
     """
-    names = {}
+    names, sides = {}, {}
     todo = []
     for o in objects:
-        if uv_layer:
-            names[o.name] = uv_layer
+        if options.uv_layer:
+            names[o.name] = options.uv_layer
         elif LIGHTMAP in o.data.uv_layers and not together:
             names[o.name] = LIGHTMAP
         else:
@@ -67,10 +69,38 @@ def prepare(scene, objects, state, uv_layer=None, margin_uv=0.01, together=False
     groups = [todo] if together else [[o] for o in todo]
     for group in groups:
         if group:
-            _generate(scene, group, state, margin_uv)
             for o in group:
                 names[o.name] = LIGHTMAP
-    return names
+            side = _unwrap_with_margin(scene, group, state, options, names)
+            sides.update((o.name, side) for o in group)
+    return names, sides
+
+
+def margin_fraction(margin, side):
+    """Island margin as a fraction of the map: max(margin, 1/2) texels / side (charts at least a texel
+    apart), at most 5 % of the map (a margin wider than that only wastes a tiny map)."""
+    return min(max(float(margin), 0.5) / max(int(side), 1), 0.05)
+
+
+def _unwrap_with_margin(scene, group, state, options, names):
+    """Generate "Lightmap" for ``group`` so that its margin holds at the side the map gets; return that side.
+
+    A fixed resolution gives the side at once. With a texel density the side N = T √(A / coverage)
+    depends on the packing, which depends on the margin: start from the lower bound T √A (coverage 1)
+    and re-unwrap for the side the last layout asks for, up to three times; the map then gets
+    max(asked side, side the margin was made for), so the margin always holds.
+    """
+    fixed = options.sizes.get(group[0].name) if options.sizes else None
+    side = max(fixed) if fixed else resolution(group, names, options, coverage=1.0)
+    for _ in range(3):
+        _generate(scene, group, state, margin_fraction(options.margin, side))
+        if fixed or options.texel_density is None:
+            return side
+        need = resolution(group, names, options)
+        if side <= need <= 1.05 * side:
+            return need
+        side = need
+    return max(side, resolution(group, names, options))
 
 
 def _generate(scene, group, state, margin_uv):
@@ -82,6 +112,8 @@ def _generate(scene, group, state, margin_uv):
         if LIGHTMAP not in me.uv_layers:
             me.uv_layers.new(name=LIGHTMAP, do_init=False)
             state.created_uv(me, LIGHTMAP)
+        else:
+            state.save_uv(me, LIGHTMAP)          # an earlier bake's layer, re-unwrapped: put back unless kept
         me.uv_layers.active = me.uv_layers[LIGHTMAP]
         o.select_set(True, view_layer=vl)
     for o in vl.objects:
@@ -91,39 +123,53 @@ def _generate(scene, group, state, margin_uv):
     vl.objects.active = lead
     ctx = dict(scene=scene, view_layer=vl, active_object=lead, object=lead,
                selected_objects=list(group), selected_editable_objects=list(group))
-    selections = [(o.data, _mesh_selection(o.data)) for o in group]
-    for o in group:
-        o.data.polygons.foreach_set("select", np.ones(len(o.data.polygons), bool))
+    saved = [(o.data, _mesh_flags(o.data)) for o in group]
+    for o in group:                       # smart_project unwraps the visible, selected faces: all of them
+        for items in (o.data.vertices, o.data.edges, o.data.polygons):
+            items.foreach_set("hide", np.zeros(len(items), bool))
+            items.foreach_set("select", np.ones(len(items), bool))
     try:
         with bpy.context.temp_override(**ctx):
             bpy.ops.object.mode_set(mode="EDIT")
         try:
             with bpy.context.temp_override(edit_object=lead, **ctx):
-                bpy.ops.uv.smart_project(angle_limit=1.15192, island_margin=float(margin_uv),
+                bpy.ops.uv.smart_project(angle_limit=1.15192, island_margin=float(margin_uv), margin_method="FRACTION",
                                          area_weight=0.0, correct_aspect=True, scale_to_bounds=False)
         finally:
             with bpy.context.temp_override(**ctx):
                 bpy.ops.object.mode_set(mode="OBJECT")
     finally:
-        for me, saved in selections:
-            for items, flags in saved:
-                items.foreach_set("select", flags)
+        for me, (flags, names) in saved:
+            _restore_flags(me, flags, names)
 
 
-def _mesh_selection(me):
-    """The user's vertex, edge and face selection flags of ``me`` (smart_project needs all faces selected)."""
-    saved = []
+def _mesh_flags(me):
+    """The user's select and hide flags of vertices, edges and faces, and the names of the mesh's attributes."""
+    flags = []
     for items in (me.vertices, me.edges, me.polygons):
-        flags = np.zeros(len(items), bool)
-        items.foreach_get("select", flags)
-        saved.append((items, flags))
-    return saved
+        for key in ("select", "hide"):
+            values = np.zeros(len(items), bool)
+            items.foreach_get(key, values)
+            flags.append((items, key, values))
+    return flags, {a.name for a in me.attributes}
 
 
-def resolution(objects, layers, options):
-    """Map side for the objects sharing one map: the fixed resolution, or from the texel density."""
+def _restore_flags(me, flags, names):
+    """Put the flags back and drop the internal attributes (".select_vert", ".uv_select_face", ...) that the
+    edit-mode round trip added: absent, they read as all False, which is what they were."""
+    for items, key, values in flags:
+        items.foreach_set(key, values)
+    for name in [a.name for a in me.attributes if a.name.startswith(".") and a.name not in names]:
+        if name in me.attributes and not me.attributes[name].is_required:
+            me.attributes.remove(me.attributes[name])
+
+
+def resolution(objects, layers, options, coverage=None):
+    """Map side for the objects sharing one map: the fixed resolution, or N = T √(A / coverage) from the
+    texel density T, the world area A and the UV coverage of their layers (``coverage`` overrides it)."""
     if options.texel_density is None:
         return int(options.resolution)
     area = sum(world_area(o) for o in objects)
-    coverage = sum(lightmap.uv_area(np.clip(triangles_uv(o, layers[o.name]), 0, 1)) for o in objects)
+    if coverage is None:
+        coverage = sum(lightmap.uv_area(np.clip(triangles_uv(o, layers[o.name]), 0, 1)) for o in objects)
     return lightmap.resolution_for_density(area, min(coverage, 1.0), options.texel_density, options.max_resolution)

@@ -178,12 +178,29 @@ def per_sample_variance_pair(a, b, samples_a, samples_b, mask):
     return float(np.mean(d * d) / (1.0 / samples_a + 1.0 / samples_b)) if d.size else 0.0
 
 
-def samples_for_error(per_sample_variance, target_error, minimum=1, maximum=65536):
-    """Smallest N with √(σ²/N) <= target: N = ⌈σ²/E²⌉, clamped."""
+def samples_for_error(error_ref, samples_ref, target_error, alpha=0.5, minimum=1, maximum=65536):
+    """Smallest N whose predicted RMS error meets ``target_error``, clamped to [minimum, maximum].
+
+    err(N) = err_ref (N / N_ref)^-α  ->  N = ⌈N_ref (err_ref / target)^(1/α)⌉. α = 1/2 for independent
+    samples (then N = σ²/E² with σ² = N_ref err_ref²); Cycles' stratified sampler converges faster
+    (see :func:`convergence_exponent`).
+    """
     if target_error <= 0:
         raise ValueError("target error must be positive")
-    n = math.ceil(per_sample_variance / (target_error * target_error))
+    n = math.ceil(samples_ref * (max(error_ref, 0.0) / target_error) ** (1.0 / alpha) - 1e-9)
     return int(min(max(n, minimum), maximum))
+
+
+def convergence_exponent(error_1, samples_1, error_2, samples_2, lowest=0.5, highest=1.0):
+    """α of err(N) ∝ N^-α from two measured errors: α = ln(e_1/e_2) / ln(N_2/N_1), clamped to [lowest, highest].
+
+    The lower clamp 1/2 is independent sampling (the safe assumption: it never predicts too few samples for a
+    sampler at least as good); the upper clamp 1 is the best rate of stratified sampling of a smooth integrand.
+    """
+    if error_1 <= 0 or error_2 <= 0 or samples_2 == samples_1:
+        return highest
+    alpha = math.log(error_1 / error_2) / math.log(samples_2 / samples_1)
+    return float(min(max(alpha, lowest), highest))
 
 
 def expected_error(per_sample_variance, samples):
@@ -191,10 +208,24 @@ def expected_error(per_sample_variance, samples):
     return math.sqrt(max(per_sample_variance, 0.0) / max(samples, 1))
 
 
-def combine(estimates, samples):
-    """Sample-weighted mean of independent estimates (Σ N_i x_i / Σ N_i)."""
-    total = float(sum(samples))
-    return sum(np.asarray(x, float) * (n / total) for x, n in zip(estimates, samples))
+def combine(estimates, weights):
+    """Weighted mean Σ w_i x_i / Σ w_i of independent estimates x_i (w_i = N_i: all samples count alike)."""
+    total = float(sum(weights))
+    return sum(np.asarray(x, float) * (w / total) for x, w in zip(estimates, weights))
+
+
+def inverse_variance_weights(errors):
+    """Weights w_i = 1/e_i² for estimates of RMS errors e_i, and the error of their weighted mean.
+
+    With these weights :func:`combine` has RMS error (Σ 1/e_i²)^(-1/2), the least of any weighting.
+    A noise-free estimate (e_i = 0) takes all the weight. Returns ``(weights, error)``.
+    """
+    errors = [float(e) for e in errors]
+    if min(errors) <= 0.0:
+        first = errors.index(min(errors))
+        return [1.0 if i == first else 0.0 for i in range(len(errors))], 0.0
+    weights = [1.0 / (e * e) for e in errors]
+    return weights, math.sqrt(1.0 / sum(weights))
 
 
 # ---------------------------------------------------------------- closed forms (REFERENCE.md §3)

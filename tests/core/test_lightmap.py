@@ -23,7 +23,8 @@ def test_centred_rectangle_and_limits():
     assert lm.view_factor_rect_centered(2.0, 2.0, 1.0) == pytest.approx(
         lm.view_factor_polygon((0, 0, 0), (0, 0, 1), _square(0, 0, 1, 2, 2)), rel=1e-9)
     assert lm.view_factor_rect_centered(1e5, 1e5, 1.0) == pytest.approx(1.0, abs=1e-4)   # infinite ceiling
-    # a 1 x 1 square at height 1: the tabulated 0.2 ... (Howell B-3, X = Y = 0.5 per corner)
+    # a 1 x 1 square at height 1, by hand: 4 corners with X = Y = 0.5,
+    # F = 4 · (1/2π) · 2 · (0.5/√1.25) atan(0.5/√1.25) = 0.23945
     assert lm.view_factor_rect_centered(1.0, 1.0, 1.0) == pytest.approx(0.2395, abs=2e-4)
 
 
@@ -159,9 +160,37 @@ def test_pair_variance_and_samples_for_error():
     b = truth + rng.normal(0, math.sqrt(sigma2 / nb), truth.shape)
     est = lm.per_sample_variance_pair(a, b, na, nb, np.ones(truth.shape, bool))
     assert est == pytest.approx(sigma2, rel=0.05)
-    n = lm.samples_for_error(est, 0.01)
-    assert lm.expected_error(est, n) <= 0.01 < lm.expected_error(est, n - 1)
     comb = lm.combine([a, b], [na, nb])
     assert lm.rms(comb, truth) == pytest.approx(math.sqrt(sigma2 / (na + nb)), rel=0.05)
+    # independent samples (α = 1/2): N = σ²/E², the smallest N meeting the target
+    n = lm.samples_for_error(lm.expected_error(est, 1), 1, 0.01)
+    assert n == math.ceil(est / 0.01 ** 2)
+    assert lm.expected_error(est, n) <= 0.01 < lm.expected_error(est, n - 1)
+    # a faster sampler (α = 3/4): 0.2 at 4 samples -> 0.01 needs 4 · 20^(4/3) = 217.1 -> 218 samples
+    assert lm.samples_for_error(0.2, 4, 0.01, alpha=0.75) == 218
+    assert lm.samples_for_error(0.2, 4, 0.01, alpha=0.75, maximum=100) == 100
     with pytest.raises(ValueError):
-        lm.samples_for_error(1.0, 0.0)
+        lm.samples_for_error(1.0, 1, 0.0)
+
+
+def test_convergence_exponent_recovers_the_rate_and_clamps():
+    def err(n):
+        return 0.4 * n ** -0.7
+    assert lm.convergence_exponent(err(4), 4, err(64), 64) == pytest.approx(0.7)
+    assert lm.convergence_exponent(err(64), 64, err(4), 4) == pytest.approx(0.7)      # order does not matter
+    assert lm.convergence_exponent(0.1, 4, 0.099, 8) == 0.5                          # slower than 1/√N: 1/2
+    assert lm.convergence_exponent(0.1, 4, 0.01, 8) == 1.0
+    assert lm.convergence_exponent(0.1, 4, 0.0, 8) == 1.0                            # noise-free
+
+
+def test_inverse_variance_combination_reaches_the_predicted_error():
+    rng = np.random.default_rng(3)
+    truth = rng.uniform(0, 1, (128, 128))
+    sigmas = (0.2, 0.05, 0.1)
+    parts = [truth + rng.normal(0, s, truth.shape) for s in sigmas]
+    weights, error = lm.inverse_variance_weights(sigmas)
+    assert error == pytest.approx((1 / 0.04 + 1 / 0.0025 + 1 / 0.01) ** -0.5)
+    # RMS of 16384 texels: relative standard error 1/√(2·16384) = 0.55 %, 4 of them ≈ 2.2 %
+    assert lm.rms(lm.combine(parts, weights), truth) == pytest.approx(error, rel=0.022)
+    assert lm.rms(lm.combine(parts, [1, 1, 1]), truth) > 1.2 * error             # equal weights do worse
+    assert lm.inverse_variance_weights([0.1, 0.0]) == ([0.0, 1.0], 0.0)
