@@ -12,11 +12,10 @@ import time
 import bpy
 import numpy as np
 
-from .. import compat
 from ..core import charts, exr
 from ..core import lightmap as lm
 from ..lab import demo
-from ..lab.scene import remove_scene
+from ..lab.scene import remove_scene, white_lambert
 from .options import BakeOptions
 from .pipeline import bake_lightmaps
 
@@ -116,14 +115,8 @@ def _bare_bake(scene, floor, res, samples):
     own 4-texel margin in place of the pipeline's dilation. Material, image and settings are prepared
     beforehand and put back afterwards."""
     img = bpy.data.images.new("IL bench", res, res, float_buffer=True, alpha=True)
-    mat = bpy.data.materials.new("IL bench")
-    compat.ensure_use_nodes(mat)
+    mat = white_lambert("IL bench")
     nt = mat.node_tree
-    nt.nodes.clear()
-    bsdf = nt.nodes.new("ShaderNodeBsdfDiffuse")
-    bsdf.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-    out = nt.nodes.new("ShaderNodeOutputMaterial")
-    nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
     tex = nt.nodes.new("ShaderNodeTexImage")
     tex.image = img
     nt.nodes.active = tex

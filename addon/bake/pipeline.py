@@ -13,6 +13,7 @@ from ..core import exr, imageio, lightmap
 from ..core.errors import ILError, InputError
 from ..core.fileio import write_json
 from ..progress import Progress
+from ..lab import scene as sc
 from . import uv as uvmod
 from .options import BakeOptions, check_out_dir, validate_maps
 from .state import SavedState
@@ -222,17 +223,7 @@ class TemporaryMaterials:
         return nodes
 
     def _new(self, name):
-        mat = self.state.track(bpy.data.materials, bpy.data.materials.new(name))
-        compat.ensure_use_nodes(mat)
-        mat.node_tree.nodes.clear()
-        return mat
-
-    @staticmethod
-    def _white(nt):
-        bsdf = nt.nodes.new("ShaderNodeBsdfDiffuse")
-        bsdf.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-        bsdf.inputs["Roughness"].default_value = 0.0
-        return bsdf
+        return self.state.track(bpy.data.materials, sc.empty_material(name))
 
     @staticmethod
     def _image_node(nt):
@@ -242,11 +233,8 @@ class TemporaryMaterials:
 
     def _ao(self):
         if self.ao is None:
-            mat = self._new("IL bake AO")
-            nt = mat.node_tree
-            out = nt.nodes.new("ShaderNodeOutputMaterial")
-            nt.links.new(self._white(nt).outputs["BSDF"], out.inputs["Surface"])
-            self.ao = (mat, self._image_node(nt))
+            mat = sc.white_lambert("IL bake AO", self._new("IL bake AO"))
+            self.ao = (mat, self._image_node(mat.node_tree))
         return self.ao
 
     def _irradiance(self, orig):
@@ -283,7 +271,7 @@ class TemporaryMaterials:
         nt.links.new(path.outputs["Is Camera Ray"], mix.inputs["Fac"])
         if surface is not None:
             nt.links.new(surface, mix.inputs[1])
-        nt.links.new(self._white(nt).outputs["BSDF"], mix.inputs[2])
+        nt.links.new(sc.white_diffuse_node(nt).outputs["BSDF"], mix.inputs[2])
         nt.links.new(mix.outputs["Shader"], out.inputs["Surface"])
         self.copies[orig] = (mat, self._image_node(nt))
         return self.copies[orig]

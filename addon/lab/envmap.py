@@ -17,6 +17,7 @@ from ..core.errors import ILError, InputError
 from ..core.fileio import write_json
 from ..nodes import groups
 from ..nodes.builder import Graph
+from . import scene as sc
 
 GROUP = "IL Irradiance Env"
 IMAGE = "IL Irradiance"
@@ -173,10 +174,8 @@ def ensure_node_group(image):
 def irradiance_material(name, group, diffuse=(0.8, 0.8, 0.8), ao_image=None, uv_layer=""):
     """A material whose surface is the group's "Emission"; with ``ao_image`` the baked AO (its Y/R channel,
     read through UV layer ``uv_layer``) drives "AO" (k_A)."""
-    mat = bpy.data.materials.new(name)
-    compat.ensure_use_nodes(mat)
+    mat = sc.empty_material(name)
     nt = mat.node_tree
-    nt.nodes.clear()
     g = nt.nodes.new("ShaderNodeGroup")
     g.node_tree = group
     g.inputs["Diffuse Color"].default_value = (*diffuse, 1.0)

@@ -11,7 +11,6 @@ import time
 import bpy
 import numpy as np
 
-from .. import compat
 from ..core import charts, exr
 from ..core import radiosity as core
 from ..core.errors import InputError
@@ -43,10 +42,8 @@ def build_cornell_scene(name="IL Cornell", light_radiance=15.0):
 
 
 def _material(name, rho, emission):
-    mat = bpy.data.materials.new(name)
-    compat.ensure_use_nodes(mat)
+    mat = scn.empty_material(name)
     nt = mat.node_tree
-    nt.nodes.clear()
     out = nt.nodes.new("ShaderNodeOutputMaterial")
     if max(emission) > 0:
         em = nt.nodes.new("ShaderNodeEmission")

@@ -8,7 +8,6 @@
 import os
 import time
 
-import bpy
 import numpy as np
 
 from .. import compat
@@ -48,10 +47,8 @@ def sphere_grid(name, count, size=96, segments=64, rings=32):
 
 def group_material(name, group_name, inputs, output="Emission"):
     """A material whose surface is the node group's ``output`` with constant ``inputs``."""
-    mat = bpy.data.materials.new(name)
-    compat.ensure_use_nodes(mat)
+    mat = sc.empty_material(name)
     nt = mat.node_tree
-    nt.nodes.clear()
     node = nt.nodes.new("ShaderNodeGroup")
     node.node_tree = groups.ensure_group(group_name)
     set_inputs(node, inputs)
@@ -71,10 +68,8 @@ def set_inputs(node, inputs):
 
 def closure_material(name, kind, color=(1.0, 1.0, 1.0), roughness=0.0, distribution="GGX"):
     """A material with one of Blender's BSDFs: 'DIFFUSE', 'GLOSSY' or 'PRINCIPLED'."""
-    mat = bpy.data.materials.new(name)
-    compat.ensure_use_nodes(mat)
+    mat = sc.empty_material(name)
     nt = mat.node_tree
-    nt.nodes.clear()
     node = nt.nodes.new({"DIFFUSE": "ShaderNodeBsdfDiffuse", "GLOSSY": "ShaderNodeBsdfGlossy",
                          "PRINCIPLED": "ShaderNodeBsdfPrincipled"}[kind])
     node.inputs["Color" if kind != "PRINCIPLED" else "Base Color"].default_value = (*color, 1.0)

@@ -336,17 +336,7 @@ def _pass(passes, name):
 
 def _white_diffuse():
     """A white Lambertian material (Diffuse BSDF, colour 1, roughness 0) for the material override."""
-    mat = bpy.data.materials.new("IL Shadow Lab White")
-    compat.ensure_use_nodes(mat)
-    nodes = mat.node_tree.nodes
-    nodes.clear()
-    out = nodes.new("ShaderNodeOutputMaterial")
-    bsdf = nodes.new("ShaderNodeBsdfDiffuse")
-    bsdf.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-    bsdf.inputs["Roughness"].default_value = 0.0
-    mat.node_tree.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
-    mat.diffuse_color = (1.0, 1.0, 1.0, 1.0)
-    return mat
+    return sc.white_lambert("IL Shadow Lab White")
 
 
 def compat_workbench_direction(direction):
