@@ -78,9 +78,19 @@ def phong_normalization(shininess, n_l, normalized):
     return (1.0 - normalized) + normalized * energy
 
 
+def blinn_energy_factor(shininess):
+    """pi times the exact normalisation of the (n.h)^n lobe (Giesen 2009): (n+2)(n+4) / (8 (2^(-n/2) + n)).
+
+    With it the albedo at normal incidence is exactly k_s, and at any other incidence it is lower
+    (docs/shading.md gives the argument). The exponent is taken as max(n, 0).
+    """
+    n = np.maximum(_array(shininess), 0.0)
+    return (n + 2.0) * (n + 4.0) / (8.0 * (np.exp2(-n / 2.0) + n))
+
+
 def blinn_normalization(shininess, n_l, normalized):
-    """Factor of the lobe: 1 (classic) or ((n+8)/8)(n.l) (approximate Blinn-Phong normalisation)."""
-    energy = (shininess + 8.0) / 8.0 * np.maximum(n_l, 0.0)
+    """Factor of the lobe: 1 (classic) or blinn_energy_factor(n) (n.l) (energy-normalised Blinn-Phong)."""
+    energy = blinn_energy_factor(shininess) * np.maximum(n_l, 0.0)
     return (1.0 - normalized) + normalized * energy
 
 
@@ -110,7 +120,7 @@ def phong(n, l, v, I, ka=0.0, ambient_light=(0, 0, 0), kd=(0.8, 0.8, 0.8), ks=0.
 
 def blinn_phong(n, l, v, I, ka=0.0, ambient_light=(0, 0, 0), kd=(0.8, 0.8, 0.8), ks=0.5, shininess=32.0,
                 emission=(0, 0, 0), normalized=0.0):
-    """L = k_a I_a + I (k_d (n.l) + k_s N (n.h)^n) + I_e, N = 1 or ((n+8)/8)(n.l) (REFERENCE.md §2)."""
+    """L = k_a I_a + I (k_d (n.l) + k_s N (n.h)^n) + I_e, N = 1 or (n+2)(n+4)/(8 (2^(-n/2) + n)) (n.l)."""
     return _phong_family(n, l, v, I, ka, ambient_light, kd, ks, shininess, emission, normalized, True)
 
 
@@ -129,17 +139,22 @@ def oren_nayar_B(sigma):
 
 
 def oren_nayar_angular(n_l, n_v, l_v):
-    """max(0, cos(phi_v - phi_l)) sin(alpha) tan(beta) in the stable vector form:
-    max(0, l.v - (n.l)(n.v)) / max(n.l, n.v, eps)."""
-    s = l_v - n_l * n_v
-    return np.maximum(s, 0.0) / np.maximum(np.maximum(n_l, n_v), EPS)
+    """(n.l) max(0, cos(phi_v - phi_l)) sin(alpha) tan(beta) in the bounded vector form, for n.l, n.v > 0:
+    max(0, l.v - (n.l)(n.v)) * (n.l) / max(n.l, n.v, 1e-12), each factor in [0, 1].
+
+    The guard only acts where both cosines are below 1e-12; elsewhere this is the model exactly.
+    """
+    s = np.maximum(l_v - n_l * n_v, 0.0)
+    return s * np.maximum(n_l, 0.0) / np.maximum(np.maximum(n_l, n_v), TINY)
 
 
 def oren_nayar(n, l, v, I, albedo=(0.8, 0.8, 0.8), sigma=0.3):
-    """L = rho I (n.l) (A + B max(0, cos dphi) sin alpha tan beta); sigma = 0 is Lambert exactly."""
+    """L = rho I (n.l) (A + B max(0, cos dphi) sin alpha tan beta), zero unless n.l > 0 and n.v > 0;
+    sigma = 0 is Lambert exactly (for n.v > 0)."""
     n, l, v, n_l, n_v = _frames(n, l, v)
-    factor = oren_nayar_A(sigma) + oren_nayar_B(sigma) * oren_nayar_angular(n_l, n_v, dot(l, v))
-    return _array(I) * _array(albedo) * (lit(n_l) * np.maximum(n_l, 0.0) * factor)[..., None]
+    factor = (oren_nayar_A(sigma) * np.maximum(n_l, 0.0)
+              + oren_nayar_B(sigma) * oren_nayar_angular(n_l, n_v, dot(l, v)))
+    return _array(I) * _array(albedo) * (lit(n_l) * lit(n_v) * factor)[..., None]
 
 
 def lambert(n, l, I, albedo=(1.0, 1.0, 1.0)):
@@ -268,3 +283,47 @@ def direction(theta, phi=0.0):
     """Unit vector at polar angle ``theta`` from +z and azimuth ``phi`` (radians, broadcast)."""
     theta, phi = np.broadcast_arrays(np.asarray(theta, float), np.asarray(phi, float))
     return np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], axis=-1)
+
+
+def half_vector_map(x, y, theta_v, width=1.0):
+    """Map (x, y) in [0, 1]^2 to light directions through the half vector, for albedo integrals about n = +z.
+
+    v lies at polar angle ``theta_v`` in the xz plane; theta_h = atan(width tan(x pi/2)) (dense within
+    ``width`` of tan theta_h = 0, so lobes of any width are resolved), phi_h = pi y (the xz plane is a
+    mirror plane: the density is doubled); l = 2 (v.h) h - v, dl = 4 (v.h) dh. Returns (h, l, v, J) with
+    J = dl / (dx dy), 0 where v.h <= 0, so that the integral of g(l) over the sphere is that of g J over
+    the unit square (l below the horizon included: the models are zero there).
+    """
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    tx = np.tan(x * np.pi / 2)
+    theta = np.arctan(width * tx)
+    dtheta = width * (np.pi / 2) / np.cos(x * np.pi / 2) ** 2 / (1 + (width * tx) ** 2)
+    h = direction(theta, np.pi * y)
+    v = direction(theta_v)
+    v_h = h @ v
+    l = 2 * np.maximum(v_h, 0.0)[..., None] * h - v
+    J = np.where(v_h > 0, 4 * v_h * np.sin(theta) * dtheta * 2 * np.pi, 0.0)
+    return h, l, v, J
+
+
+def half_vector_quadrature(theta_v, width=1.0, n_theta=512, n_phi=256):
+    """Midpoint rule of :func:`half_vector_map`: (l (T, P, 3), v (3,), weights (T, P)) with
+    sum(g(l) * weights) ~ integral of g over the sphere of l."""
+    x = (np.arange(n_theta) + 0.5) / n_theta
+    y = (np.arange(n_phi) + 0.5) / n_phi
+    _, l, v, J = half_vector_map(x[:, None], y[None, :], theta_v, width)
+    return l, v, J / (n_theta * n_phi)
+
+
+def lobe_width(shininess):
+    """Width in tan(theta_h) of a (n.h)^n or (r.v)^n lobe, for :func:`half_vector_quadrature`."""
+    return float(np.clip(3.0 / np.sqrt(np.maximum(shininess, 0.0) + 1.0), 1e-3, 1.0))
+
+
+def directional_albedo(radiance, theta_v, width=1.0, n_theta=512, n_phi=256):
+    """rho(v) = (1/pi) integral of L(l, v) dl for a model's radiance L under I = 1 (so rho = integral of f (n.l)).
+
+    ``radiance(l, v)`` returns (T, P) radiance with n = +z; a white Lambertian surface gives 1.
+    """
+    l, v, w = half_vector_quadrature(theta_v, width, n_theta, n_phi)
+    return float(np.sum(radiance(l, v) * w) / np.pi)

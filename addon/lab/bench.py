@@ -80,6 +80,27 @@ def shading_edges():
     return rows
 
 
+def _blinn_albedo_max():
+    """Largest directional albedo of the normalised Blinn-Phong lobe (k_s = 1) over exponents and incidences."""
+    n = np.array([0.0, 0.0, 1.0])
+    worst = 0.0
+    for e in (0.0, 1.0, 9.0, 100.0, 1e4):
+        for t in (0.0, 45.0, 89.9):
+            worst = max(worst, brdf.directional_albedo(
+                lambda l, v: brdf.blinn_phong(n, l, v, 1.0, kd=(0, 0, 0), ks=1.0, shininess=e, normalized=1.0)[..., 0],
+                np.radians(t), brdf.lobe_width(e), 256, 128))
+    return worst
+
+
+def _oren_nayar_horizon_ratio():
+    """Twin over the 1994 angles form (cos theta_i (A + B sin alpha tan beta), dphi = 0) 1e-7 rad above the horizon."""
+    t = np.pi / 2 - 1e-7
+    A, B = brdf.oren_nayar_A(0.5), brdf.oren_nayar_B(0.5)
+    paper = np.cos(t) * (A + B * np.sin(t) * np.tan(t))
+    twin = brdf.oren_nayar([0, 0, 1], brdf.direction(t), brdf.direction(t), 1.0, 1.0, 0.5)[0]
+    return float(twin / paper)
+
+
 def _get(d, *keys, default=None):
     for k in keys:
         if not isinstance(d, dict) or k not in d:
@@ -117,6 +138,19 @@ def stability_table(results, shading_rows):
                                                  "shininess 0 and 1e4, sigma pi/2",
          "measured": f"all finite: {all_finite}; largest output {worst_shading:.3g} x I",
          "what the project does": "dot products clamped, roughness >= 1e-3, terms zero where n.l <= 0"},
+        {"method": "Blinn-Phong, Normalized = 1", "fails at": "small and mid exponents (was (n+8)/8)",
+         "measured": "was: albedo 1.024 / 1.075 / 1.018 at n = 1 / 9 / 100, normal incidence; now "
+                     f"{_blinn_albedo_max():.4f} at most (n = 0, 1, 9, 100, 1e4; incidence 0, 45, 89.9 deg)",
+         "what the project does": "exact (n+2)(n+4)/(8 (2^(-n/2) + n)): albedo k_s at normal incidence, "
+                                  "less elsewhere"},
+        {"method": "Oren-Nayar", "fails at": "viewer below the horizon (n.v <= 0)",
+         "measured": "was: up to 0.794 I (sigma 0.5, l = (0.3, 0, 1), v = (0.5, 0, -1)); now "
+                     f"{float(brdf.oren_nayar([0, 0, 1], [0.3, 0, 1], [0.5, 0, -1], 1.0, 1.0, 0.5)[0]):.3g} I",
+         "what the project does": "zero unless n.l > 0 and n.v > 0 (twin and node group), as Cook-Torrance"},
+        {"method": "Oren-Nayar", "fails at": "both directions within 0.006 deg of the horizon",
+         "measured": "was: max(n.l, n.v, 1e-4) guard cut the model up to 400x; now "
+                     f"{_oren_nayar_horizon_ratio():.6f} x the 1994 angles form at 1e-7 rad",
+         "what the project does": "bounded form (n.l)/max(n.l, n.v, 1e-12) in [0, 1]: the model, always finite"},
         {"method": "AO / irradiance bake", "fails at": "few samples (noise)",
          "measured": f"AO error ~ N^{_get(bk, 'figures', 'mc_slope', default=float('nan')):.2f}, irradiance "
                      f"~ N^{_get(bk, 'figures', 'mc_slope_irradiance', default=float('nan')):.2f} "

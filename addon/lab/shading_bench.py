@@ -8,6 +8,7 @@
 import os
 import time
 
+import bpy
 import numpy as np
 
 from .. import compat
@@ -180,6 +181,123 @@ def node_vs_twin(group_name, size=96):
             "relative_error": err / peak if peak else 0.0}
 
 
+# -- directional albedo of the node groups, rendered -------------------------------------------------
+
+#: (group, inputs, incidence in degrees) of the rendered albedo check: the energy-normalised lobes at
+#: exponents where the old (n+8)/8 factor gained up to 7.5 %, Lambert (sigma 0) and Oren-Nayar.
+ALBEDO_CASES = (
+    [(groups.BLINN_PHONG, {"Shininess": e}, t) for e in (0.0, 1.0, 9.0, 100.0) for t in (0.0, 60.0, 89.9)]
+    + [(groups.PHONG, {"Shininess": e}, t) for e in (1.0, 9.0, 100.0) for t in (0.0, 60.0, 89.9)]
+    + [(groups.OREN_NAYAR, {"Sigma": s}, t) for s in (0.0, 0.2, 1.0) for t in (0.0, 60.0, 89.9)])
+#: Inputs that leave only the lobe under test: k_s = 1 (or rho = 1), no diffuse, ambient or emission, I = 1.
+ALBEDO_BASE = {groups.PHONG: {"Ka": 0.0, "Kd": (0, 0, 0), "Ks": 1.0, "Normalized": 1.0, "Emission Color": (0, 0, 0)},
+               groups.OREN_NAYAR: {"Albedo": (1, 1, 1)}}
+ALBEDO_BASE[groups.BLINN_PHONG] = ALBEDO_BASE[groups.PHONG]
+
+
+def _albedo_width(inputs):
+    return brdf.lobe_width(inputs["Shininess"]) if "Shininess" in inputs else 1.0
+
+
+def _albedo_frame(theta_v):
+    """World (e1, e2, n) of a plane seen along +Y (v = (0, -1, 0)) whose shading normal is theta_v from v,
+    with v in the (e1, n) plane on the + side: v = sin(theta_v) e1 + cos(theta_v) n."""
+    t = np.radians(theta_v)
+    return (np.array([-np.cos(t), -np.sin(t), 0.0]), np.array([0.0, 0.0, 1.0]),
+            np.array([np.sin(t), -np.cos(t), 0.0]))
+
+
+def albedo_material(name, group_name, inputs, theta_v):
+    """A material that feeds the group, at each point (x, y) of the unit square (Object coordinates of a
+    [-1, 1]^2 plane in XZ), the light direction brdf.half_vector_map(x, y) in the plane's normal frame."""
+    from ..nodes.builder import Graph
+    mat = sc.empty_material(name)
+    g = Graph(mat.node_tree)
+    e1, e2, nrm = _albedo_frame(theta_v)
+    width = _albedo_width(inputs)
+    xyz = g.node("ShaderNodeSeparateXYZ")
+    g.feed(g.node("ShaderNodeTexCoord").outputs["Object"], xyz.inputs[0])
+    x = g.mul(g.add(xyz.outputs["X"], 1.0), 0.5, label="x")
+    y = g.mul(g.add(xyz.outputs["Z"], 1.0), 0.5, label="y")
+    theta = g.math("ARCTANGENT", g.mul(g.math("TANGENT", g.mul(x, np.pi / 2)), width), label="theta_h")
+    phi = g.mul(y, np.pi, label="phi_h")
+    st = g.math("SINE", theta)
+    h = g.vadd(g.vadd(g.scale(tuple(e1), g.mul(st, g.math("COSINE", phi))),
+                      g.scale(tuple(e2), g.mul(st, g.math("SINE", phi)))),
+               g.scale(tuple(nrm), g.math("COSINE", theta)), label="h")
+    v = g.node("ShaderNodeNewGeometry").outputs["Incoming"]
+    v_h = g.max(g.dot(v, h), 0.0, label="max(v.h, 0)")
+    l = g.vmath("SUBTRACT", g.scale(h, g.mul(v_h, 2.0)), v, label="l = 2 (v.h) h - v")
+    node = g.node("ShaderNodeGroup")
+    node.node_tree = groups.ensure_group(group_name)
+    set_inputs(node, dict(ALBEDO_BASE[group_name], **inputs, **{"Light Color": (1.0, 1.0, 1.0)}))
+    g.feed(l, node.inputs["Light Vector"])
+    out = g.node("ShaderNodeOutputMaterial")
+    g.feed(node.outputs["Emission"], out.inputs["Surface"])
+    return mat
+
+
+def _custom_normal_plane(scene, name, location, normal):
+    """A 2 x 2 plane in XZ facing -Y (the camera) whose shading normal is ``normal`` everywhere."""
+    me = bpy.data.meshes.new(name)
+    me.from_pydata([(-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1)], [], [(0, 1, 2, 3)])
+    me.shade_smooth()
+    me.normals_split_custom_set([tuple(normal)] * len(me.loops))
+    obj = bpy.data.objects.new(name, me)
+    obj.location = location
+    return sc.link(scene, obj)
+
+
+def _albedo_twin(group_name, inputs, l, v):
+    """The twin of an ALBEDO_BASE case for arrays of light directions l (n = +z, I = 1)."""
+    n = np.array([0.0, 0.0, 1.0])
+    if group_name == groups.OREN_NAYAR:
+        return brdf.oren_nayar(n, l, v, 1.0, albedo=(1.0, 1.0, 1.0), sigma=inputs["Sigma"])
+    fn = brdf.phong if group_name == groups.PHONG else brdf.blinn_phong
+    return fn(n, l, v, 1.0, kd=(0.0, 0.0, 0.0), ks=1.0, shininess=inputs["Shininess"], normalized=1.0)
+
+
+def render_group_albedo(cases=None, size=64):
+    """Directional albedo of node groups from one Cycles render: one plane per (group, inputs, incidence),
+    size x size pixels each, every pixel one light direction of brdf.half_vector_map.
+
+    Returns [{"group", "inputs", "theta_v", "albedo" (render), "twin" (the numpy twin on the same
+    directions), "pixels"}]: albedo = (1/pi) sum of L J / size^2 (white light, I = 1).
+    """
+    cases = list(ALBEDO_CASES if cases is None else cases)
+    cols = int(np.ceil(np.sqrt(len(cases))))
+    rows = int(np.ceil(len(cases) / cols))
+    scene = sc.new_scene("IL albedo", (size * cols, size * rows))
+    mats = []
+    try:
+        for k, (group_name, inputs, theta_v) in enumerate(cases):
+            r, c = divmod(k, cols)
+            obj = _custom_normal_plane(scene, f"IL albedo P{k}", (2.0 * c, 0.0, -2.0 * r), _albedo_frame(theta_v)[2])
+            obj.pass_index = k + 1
+            mats.append(albedo_material(f"IL albedo {k}", group_name, inputs, theta_v))
+            assign(obj, mats[-1])
+        center = (cols - 1.0, -10.0, -(rows - 1.0))
+        sc.camera(scene, "IL albedo Cam", center, target=(center[0], 0.0, center[2]), ortho_scale=2.0 * max(cols, rows))
+        sc.world(scene, strength=0.0)
+        vl = scene.view_layers[0]
+        vl.use_pass_normal = vl.use_pass_object_index = vl.use_pass_position = True
+        pix = render_pixels(scene)
+    finally:
+        sc.remove_scene(scene, mats)
+    out = []
+    for k, (group_name, inputs, theta_v) in enumerate(cases):
+        p = pix.get(k + 1, {"p": np.zeros((0, 3)), "L": np.zeros((0, 3))})
+        r, c = divmod(k, cols)
+        x = (p["p"][:, 0] - 2.0 * c + 1.0) / 2.0
+        y = (p["p"][:, 2] + 2.0 * r + 1.0) / 2.0
+        _, l, v, J = brdf.half_vector_map(x, y, np.radians(theta_v), _albedo_width(inputs))
+        ref = _albedo_twin(group_name, inputs, l, v)
+        w = J / (np.pi * size * size)
+        out.append({"group": group_name, "inputs": dict(inputs), "theta_v": theta_v, "pixels": int(len(x)),
+                    "albedo": float(np.sum(p["L"][:, 0] * w)), "twin": float(np.sum(ref[:, 0] * w))})
+    return out
+
+
 # -- against Blender's closures ---------------------------------------------------------------------
 
 def _lit_sphere_scene(name, count, size, sun_rotation):
@@ -294,6 +412,8 @@ def twin_charts(out_dir):
         "phong_normalized": lambda l: brdf.phong(N, l, v, one, kd=(0.5,) * 3, ks=0.5, shininess=20.0,
                                                  normalized=1.0),
         "blinn_phong": lambda l: brdf.blinn_phong(N, l, v, one, kd=(0.5,) * 3, ks=0.5, shininess=20.0),
+        "blinn_phong_normalized": lambda l: brdf.blinn_phong(N, l, v, one, kd=(0.5,) * 3, ks=0.5, shininess=20.0,
+                                                             normalized=1.0),
         "oren_nayar_sigma0.5": lambda l: brdf.oren_nayar(N, l, v, one, one, 0.5),
         "cook_torrance_ggx": lambda l: brdf.cook_torrance(N, l, v, one, kd=(0.2,) * 3, ks=1.0, F0=0.04,
                                                           roughness=0.3),
@@ -308,7 +428,34 @@ def twin_charts(out_dir):
         paths.append(charts.line_chart(os.path.join(out_dir, f"brdf_{name}.png"), series,
                                        f"{name}: radiance in the plane of incidence (I = 1)",
                                        "view angle (deg, + = mirror side)", "radiance L / I"))
+    paths.append(albedo_chart(os.path.join(out_dir, "brdf_albedo.png")))
     return paths
+
+
+def albedo_chart(path):
+    """Directional albedo (k_s = 1, rho = 1) against incidence: the energy-normalised lobes, the old
+    (n+8)/8 Blinn-Phong factor, Lambert and Oren-Nayar (whose qualitative model exceeds 1 at grazing
+    incidence for 0 < sigma < 0.33 rad)."""
+    N = np.array([0.0, 0.0, 1.0])
+    deg = np.array([0.0, 10, 20, 30, 40, 50, 60, 70, 80, 85, 89, 89.9])
+
+    def curve(fn, width):
+        return deg, np.array([brdf.directional_albedo(fn, np.radians(t), width, 192, 96) for t in deg])
+
+    def blinn(e, normalised=True):
+        scale = 1.0 if normalised else (e + 8) / 8 / brdf.blinn_energy_factor(e)
+        return curve(lambda l, v: scale * brdf.blinn_phong(N, l, v, 1.0, kd=(0, 0, 0), ks=1.0, shininess=e,
+                                                           normalized=1.0)[..., 0], brdf.lobe_width(e))
+
+    series = {f"Blinn-Phong normalised n={e:g}": blinn(e) for e in (1.0, 9.0, 100.0)}
+    series["Blinn-Phong (n+8)/8, before, n=9"] = blinn(9.0, normalised=False)
+    series["Phong normalised n=9"] = curve(lambda l, v: brdf.phong(N, l, v, 1.0, kd=(0, 0, 0), ks=1.0, shininess=9.0,
+                                                                   normalized=1.0)[..., 0], brdf.lobe_width(9.0))
+    for sigma in (0.0, 0.2, 1.0):
+        series[f"Oren-Nayar sigma={sigma:g}" + (" (Lambert)" if sigma == 0 else "")] = curve(
+            lambda l, v: brdf.oren_nayar(N, l, v, 1.0, 1.0, sigma)[..., 0], 1.0)
+    return charts.line_chart(path, series, "Directional albedo (k_s = 1, rho = 1; 1 = all energy reflected)",
+                             "incidence (deg)", "albedo")
 
 
 def _profile_chart(path, data, l, title, label_fn):
@@ -355,6 +502,14 @@ def sweeps(out_dir, quick=False):
             rows.append(row)
         tables["shading_node_vs_twin"] = rows
         figures["node_vs_twin_max_relative_error"] = max(r["relative_error"] for r in rows)
+
+        t = time.perf_counter()
+        albedo_rows = render_group_albedo(size=64)
+        for row in albedo_rows:
+            row["inputs"] = ", ".join(f"{k} {v:g}" for k, v in row["inputs"].items())
+            row["seconds"] = time.perf_counter() - t
+        tables["shading_group_albedo"] = albedo_rows
+        figures["group_albedo_max_abs_vs_twin"] = max(abs(r["albedo"] - r["twin"]) for r in albedo_rows)
 
         progress.step(steps[2])
         values = (0.0, 0.5, 1.0) if quick else (0.0, 0.25, 0.5, 0.75, 1.0)

@@ -19,7 +19,7 @@ from ..core import brdf
 from .builder import Graph
 
 #: Bump whenever a group's contents or sockets change: older groups in a file are rebuilt.
-GROUP_VERSION = 3
+GROUP_VERSION = 4
 
 PHONG, BLINN_PHONG, OREN_NAYAR, COOK_TORRANCE, LIGHT = (
     "IL Phong", "IL Blinn-Phong", "IL Oren-Nayar", "IL Cook-Torrance", "IL Light")
@@ -73,7 +73,7 @@ OUTPUTS[LIGHT] = [("Light Vector", V), ("Light Color", C)]
 DESCRIPTIONS = {
     PHONG: "Phong (seed 004): k_a I_a + I (k_d n.l + k_s N (r.v)^n) + I_e",
     BLINN_PHONG: "Blinn-Phong: k_a I_a + I (k_d n.l + k_s N (n.h)^n) + I_e",
-    OREN_NAYAR: "Oren-Nayar qualitative model, stable vector form",
+    OREN_NAYAR: "Oren-Nayar qualitative model, bounded vector form",
     COOK_TORRANCE: "Cook-Torrance microfacet: I k_d n.l + pi I k_s F D G / (4 n.v)",
     LIGHT: "One light as Light Vector and Light Color (I = E_perp / pi)",
 }
@@ -169,15 +169,19 @@ def _build_phong(tree, blinn):
         with g.block("Lobe: (n.h)^n"):
             h = g.normalize(g.vadd(l, v), label="h = (l+v)/|l+v|")
             lobe = g.pow(g.max(g.dot(n, h, label="n.h"), 0.0), shin, label="(n.h)^n")
-        const = 8.0
+        with g.block("Normalisation: 1 or (n+2)(n+4) / (8 (2^(-n/2) + n)) n.l"):
+            n0 = g.max(shin, 0.0, label="max(n, 0)")
+            num = g.mul(g.add(n0, 2.0), g.add(n0, 4.0), label="(n+2)(n+4)")
+            den = g.mul(g.add(g.pow(2.0, g.mul(n0, -0.5)), n0), 8.0, label="8 (2^(-n/2) + n)")
+            energy = g.mul(g.div(num, den), g.max(n_l, 0.0), label="energy factor")
+            norm = g.lerp(1.0, energy, i["Normalized"], label="N")
     else:
         with g.block("Lobe: (r.v)^n"):
             r = g.vmath("SUBTRACT", g.scale(n, g.mul(n_l, 2.0)), l, label="r = 2n(n.l) - l")
             lobe = g.pow(g.max(g.dot(r, v, label="r.v"), 0.0), shin, label="(r.v)^n")
-        const = 2.0
-    with g.block(f"Normalisation: 1 or ((n+{const:g})/{const:g}) n.l"):
-        energy = g.mul(g.div(g.add(shin, const), const), g.max(n_l, 0.0), label="energy factor")
-        norm = g.lerp(1.0, energy, i["Normalized"], label="N")
+        with g.block("Normalisation: 1 or ((n+2)/2) n.l"):
+            energy = g.mul(g.div(g.add(shin, 2.0), 2.0), g.max(n_l, 0.0), label="energy factor")
+            norm = g.lerp(1.0, energy, i["Normalized"], label="N")
     with g.block("Sum: k_a I_a + I (k_d n.l + k_s N lobe) + I_e"):
         spec = g.mul(g.mul(i["Ks"], g.mul(lobe, norm)), lit, label="k_s N lobe")
         diff = g.scale(i["Kd"], g.mul(lit, g.max(n_l, 0.0)), label="k_d n.l")
@@ -196,12 +200,14 @@ def _build_oren_nayar(tree):
         s2 = g.mul(i["Sigma"], i["Sigma"], label="sigma^2")
         A = g.sub(1.0, g.div(g.mul(s2, 0.5), g.add(s2, 0.33)), label="A = 1 - 0.5 s2/(s2+0.33)")
         B = g.div(g.mul(s2, 0.45), g.add(s2, 0.09), label="B = 0.45 s2/(s2+0.09)")
-    with g.block("max(0, cos dphi) sin(alpha) tan(beta), vector form"):
-        s = g.sub(g.dot(l, v, label="l.v"), g.mul(n_l, n_v), label="s = l.v - (n.l)(n.v)")
-        den = g.max(g.max(n_l, n_v), brdf.EPS, label="max(n.l, n.v, eps)")
-        ang = g.div(g.max(s, 0.0), den, label="angular term")
-    with g.block("L = rho I (n.l) (A + B term)"):
-        factor = g.mul(g.mul(lit, g.max(n_l, 0.0)), g.add(A, g.mul(B, ang)), label="(n.l)(A + B term)")
+    with g.block("(n.l) max(0, cos dphi) sin(alpha) tan(beta), bounded vector form"):
+        s = g.max(g.sub(g.dot(l, v, label="l.v"), g.mul(n_l, n_v)), 0.0, label="max(0, l.v - (n.l)(n.v))")
+        den = g.max(g.max(n_l, n_v), brdf.TINY, label="max(n.l, n.v, 1e-12)")
+        ratio = g.div(g.max(n_l, 0.0), den, label="n.l / max(n.l, n.v): in [0, 1]")
+        ang = g.mul(s, ratio, label="angular term")
+    with g.block("L = rho I (A n.l + B term), zero unless n.l > 0 and n.v > 0"):
+        both = g.mul(lit, g.gt(n_v, 0.0), label="n.l > 0 and n.v > 0")
+        factor = g.mul(both, g.add(g.mul(A, g.max(n_l, 0.0)), g.mul(B, ang)), label="A n.l + B term")
         color = g.scale(g.vmul(i["Albedo"], i["Light Color"]), factor, label="radiance")
     _finish(g, o, color)
     g.layout()

@@ -129,7 +129,8 @@ def test_phong_blinn_closed_values():
     got = brdf.phong(N, l, v2, WHITE, kd=(0, 0, 0), ks=1.0, shininess=3.0)[0]
     assert got == pytest.approx(np.cos(np.radians(30)) ** 3)
     got = brdf.blinn_phong(N, l, v2, WHITE, kd=(0, 0, 0), ks=1.0, shininess=3.0, normalized=1.0)[0]
-    assert got == pytest.approx(11 / 8 * np.cos(np.radians(15)) ** 3 * np.cos(np.radians(30)))
+    # exact normalisation of the (n.h)^n lobe at n = 3 (Giesen 2009): (n+2)(n+4) / (8 (2^(-n/2) + n))
+    assert got == pytest.approx(35 / (8 * (2 ** -1.5 + 3)) * np.cos(np.radians(15)) ** 3 * np.cos(np.radians(30)))
 
 
 def test_cook_torrance_at_normal_incidence_closed_form():
