@@ -4,6 +4,8 @@ import time
 
 import bpy
 
+from . import interrupt
+
 
 class Progress:
     """``with Progress("Baking", total) as p: p.step("Cube AO")`` -- ``step`` advances by one."""
@@ -25,7 +27,8 @@ class Progress:
         return self
 
     def step(self, message):
-        """Report the step about to run."""
+        """Report the step about to run (a pending Ctrl-C stops the job here)."""
+        interrupt.checkpoint()
         if self.wm:
             self.wm.progress_update(self.done)
         else:

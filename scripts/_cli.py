@@ -5,18 +5,28 @@
 
 Each script builds an ``argparse`` parser and calls ``run(parser, main)``;
 ``main(args)`` returns nothing on success and raises ``ILError`` (exit 1) or
-``InputError`` (exit 2) with a readable message.
+``InputError`` (exit 2) with a readable message. Numeric options use ``number``
+(finite, in range, else exit 2 at parse time); an ``--out`` folder is checked
+before anything runs (exit 2, nothing created); Ctrl-C stops at the next safe
+point with exit 130 (``addon.interrupt``); a full disk or out-of-memory is one
+line with exit 1; only a genuine bug shows its type name.
 """
 import argparse
+import math
 import os
 import sys
 import traceback
+import warnings
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if ROOT not in sys.path:
     sys.path.insert(0, ROOT)
 
-from addon.core.errors import ILError, InputError  # noqa: E402
+from addon import interrupt  # noqa: E402  (no bpy)
+from addon.core.errors import ILError, ILWarning, InputError  # noqa: E402
+from addon.core.fileio import check_output_dir  # noqa: E402
+
+INTERRUPTED = 130
 
 
 class ArgumentParser(argparse.ArgumentParser):
@@ -34,6 +44,27 @@ def parser(prog, description, blend_file=True):
         p.add_argument("blend", nargs="?", metavar="FILE.blend",
                        help="open this file first (inside Blender: give it before -P instead)")
     return p
+
+
+def number(kind=float, minimum=None, maximum=None, above=None):
+    """An argparse ``type``: a finite ``kind`` (int or float) with ``minimum <= x <= maximum`` and
+    ``x > above`` where given; anything else is a parse error (exit 2) that names the range."""
+    def parse(text):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a{'n integer' if kind is int else ' number'}: {text!r}") from None
+        if isinstance(value, float) and not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
+        if above is not None and not value > above:
+            raise argparse.ArgumentTypeError(f"must be greater than {above}, got {text}")
+        if minimum is not None and value < minimum or maximum is not None and value > maximum:
+            lo = "" if minimum is None else f"{minimum} <= "
+            hi = "" if maximum is None else f" <= {maximum}"
+            raise argparse.ArgumentTypeError(f"must be {lo}value{hi}, got {text}")
+        return value
+    parse.__name__ = kind.__name__
+    return parse
 
 
 def script_argv(argv=None):
@@ -58,17 +89,30 @@ def open_blend(path):
         raise InputError(f"no such .blend file: {path}")
     if not path.lower().endswith(".blend"):
         raise InputError(f"not a .blend file: {path}")
-    bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path), load_ui=False)
+    try:
+        with interrupt.blender_call():
+            bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path), load_ui=False)
+    except RuntimeError as e:
+        reason = str(e).strip().splitlines()[-1] if str(e).strip() else "unreadable"
+        raise InputError(f"cannot open {path}: damaged or not a Blender file ({reason})") from None
 
 
 def run(p, main, argv=None):
-    """Parse the script arguments, open the .blend if one is given, call ``main``, exit."""
+    """Parse the script arguments, check the output folder, open the .blend if one is given, call
+    ``main``, exit 0 / 1 / 2 / 130 with one line on stderr."""
     args = p.parse_args(script_argv(argv))
+    interrupt.install()
+    warnings.simplefilter("always", ILWarning)
+    warnings.showwarning = lambda message, category, *rest: print(
+        f"{p.prog}: {'warning: ' if issubclass(category, ILWarning) else ''}{message}", file=sys.stderr)
     code = 0
     try:
+        if getattr(args, "out", None):
+            check_output_dir(args.out)
         if getattr(args, "blend", None):
             open_blend(args.blend)
         main(args)
+        interrupt.checkpoint()
     except InputError as e:
         print(f"{p.prog}: error: {e}", file=sys.stderr)
         code = 2
@@ -76,12 +120,20 @@ def run(p, main, argv=None):
         print(f"{p.prog}: error: {e}", file=sys.stderr)
         code = 1
     except KeyboardInterrupt:
-        print(f"{p.prog}: error: interrupted", file=sys.stderr)
-        code = 130
-    except Exception as e:  # noqa: BLE001 - the one readable line, details only on request
+        print(f"{p.prog}: interrupted: stopped, the file and finished outputs are as they were", file=sys.stderr)
+        code = INTERRUPTED
+    except MemoryError:
+        print(f"{p.prog}: error: out of memory: use smaller sizes or fewer samples", file=sys.stderr)
+        code = 1
+    except OSError as e:
+        where = f": {e.filename}" if e.filename else ""
+        print(f"{p.prog}: error: {e.strerror or e}{where}", file=sys.stderr)
+        code = 1
+    except Exception as e:  # noqa: BLE001 - a bug: one line, the traceback on request
         if os.environ.get("IL_DEBUG"):
             traceback.print_exc()
-        print(f"{p.prog}: error: {type(e).__name__}: {e}", file=sys.stderr)
+        print(f"{p.prog}: internal error (please report, IL_DEBUG=1 shows the traceback): "
+              f"{type(e).__name__}: {e}", file=sys.stderr)
         code = 1
     sys.stdout.flush()
     sys.stderr.flush()

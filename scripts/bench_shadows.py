@@ -23,6 +23,7 @@ def main(args):
     from addon.lab.scene import remove_scene
     rows = []
     res = args.resolution
+    shadow_map.check_cost(res, res, args.map_size, 1)
     scene = shadow_scenes.build("sphere", "sun", (res, res), segments=102, rings=50)   # 10 000 triangles
     try:
         with Session(scene, scene["il_shadow_light"], res) as s:
@@ -61,8 +62,8 @@ def _timed(fn):
 
 def build_parser():
     p = _cli.parser("bench_shadows.py", "Print the shadow lab's performance figures.", blend_file=False)
-    p.add_argument("--resolution", type=int, default=512, help="frame size (default 512)")
-    p.add_argument("--map-size", type=int, default=2048, help="shadow-map size (default 2048)")
+    p.add_argument("--resolution", type=_cli.number(int, 8, 8192), default=512, help="frame size (default 512)")
+    p.add_argument("--map-size", type=_cli.number(int, 2, 16384), default=2048, help="shadow-map size (default 2048)")
     return p
 
 

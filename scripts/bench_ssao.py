@@ -14,13 +14,13 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import _cli  # noqa: E402
 
-from addon.core.errors import InputError  # noqa: E402
+from addon.core import ssao as core_ssao  # noqa: E402  (numpy only)
 
 
 def main(args):
-    if args.resolution < 8 or args.samples <= 0 or args.repeats <= 0:
-        raise InputError("--resolution >= 8, --samples > 0 and --repeats > 0 please")
     from addon.core import ssao
+    ssao.check_cost(args.resolution, args.resolution, args.samples, args.reference_samples,
+                    len(ssao.METHODS) * 2 * args.repeats)          # each method with and without blur, repeated
     from addon.lab import ssao as lab
     from addon.lab import ssao_scenes
     from addon.lab.scene import remove_scene
@@ -58,10 +58,10 @@ def main(args):
 def build_parser():
     p = _cli.parser("bench_ssao.py", "Time the SSAO methods on one frame, beside EEVEE's AO pass.",
                     blend_file=False)
-    p.add_argument("--resolution", type=int, default=512)
-    p.add_argument("--samples", type=int, default=16)
-    p.add_argument("--repeats", type=int, default=3)
-    p.add_argument("--reference-samples", type=int, default=256)
+    p.add_argument("--resolution", type=_cli.number(int, 8, core_ssao.MAX_RESOLUTION), default=512)
+    p.add_argument("--samples", type=_cli.number(int, 1, core_ssao.MAX_SAMPLES), default=16)
+    p.add_argument("--repeats", type=_cli.number(int, 1, 100), default=3)
+    p.add_argument("--reference-samples", type=_cli.number(int, 1, core_ssao.MAX_REFERENCE_SAMPLES), default=256)
     p.add_argument("--no-eevee", action="store_true", help="skip EEVEE (its first render compiles shaders)")
     p.add_argument("--out", default="out/bench_ssao", help="folder of the reference cache")
     return p

@@ -21,7 +21,8 @@ def main(args):
 def build_parser():
     p = _cli.parser("demo.py", "Build the demo scene and run the project's tools on it.", blend_file=False)
     p.add_argument("--out", default="out/demo", help="output folder (default: out/demo)")
-    p.add_argument("--samples", type=int, default=32, help="Cycles samples of the preview render (default 32)")
+    p.add_argument("--samples", type=_cli.number(int, 1, 4096), default=32,
+                   help="Cycles samples of the preview render, 1..4096 (default 32)")
     p.add_argument("--quick", action="store_true", help="smallest sizes, for tests")
     return p
 

@@ -26,7 +26,9 @@ def build_parser():
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--method", choices=("sh9", "brute"), default="sh9",
                    help="nine spherical harmonics (default) or brute-force convolution")
-    p.add_argument("--width", type=int, default=64, help="width of the irradiance map (height = width/2; default 64)")
+    p.add_argument("--width", type=_cli.number(int, 4), default=64,
+                   help="width of the irradiance map, even (height = width/2; default 64; memory and time are "
+                        "checked first)")
     return p
 
 

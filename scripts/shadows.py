@@ -11,6 +11,8 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import _cli  # noqa: E402
 
+from addon.core.shadow_map import MAX_RESOLUTION, MAX_SIZE  # noqa: E402  (numpy only)
+
 
 def main(args):
     import bpy
@@ -33,6 +35,8 @@ def main(args):
             raise InputError("give a FILE.blend or --scene NAME (one of: " + ", ".join(shadow_scenes.SCENES) + ")")
         report = shadows.compare(bpy.context.scene, args.light, methods, out, **params)
     print(f"shadows: report {report['report']}")
+    if not report["meaningful"]:
+        print("  the reference has no lit or no shadowed pixel: the errors below mean nothing")
     for m, e in report["methods"].items():
         print(f"  {m:13s} error {e['error']:.4f} (false shadow {e['false_shadow']:.4f}, "
               f"false light {e['false_light']:.4f})  {e['seconds']:.3f} s")
@@ -48,14 +52,19 @@ def build_parser():
     p.add_argument("--methods", default="raytraced,planar,shadowmap,volume_zpass,volume_zfail",
                    help="comma-separated: raytraced, planar, shadowmap, volume_zpass, volume_zfail, eevee, workbench")
     p.add_argument("--out", default="out/shadows", help="output folder (default: out/shadows)")
-    p.add_argument("--resolution", type=int, default=128, help="render width in pixels (default 128)")
-    p.add_argument("--shadowmap-size", type=int, default=1024, help="shadow-map size N (N x N, default 1024)")
-    p.add_argument("--bias", type=float, default=0.01, help="constant shadow-map bias in metres (default 0.01)")
-    p.add_argument("--slope-bias", type=float, default=2.0,
+    p.add_argument("--resolution", type=_cli.number(int, 8, MAX_RESOLUTION), default=128,
+                   help=f"render width in pixels, 8..{MAX_RESOLUTION} (default 128; memory is checked first)")
+    p.add_argument("--shadowmap-size", type=_cli.number(int, 2, MAX_SIZE), default=1024,
+                   help=f"shadow-map size N (N x N), 2..{MAX_SIZE} (default 1024; memory is checked first)")
+    p.add_argument("--bias", type=_cli.number(float, 0), default=0.01,
+                   help="constant shadow-map bias in metres (default 0.01)")
+    p.add_argument("--slope-bias", type=_cli.number(float, 0), default=2.0,
                    help="slope-scaled bias in texels: adds B x texel size x tan(theta) (default 2)")
-    p.add_argument("--pcf", type=int, default=1, help="PCF kernel size K, odd (default 1 = no filtering)")
+    p.add_argument("--pcf", type=_cli.number(int, 1, 15), default=1,
+                   help="PCF kernel size K, odd, 1..15 (default 1 = no filtering)")
     p.add_argument("--receiver", default=None, help="plane object for planar shadows (default: Floor)")
-    p.add_argument("--samples", type=int, default=1, help="Cycles samples of the reference (default 1)")
+    p.add_argument("--samples", type=_cli.number(int, 1, 4096), default=1,
+                   help="Cycles samples of the reference, 1..4096 (default 1)")
     p.add_argument("--sweeps", action="store_true", help="run the sweeps and charts instead of one comparison")
     p.add_argument("--quick", action="store_true", help="with --sweeps: small sizes (well under a minute)")
     return p

@@ -22,19 +22,16 @@ from addon.core.errors import InputError  # noqa: E402
 
 
 def _validate(args):
-    """Every bad-input check that needs no Blender (fast exit 2)."""
+    """Every bad-input check that needs no Blender (fast exit 2): numbers are checked by the parser,
+    the cost of a built-in scene's square frame here."""
     methods = parse_choices(args.methods, core_ssao.ALL_METHODS, "SSAO method")
     if args.scene is not None:
         core_ssao.check_scene(args.scene)
     if args.scene is not None and args.blend:
         raise InputError("give either FILE.blend or --scene, not both")
-    for name in ("samples", "reference_samples"):
-        if getattr(args, name) <= 0:
-            raise InputError(f"--{name.replace('_', '-')} must be positive, got {getattr(args, name)}")
-    if not args.radius > 0:
-        raise InputError(f"--radius must be positive, got {args.radius}")
-    if not 8 <= args.resolution <= 8192:
-        raise InputError(f"--resolution must be in [8, 8192], got {args.resolution}")
+    if not args.blend and not args.sweeps:
+        core_ssao.check_cost(args.resolution, args.resolution, args.samples, args.reference_samples,
+                             sum(m in core_ssao.METHODS for m in methods))
     return methods
 
 
@@ -79,15 +76,18 @@ def build_parser():
     p.add_argument("--methods", default="crytek,hemisphere,hbao,gtao",
                    help=f"comma-separated, from {','.join(core_ssao.ALL_METHODS)} (default: the numpy ones)")
     p.add_argument("--out", default="out/ssao", help="output folder (default out/ssao)")
-    p.add_argument("--resolution", type=int, default=128, action=_Resolution,
-                   help="frame width in pixels (default 128; a .blend keeps its own unless given)")
-    p.add_argument("--samples", type=int, default=16, help="depth-buffer samples per pixel (default 16)")
-    p.add_argument("--radius", type=float, default=1.0,
+    p.add_argument("--resolution", type=_cli.number(int, 8, core_ssao.MAX_RESOLUTION), default=128,
+                   action=_Resolution, help=f"frame width in pixels, 8..{core_ssao.MAX_RESOLUTION} (default 128; a "
+                                            ".blend keeps its own unless given; memory and time are checked first)")
+    p.add_argument("--samples", type=_cli.number(int, 1, core_ssao.MAX_SAMPLES), default=16,
+                   help=f"depth-buffer samples per pixel, 1..{core_ssao.MAX_SAMPLES} (default 16)")
+    p.add_argument("--radius", type=_cli.number(float, above=0), default=1.0,
                    help="SSAO radius in metres = the reference's AO distance (default 1.0)")
-    p.add_argument("--reference-samples", type=int, default=1024,
-                   help="Cycles AO samples per pixel of the reference (default 1024: noise <= 0.016)")
+    p.add_argument("--reference-samples", type=_cli.number(int, 1, core_ssao.MAX_REFERENCE_SAMPLES), default=1024,
+                   help=f"Cycles AO samples per pixel of the reference, 1..{core_ssao.MAX_REFERENCE_SAMPLES} "
+                        "(default 1024: noise <= 0.016)")
     p.add_argument("--blur", action="store_true", help="depth-aware blur after each numpy method")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the numpy methods")
+    p.add_argument("--seed", type=_cli.number(int, 0, 2 ** 32 - 1), default=0, help="random seed of the numpy methods")
     p.add_argument("--cache", metavar="DIR", help="reference cache folder (default <out>/cache)")
     p.add_argument("--sweeps", action="store_true", help="run the sweeps (charts, tables) instead")
     p.add_argument("--quick", action="store_true", help="with --sweeps: small frames, well under a minute")

@@ -44,23 +44,35 @@ def _script_module(name):
 
 
 def test_script_bad_input_exit_2_with_one_line(script, tmp_path):
-    r = script("ssao.py", "--radius", "0", "--out", tmp_path)
+    r = script("ssao.py", "--radius", "0", "--out", tmp_path / "o")
     lines = r.stderr.strip().splitlines()
-    assert r.returncode == 2 and len(lines) == 1 and "--radius must be positive" in lines[0]
+    assert r.returncode == 2 and len(lines) == 1 and "--radius: must be greater than 0" in lines[0]
+    assert not (tmp_path / "o").exists()
 
 
 @pytest.mark.parametrize("args, message", [
     (["--methods", "gtao,ssdo"], "unknown SSAO method 'ssdo'"),
     (["--methods", ","], "no SSAO method given"),
     (["--scene", "attic"], "unknown SSAO scene 'attic'"),
-    (["--radius", "-2"], "--radius must be positive"),
-    (["--samples", "0"], "--samples must be positive"),
-    (["--reference-samples", "-1"], "--reference-samples must be positive"),
+    (["--resolution", "2048", "--reference-samples", "65536"], "the largest reference samples that fits is"),
 ])
 def test_script_rejects_bad_input_before_rendering(args, message):
     mod = _script_module("ssao")
     with pytest.raises(InputError, match=message):
         mod._validate(mod.build_parser().parse_args(args))
+
+
+@pytest.mark.parametrize("args, option", [
+    (["--radius", "-2"], "--radius"), (["--radius", "nan"], "--radius"), (["--samples", "0"], "--samples"),
+    (["--samples", "100000000"], "--samples"), (["--reference-samples", "-1"], "--reference-samples"),
+    (["--resolution", "inf"], "--resolution"), (["--seed", "-1"], "--seed"),
+])
+def test_script_numbers_are_checked_at_parse_time(args, option, capsys):
+    mod = _script_module("ssao")
+    with pytest.raises(SystemExit) as e:
+        mod.build_parser().parse_args(args)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert e.value.code == 2 and len(err) == 1 and option in err[0]
 
 
 def test_quick_sweeps_write_charts_tables_and_failures(tmp_path):

@@ -9,7 +9,7 @@ import tempfile
 import bpy
 import numpy as np
 
-from .. import compat
+from .. import compat, interrupt
 from ..core import exr
 from ..core.errors import ILError
 
@@ -45,7 +45,8 @@ def denoise(values):
         with tempfile.TemporaryDirectory(prefix="il_denoise_") as tmp:
             path = os.path.join(tmp, "denoised.exr")
             r.filepath, r.use_file_extension = path, False
-            bpy.ops.render.render(write_still=True, scene=scene.name)
+            with interrupt.blender_call():
+                bpy.ops.render.render(write_still=True, scene=scene.name)
             if not os.path.exists(path):
                 raise ILError("the denoiser wrote no image")
             channels, _ = exr.read_exr(path)

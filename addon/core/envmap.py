@@ -20,7 +20,16 @@ import re
 
 import numpy as np
 
+from . import budget
 from .errors import ILError, InputError
+
+#: Cost estimates of an irradiance map (measured on 2 cores, rounded up; README "Limits"): peak bytes
+#: per output pixel (directions, SH basis, map, EXR copy; 165 measured at 4096 wide), seconds per
+#: output pixel and quadrature direction of the brute-force sum (6-11e-9 measured).
+BYTES_PER_MAP_PIXEL = 200
+SECONDS_PER_PRODUCT = 1.2e-8
+#: Largest float32 (EXR "FLOAT" channels).
+FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 # ----------------------------------------------------------------------------
 # Reading environments
@@ -146,6 +155,31 @@ def read_latlong(path):
         raise InputError(f"{path}: environment must be .exr or .hdr")
     check_latlong(env, path)
     return env.astype(np.float32)
+
+
+def check_cost(width, method="sh9", quadrature_directions=0):
+    """Refuse (InputError naming the largest width that fits) a map whose estimated memory
+    ((width²/2) x BYTES_PER_MAP_PIXEL) or brute-force time (pixels x directions x SECONDS_PER_PRODUCT)
+    does not fit :mod:`budget`."""
+    per_pixel = SECONDS_PER_PRODUCT * quadrature_directions if method == "brute" else 0.0
+    budget.check("width", int(width), lambda w: ((w // 2) * w * BYTES_PER_MAP_PIXEL, (w // 2) * w * per_pixel), 4)
+
+
+def brute_directions(env_shape, max_width=256):
+    """How many quadrature directions :func:`quadrature` keeps for an (H, W, C) map at ``max_width``."""
+    h, w = env_shape[:2]
+    f = 1
+    while w // f > max_width and h % (2 * f) == 0 and w % (2 * f) == 0:
+        f *= 2
+    return (h // f) * (w // f)
+
+
+def check_radiance(env, name="environment"):
+    """Raise InputError where radiance is negative (no physical environment emits less than nothing)."""
+    low = float(np.min(env)) if np.size(env) else 0.0
+    if low < 0:
+        count = int(np.count_nonzero(np.asarray(env) < 0))
+        raise InputError(f"{name}: {count} negative radiance values (down to {low:g}): radiance is >= 0")
 
 
 def check_latlong(env, name="environment"):

@@ -11,3 +11,14 @@ class ILError(Exception):
 
 class InputError(ILError):
     """Bad input: an unknown name, a value out of range, a missing object or file."""
+
+
+class ILWarning(UserWarning):
+    """Something the user should know that does not stop the job (an object skipped, a setting
+    ignored). Scripts print it as one ``warning:`` line; operators report it as a WARNING."""
+
+
+def warn(message):
+    """Emit ``message`` as an :class:`ILWarning` (shown at the script or operator boundary)."""
+    import warnings
+    warnings.warn(ILWarning(message), stacklevel=2)

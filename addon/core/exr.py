@@ -22,7 +22,8 @@ def write_exr(path, channels, attributes=None):
     """Write ``{name: 2-D array}`` as float32 channels, zip-compressed, atomically.
 
     ``attributes`` values are stored as strings (ints and floats too), so any
-    tool can read them back.
+    tool can read them back. A channel with a value that is not finite as float32 (NaN, infinite,
+    or beyond ±3.4e38) is refused with an ILError naming the file, and nothing is written.
     """
     OpenEXR = _openexr()
     shapes = {np.shape(a) for a in channels.values()}
@@ -31,10 +32,25 @@ def write_exr(path, channels, attributes=None):
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     for key, value in (attributes or {}).items():
         header[key] = str(value)
-    data = {name: np.ascontiguousarray(a, dtype=np.float32) for name, a in channels.items()}
+    with np.errstate(over="ignore", invalid="ignore"):
+        data = {name: np.ascontiguousarray(a, dtype=np.float32) for name, a in channels.items()}
+    check_finite(path, data)
     with atomic_path(path) as tmp:
         with OpenEXR.File(header, data) as f:
             f.write(tmp)
+
+
+def check_finite(path, channels):
+    """Raise ILError naming ``path`` and each channel holding NaN or infinite values (and how many)."""
+    bad = []
+    for name, a in channels.items():
+        finite = np.isfinite(a)
+        if not finite.all():
+            a = np.asarray(a)
+            nan = int(np.isnan(a).sum())
+            bad.append(f"{name}: {nan} NaN, {a.size - int(finite.sum()) - nan} infinite")
+    if bad:
+        raise ILError(f"not writing {path}: non-finite values ({'; '.join(bad)})")
 
 
 def read_exr(path):

@@ -1,8 +1,35 @@
-"""Atomic files: write to a temporary name beside the target, then rename."""
+"""Output files: folders checked before any work, files written to a temporary name beside the target, then renamed."""
 import contextlib
 import json
+import math
 import os
 import tempfile
+
+from .errors import ILError, InputError
+
+
+def check_output_dir(out):
+    """Return ``out`` as an absolute path if it is a folder or can be created as one, and is writable;
+    raise InputError otherwise. Nothing is created: a probe file is made and removed in the folder or
+    its nearest existing parent (permission bits alone say nothing for root or read-only mounts)."""
+    out = os.path.abspath(os.fspath(out))
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise InputError(f"output folder is a file: {out}")
+    probe = out
+    while not os.path.exists(probe):
+        parent = os.path.dirname(probe)
+        if parent == probe:
+            break
+        probe = parent
+    if not os.path.isdir(probe):
+        raise InputError(f"output folder cannot be created: {out} ({probe} is a file)")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=".il_probe_", dir=probe)
+    except OSError as e:
+        raise InputError(f"output folder cannot be written: {out} ({probe}: {e.strerror})") from None
+    os.close(fd)
+    os.remove(tmp)
+    return out
 
 
 @contextlib.contextmanager
@@ -30,11 +57,32 @@ def _umask():
 
 
 def write_json(path, data):
-    """Write ``data`` as indented JSON, atomically."""
+    """Write ``data`` as indented JSON, atomically; a NaN or infinite number is refused (ILError naming
+    the file and the key) before anything is written."""
+    where = non_finite(data)
+    if where:
+        raise ILError(f"not writing {path}: non-finite number at {where}")
     with atomic_path(path) as tmp:
         with open(tmp, "w", encoding="utf-8") as f:
             json.dump(data, f, indent=2, sort_keys=False, allow_nan=False)
             f.write("\n")
+
+
+def non_finite(data, where=""):
+    """The key path ("methods.gtao.rmse") of the first NaN or infinite float in nested dicts/lists, or ""."""
+    if isinstance(data, float):
+        return "" if math.isfinite(data) else (where or "top level") + f" ({data})"
+    if isinstance(data, dict):
+        items = data.items()
+    elif isinstance(data, (list, tuple)):
+        items = enumerate(data)
+    else:
+        return ""
+    for key, value in items:
+        found = non_finite(value, f"{where}.{key}" if where else str(key))
+        if found:
+            return found
+    return ""
 
 
 def write_bytes(path, data):

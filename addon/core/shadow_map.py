@@ -9,11 +9,37 @@ closer filtering (Reeves et al. 1987) averages the K×K nearest-texel comparison
 """
 import numpy as np
 
+from . import budget
 from .camera import world_to_pixels
 from .errors import InputError
 
 #: tan θ is clamped here (θ about 84°) so grazing receivers get a finite bias.
 MAX_TAN = 10.0
+
+#: Limits shared by the script, the panel and the lab: render width, shadow-map size N.
+MAX_RESOLUTION = 8192
+MAX_SIZE = 16384
+#: Cost estimates of a comparison (measured on 2 cores, rounded up; README "Limits"): peak bytes per
+#: camera pixel (Cycles' passes, the float64 per-pixel arrays; 550 measured at 1024²), peak bytes per
+#: texel while Cycles renders one map (80 measured at 4096²), bytes kept per texel of each map
+#: (float64 depth), Cycles seconds per map texel (0.4-0.6e-6 measured).
+BYTES_PER_PIXEL = 800
+BYTES_PER_TEXEL_RENDER = 120
+BYTES_PER_TEXEL_KEPT = 8
+SECONDS_PER_TEXEL = 1e-6
+
+
+def check_cost(width, height, size=None, faces=1):
+    """Refuse (InputError naming the largest value that fits) a frame of ``width`` x ``height`` pixels,
+    or ``faces`` shadow maps of ``size``² texels, whose estimated memory or time does not fit."""
+    aspect = height / width
+    frame = lambda w: w * max(1, round(w * aspect)) * BYTES_PER_PIXEL  # noqa: E731
+    budget.check("resolution", int(width), lambda w: (frame(w), 0.0), 8)
+    if size:
+        budget.check("shadow-map size", int(size),
+                     lambda n: (frame(width) + n * n * (BYTES_PER_TEXEL_RENDER + faces * BYTES_PER_TEXEL_KEPT),
+                                faces * n * n * SECONDS_PER_TEXEL), 2,
+                     f"({faces} map{'s' if faces > 1 else ''}, {width}x{height} pixels)")
 
 
 def check_pcf(k):

@@ -108,12 +108,28 @@ def write_outputs(out, emap, coeffs, method, seconds, source):
 
 
 def run(out, scene=None, env_file=None, method="sh9", width=64):
-    """Environment from ``env_file`` or the scene's world -> files in ``out``; returns a summary dict."""
+    """Environment from ``env_file`` or the scene's world -> files in ``out``; returns a summary dict.
+
+    Refused before any work: an odd or too large ``width`` (memory, and for ``brute`` time), negative
+    radiance, and an environment so bright that E(n) leaves the EXR's float range.
+    """
+    if width < 4 or width % 2:
+        raise InputError(f"width must be an even number >= 4, got {width}")
+    core.check_cost(width, "sh9")
     if env_file:
         env, source = core.read_latlong(env_file), os.path.abspath(env_file)
     else:
         env, source = world_environment(scene or bpy.context.scene)
-    emap, coeffs, seconds = compute(env, method, width)
+    core.check_radiance(env, source)
+    if method == "brute":
+        core.check_cost(width, method, core.brute_directions(env.shape))
+    bound = np.pi * float(np.max(env))                # E(n) <= π max L
+    with np.errstate(over="ignore", invalid="ignore"):
+        emap, coeffs, seconds = compute(env, method, width) if bound <= core.FLOAT32_MAX else (None, None, 0.0)
+    if emap is None or not (np.isfinite(emap).all() and np.isfinite(coeffs).all()
+                            and np.max(emap) <= core.FLOAT32_MAX):
+        raise InputError(f"{source}: the environment is too bright (radiance up to {np.max(env):.3g}): E(n) leaves "
+                         f"the EXR float range ({core.FLOAT32_MAX:.3g} W/m²); scale the radiance down")
     path, report = write_outputs(out, emap, coeffs, method, seconds, source)
     return {"file": path, "report": report, "seconds": seconds, "map": emap, "sh9": coeffs, "source": source}
 

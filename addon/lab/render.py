@@ -5,7 +5,7 @@ import tempfile
 import bpy
 import numpy as np
 
-from .. import compat
+from .. import compat, interrupt
 from ..core import exr
 from ..core.errors import ILError
 
@@ -35,6 +35,7 @@ def render_layers(scene, camera=None):
     r = scene.render
     saved = (r.filepath, r.use_file_extension)
     settings = r.image_settings
+    had_result = _render_results()
     with tempfile.TemporaryDirectory(prefix="il_render_") as tmp:
         path = os.path.join(tmp, "passes.exr")
         try:
@@ -42,13 +43,22 @@ def render_layers(scene, camera=None):
             r.filepath = path
             r.use_file_extension = False
             scene.view_layers[0].update()  # drivers of a scene that is not the window's are stale otherwise
-            bpy.ops.render.render(write_still=True, scene=scene.name)
+            with interrupt.blender_call():
+                bpy.ops.render.render(write_still=True, scene=scene.name)
         finally:
             r.filepath, r.use_file_extension = saved
+            if not had_result:
+                for image in _render_results():
+                    bpy.data.images.remove(image)
         if not os.path.exists(path):
             raise ILError("the render wrote no image")
         parts = exr.read_multipart(path)
     return _group_passes(parts, scene.view_layers[0].name if len(scene.view_layers) == 1 else None)
+
+
+def _render_results():
+    """The file's "Render Result" images (a render adds one when there is none; the user's one stays)."""
+    return [im for im in bpy.data.images if im.type == "RENDER_RESULT"]
 
 
 def _group_passes(parts, layer):

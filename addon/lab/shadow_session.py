@@ -21,6 +21,9 @@ from . import render, scene as sc
 
 #: Sky pixels carry a huge depth in Cycles' Depth pass.
 SKY_DEPTH = 1e8
+#: Object types Cycles renders as a surface that Blender evaluates to a mesh (triangulated for the
+#: planar and volume methods); other renderable types are listed as skipped.
+SURFACE_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 
 
 class LightInfo:
@@ -31,7 +34,8 @@ class LightInfo:
             raise InputError(f"'{obj.name}' is not a light")
         kind = obj.data.type
         if kind not in {"SUN", "POINT", "SPOT"}:
-            raise InputError(f"light '{obj.name}' is a {kind.lower()} light: the shadow lab takes point, spot and sun lights")
+            raise InputError(f"light '{obj.name}' is an {kind.lower()} light: the shadow lab compares hard "
+                             "shadows of point, spot and sun lights (add one, or change its type)")
         self.obj, self.kind = obj, kind
         m = obj.matrix_world
         self.position = np.array(m.translation, np.float64)
@@ -41,6 +45,11 @@ class LightInfo:
         self.spot_cos = math.cos(obj.data.spot_size / 2) if kind == "SPOT" else None
         self.colour = float(np.mean(obj.data.color))
         self.energy = float(obj.data.energy)
+        if not (self.energy > 0 and self.colour > 0 and math.isfinite(self.energy * self.colour)):
+            unit = "W/m²" if kind == "SUN" else "W"
+            raise InputError(f"light '{obj.name}' gives no light ({self.energy:g} {unit}, colour "
+                             f"{tuple(round(c, 3) for c in obj.data.color)}): the reference would be all shadow; "
+                             "give it a positive power and colour")
 
     def to_light(self, points):
         """Unit vectors from points toward the light, and distances (inf for the sun)."""
@@ -75,14 +84,18 @@ class Session:
             raise InputError(f"no light named '{light_name}' in scene '{scene.name}'")
         if scene.camera is None:
             raise InputError(f"scene '{scene.name}' has no camera")
-        if resolution < 8 or resolution > 8192:
-            raise InputError(f"--resolution must be between 8 and 8192, got {resolution}")
+        if resolution < 8 or resolution > shadow_map.MAX_RESOLUTION:
+            raise InputError(f"resolution must be between 8 and {shadow_map.MAX_RESOLUTION}, got {resolution}")
         if samples < 1:
             raise InputError(f"samples must be positive, got {samples}")
         self.user_scene = scene
         scene.view_layers[0].update()
         self.light = LightInfo(scene.objects[light_name])
         self.resolution, self.samples = int(resolution), int(samples)
+        rx, ry = scene.render.resolution_x, scene.render.resolution_y
+        self.width = self.resolution
+        self.height = max(1, round(self.resolution * ry / rx))
+        self.skipped = []
         self.tmp = None
         self._made = []
         self._saved_light = None
@@ -118,18 +131,23 @@ class Session:
                 continue
             tmp.collection.objects.link(obj)
         tmp.camera = user.camera
-        rx, ry = user.render.resolution_x, user.render.resolution_y
-        self.width = self.resolution
-        self.height = max(1, round(self.resolution * ry / rx))
         tmp.render.pixel_aspect_x = user.render.pixel_aspect_x
         tmp.render.pixel_aspect_y = user.render.pixel_aspect_y
         tmp.view_settings.view_transform = "Standard"
         mat = _white_diffuse()
         self._made.append(mat)
         tmp.view_layers[0].material_override = mat
-        self.casters = [o for o in tmp.objects if o.type == "MESH"]
+        self.casters = []
+        for o in tmp.objects:
+            if o.type in {"LIGHT", "CAMERA", "EMPTY", "SPEAKER", "LIGHT_PROBE", "LATTICE", "ARMATURE"}:
+                continue
+            if o.type in SURFACE_TYPES and len(self.triangles(o)[1]):
+                self.casters.append(o)
+            elif o.type != "META":       # a metaball's surface lives in its family's basis object
+                self.skipped.append(o.name)
         if not self.casters:
-            raise InputError(f"scene '{user.name}' has no visible mesh")
+            raise InputError(f"scene '{user.name}' has no visible mesh"
+                             + (f" (not usable: {', '.join(self.skipped)})" if self.skipped else ""))
 
     def close(self):
         """Remove the private scene (the user's objects stay: they live in the user's scene too), the
@@ -252,10 +270,12 @@ class Session:
 
     def triangles(self, obj):
         """World-space (V, 3) vertices and (T, 3) triangles of an object's evaluated mesh."""
-        depsgraph = self.tmp.view_layers[0].depsgraph
         self.tmp.view_layers[0].update()
-        ev = obj.evaluated_get(depsgraph)
+        ev = obj.evaluated_get(self.tmp.view_layers[0].depsgraph)
         me = ev.to_mesh()
+        if me is None:
+            ev.to_mesh_clear()
+            return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
         try:
             me.calc_loop_triangles()
             v = np.empty(len(me.vertices) * 3, np.float64)

@@ -7,13 +7,14 @@ agree, red false shadow, blue false light; see core.shadow_metrics.COLOURS) and
 ``<out>/shadows_report.json`` (DESIGN.md). :func:`sweeps` and :func:`demo_step` serve the bench
 and the demo job.
 """
+import math
 import os
 import time
 
 import numpy as np
 
 from ..core import choices, imageio, shadow_map, shadow_metrics, shadow_planar, shadow_volume
-from ..core.errors import InputError
+from ..core.errors import ILError, InputError, warn
 from ..core.fileio import write_json
 from ..progress import Progress
 from . import scene as sc, shadow_scenes
@@ -32,14 +33,26 @@ def parse_methods(methods):
 
 
 def check_params(params):
-    """Merge with DEFAULTS and validate the numbers; return the merged dict."""
+    """Merge with DEFAULTS and validate the numbers (finite, in range); return the merged dict."""
     p = dict(DEFAULTS, **{k: v for k, v in params.items() if v is not None})
     shadow_map.check_pcf(p["pcf"])
-    if p["bias"] < 0 or p["slope_bias"] < 0:
-        raise InputError("--bias and --slope-bias must be >= 0")
-    if p["shadowmap_size"] < 2 or p["shadowmap_size"] > 16384:
-        raise InputError(f"--shadowmap-size must be between 2 and 16384, got {p['shadowmap_size']}")
+    for key in ("bias", "slope_bias", "offset"):
+        if not (isinstance(p[key], (int, float)) and math.isfinite(p[key]) and p[key] >= 0):
+            raise InputError(f"{key.replace('_', ' ')} must be a finite number >= 0, got {p[key]}")
+    if not 2 <= p["shadowmap_size"] <= shadow_map.MAX_SIZE:
+        raise InputError(f"shadow-map size must be between 2 and {shadow_map.MAX_SIZE}, got {p['shadowmap_size']}")
+    if not 8 <= p["resolution"] <= shadow_map.MAX_RESOLUTION:
+        raise InputError(f"resolution must be between 8 and {shadow_map.MAX_RESOLUTION}, got {p['resolution']}")
+    if not 1 <= p["samples"] <= 4096:
+        raise InputError(f"samples must be between 1 and 4096, got {p['samples']}")
     return p
+
+
+def check_cost(session, methods, p):
+    """core.shadow_map.check_cost for the session's frame and, with "shadowmap", its maps."""
+    faces = 6 if session.light.kind == "POINT" else 1
+    shadow_map.check_cost(session.width, session.height, p["shadowmap_size"] if "shadowmap" in methods else None,
+                          faces)
 
 
 # -- methods ------------------------------------------------------------------------------------
@@ -137,38 +150,61 @@ def run_method(s, method, p):
 
 # -- the comparison ---------------------------------------------------------------------------------
 def compare(scene, light, methods, out, **params):
-    """Run ``methods`` on ``scene`` lit by the light named ``light``; write images and the report; return it."""
+    """Run ``methods`` on ``scene`` lit by the light named ``light``; write images and the report; return it.
+
+    Everything is computed before the first file is written (an error or Ctrl-C leaves no partial set);
+    the output folder is made only then. A reference with no lit or no shadowed receiver pixel scores
+    nothing: it is reported with ``"meaningful": false`` and a warning.
+    """
     methods = parse_methods(methods)
     p = check_params(params)
-    os.makedirs(out, exist_ok=True)
     report = {"scene": scene.name, "light": light, "reference": {}, "methods": {}}
-    with Progress("shadows", len(methods) + 1) as progress, Session(scene, light, p["resolution"], p["samples"]) as s:
+    images = {}
+    session = Session(scene, light, p["resolution"], p["samples"])
+    check_cost(session, methods, p)
+    with Progress("shadows", len(methods) + 1) as progress, session as s:
         progress.step("ray-traced reference (Cycles, radius-0 light)")
         s.reference_seconds = s.render_reference()
+        if not s.receiver.any():
+            raise ILError(f"the camera of scene '{scene.name}' sees no geometry")
+        lit = int(s.reference[s.receiver].sum())
+        shadowed = int(s.receiver.sum()) - lit
         report["reference"] = {"engine": "cycles", "samples": s.samples, "seconds": s.reference_seconds,
                                "resolution": [s.width, s.height], "light_type": s.light.kind.lower(),
-                               "receiver_pixels": int(s.receiver.sum()),
+                               "receiver_pixels": int(s.receiver.sum()), "lit_pixels": lit,
                                "shadowed_fraction": float(1 - s.reference[s.receiver].mean()),
                                "mask": os.path.join(out, "raytraced_mask.png")}
-        imageio.write_png(os.path.join(out, "raytraced_mask.png"), shadow_metrics.mask_image(s.reference))
+        report["meaningful"] = bool(lit and shadowed)
+        if not report["meaningful"]:
+            warn(f"the reference is {'all shadow' if not lit else 'all lit'} on the {s.receiver.sum()} pixels the "
+                 f"camera sees: every method's score is meaningless (aim '{light}' at the objects, or move them)")
+        if s.skipped:
+            warn(f"not triangulated for the planar and volume methods: {', '.join(s.skipped)} (Cycles still "
+                 "renders them in the reference and the shadow map)")
+        images["raytraced_mask.png"] = shadow_metrics.mask_image(s.reference)
         for m in methods:
             progress.step(m)
             mask, seconds, info = run_method(s, m, p)
             entry = shadow_metrics.confusion(mask, s.reference, s.receiver)
             entry.update(seconds=seconds, params=info,
                          mask=os.path.join(out, f"{m}_mask.png"), error_image=os.path.join(out, f"{m}_error.png"))
-            imageio.write_png(entry["mask"], shadow_metrics.mask_image(mask))
-            imageio.write_png(entry["error_image"], shadow_metrics.error_image(mask, s.reference, s.receiver))
+            images[f"{m}_mask.png"] = shadow_metrics.mask_image(mask)
+            images[f"{m}_error.png"] = shadow_metrics.error_image(mask, s.reference, s.receiver)
             report["methods"][m] = entry
     report["report"] = os.path.join(out, "shadows_report.json")
+    os.makedirs(out, exist_ok=True)
+    for name, pixels in images.items():
+        imageio.write_png(os.path.join(out, name), pixels)
     write_json(report["report"], report)
     return report
 
 
 def compare_builtin(name, light_kind, methods, out, keep=False, **params):
     """Build the built-in scene ``name`` with a ``light_kind`` light, compare, remove it unless ``keep``."""
-    parse_methods(methods)
+    methods = parse_methods(methods)
     p = check_params(params)
+    shadow_map.check_cost(p["resolution"], p["resolution"], p["shadowmap_size"] if "shadowmap" in methods else None,
+                          6 if light_kind == "point" else 1)
     scene = shadow_scenes.build(name, light_kind, (p["resolution"], p["resolution"]))
     try:
         return compare(scene, scene["il_shadow_light"], methods, out, **params)

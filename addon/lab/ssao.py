@@ -26,7 +26,7 @@ import numpy as np
 from .. import compat
 from ..core import choices, exr, imageio, ssao, ssao_figures
 from ..core.errors import ILError, InputError
-from ..core.fileio import write_json
+from ..core.fileio import atomic_path, write_json
 from ..progress import Progress
 from . import render, scene as sc, ssao_scenes
 
@@ -44,15 +44,32 @@ def parse_methods(methods):
 
 
 def check_params(samples=16, radius=1.0, reference_samples=1024, resolution=None):
-    """Raise InputError for non-positive sample counts, radius or resolution."""
-    if not (isinstance(samples, (int, np.integer)) and samples > 0):
-        raise InputError(f"samples must be a positive integer, got {samples}")
+    """Raise InputError for sample counts, radius or resolution out of range (core.ssao's MAX_* limits)."""
+    if not (isinstance(samples, (int, np.integer)) and 0 < samples <= ssao.MAX_SAMPLES):
+        raise InputError(f"samples must be an integer in [1, {ssao.MAX_SAMPLES}], got {samples}")
     if not (np.isfinite(radius) and radius > 0):
         raise InputError(f"radius must be positive, got {radius}")
-    if not (isinstance(reference_samples, (int, np.integer)) and reference_samples > 0):
-        raise InputError(f"reference samples must be a positive integer, got {reference_samples}")
-    if resolution is not None and not (isinstance(resolution, (int, np.integer)) and 8 <= resolution <= 8192):
-        raise InputError(f"resolution must be an integer in [8, 8192], got {resolution}")
+    if not (isinstance(reference_samples, (int, np.integer)) and 0 < reference_samples <= ssao.MAX_REFERENCE_SAMPLES):
+        raise InputError(f"reference samples must be an integer in [1, {ssao.MAX_REFERENCE_SAMPLES}], "
+                         f"got {reference_samples}")
+    if resolution is not None and not (isinstance(resolution, (int, np.integer))
+                                       and 8 <= resolution <= ssao.MAX_RESOLUTION):
+        raise InputError(f"resolution must be an integer in [8, {ssao.MAX_RESOLUTION}], got {resolution}")
+
+
+def frame_size(scene, resolution=None):
+    """(width, height) the lab renders ``scene`` at: ``resolution`` wide keeping the aspect, else the scene's."""
+    r = scene.render
+    if resolution is None:
+        return (max(1, r.resolution_x * r.resolution_percentage // 100),
+                max(1, r.resolution_y * r.resolution_percentage // 100))
+    return int(resolution), max(1, int(round(resolution * r.resolution_y / r.resolution_x)))
+
+
+def check_cost(scene, methods, samples, reference_samples, resolution=None):
+    """core.ssao.check_cost for ``scene``'s frame: refused before anything is rendered."""
+    w, h = frame_size(scene, resolution)
+    ssao.check_cost(w, h, samples, reference_samples, sum(m in ssao.METHODS for m in methods))
 
 
 # ---------------------------------------------------------------- scene state
@@ -221,10 +238,9 @@ def render_reference(scene, radius, samples, cache_dir=None, progress=None):
     """
     key = scene_key(scene, radius, samples)
     path = os.path.join(cache_dir, f"ssao_reference_{key}.npz") if cache_dir else None
-    if path and os.path.exists(path):
-        with np.load(path) as f:
-            return {"k": f["k"], "alpha": f["alpha"], "samples": int(f["samples"]),
-                    "seconds": float(f["seconds"]), "cached": True, "key": key}
+    cached = _read_cache(path) if path else None
+    if cached is not None:
+        return dict(cached, cached=True, key=key)
     t0 = time.perf_counter()
     _cycles(scene, samples)
     scene.cycles.max_bounces = 0
@@ -237,11 +253,26 @@ def render_reference(scene, radius, samples, cache_dir=None, progress=None):
     alpha = p["Combined"][..., 3].astype(np.float32)
     seconds = time.perf_counter() - t0
     if path:
-        os.makedirs(cache_dir, exist_ok=True)
-        tmp = path + ".tmp.npz"
-        np.savez_compressed(tmp, k=k, alpha=alpha, samples=samples, seconds=seconds)
-        os.replace(tmp, path)
+        with atomic_path(path) as tmp:
+            with open(tmp, "wb") as f:
+                np.savez_compressed(f, k=k, alpha=alpha, samples=samples, seconds=seconds)
     return {"k": k, "alpha": alpha, "samples": int(samples), "seconds": seconds, "cached": False, "key": key}
+
+
+def _read_cache(path):
+    """A cached reference, or None when the entry is missing or unreadable (a damaged entry is a miss
+    and is replaced by the next write)."""
+    if not os.path.exists(path):
+        return None
+    try:
+        with np.load(path) as f:
+            k, alpha = np.asarray(f["k"], np.float32), np.asarray(f["alpha"], np.float32)
+            entry = {"k": k, "alpha": alpha, "samples": int(f["samples"]), "seconds": float(f["seconds"])}
+    except Exception:  # noqa: BLE001 - a truncated zip, a missing key, garbage: all mean "not cached"
+        return None
+    if k.ndim != 2 or k.shape != alpha.shape or not np.isfinite(k).all():
+        return None
+    return entry
 
 
 def render_eevee(scene, radius, samples=16):
@@ -316,13 +347,13 @@ def compare(scene, methods, out=None, samples=16, radius=1.0, reference_samples=
     """Run the comparison on ``scene`` (its camera); write files to ``out`` (if given); return the report.
 
     Report (DESIGN.md): {"reference": {"samples", "seconds", ...}, "methods": {m: {"rmse", "bias",
-    "mean", "seconds", "params"}}} over geometry pixels (G-buffer mask) only. The
-    arrays are kept under report["_arrays"] (not written to JSON).
+    "mean", "seconds", "params"}}} over geometry pixels (G-buffer mask) only.
     """
     methods = parse_methods(methods)
     check_params(samples, radius, reference_samples, resolution)
     if scene.camera is None:
         raise InputError(f"scene '{scene.name}' has no camera")
+    check_cost(scene, methods, samples, reference_samples, resolution)
     if out is not None and cache_dir is None:
         cache_dir = os.path.join(out, "cache")
     steps = 2 + len(methods)
@@ -372,14 +403,13 @@ def compare(scene, methods, out=None, samples=16, radius=1.0, reference_samples=
             report["methods"][m]["error_image"] = f"{m}_error.png"
         report["reference"]["file"] = "reference_ao.exr"
         write_json(os.path.join(out, "ssao_report.json"), report)
-    report["_arrays"] = {"gbuffer": gb, "world": world, "reference": ref["k"],
-                         "methods": {m: r[0] for m, r in results.items()}}
     return report
 
 
 def frame(scene, radius, reference_samples, resolution=None, cache_dir=None):
     """G-buffer and reference of ``scene`` (settings restored) -> (GBuffer, world positions, reference dict)."""
     check_params(1, radius, reference_samples, resolution)
+    check_cost(scene, [], 1, reference_samples, resolution)
     with preserved(scene):
         set_resolution(scene, resolution)
         gb, world, _ = render_gbuffer(scene)

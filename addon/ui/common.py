@@ -1,5 +1,7 @@
 """Small helpers shared by the panel sections (no classes to register)."""
-from ..core.errors import ILError
+import warnings
+
+from ..core.errors import ILError, ILWarning
 
 
 def open_built_scene(op, context, build):
@@ -40,3 +42,29 @@ def _copy_group(a, b):
                 setattr(b, key, getattr(a, key))
             else:
                 b.property_unset(key)
+
+
+def run_job(op, job):
+    """Run ``job()`` at an operator's boundary; return ``(True, result)`` or ``(False, None)``.
+
+    Every :class:`ILWarning` the job emits becomes a WARNING report; a domain error, a full disk or
+    running out of memory becomes one ERROR report (the operator then returns CANCELLED). Anything
+    else is a bug and keeps its traceback.
+    """
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ILWarning)
+        try:
+            result, message = job(), None
+        except ILError as e:
+            message = str(e)
+        except MemoryError:
+            message = "out of memory: use smaller sizes or fewer samples"
+        except OSError as e:
+            message = f"{e.strerror or e}" + (f": {e.filename}" if e.filename else "")
+    for w in caught:
+        if issubclass(w.category, ILWarning):
+            op.report({"WARNING"}, str(w.message))
+    if message is not None:
+        op.report({"ERROR"}, message)
+        return False, None
+    return True, result

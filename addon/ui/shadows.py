@@ -3,7 +3,7 @@ import bpy
 from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 
 from .. import compat
-from ..core.errors import ILError
+from ..core import shadow_map
 from . import common, polls
 
 _METHOD_ITEMS = [
@@ -28,8 +28,10 @@ class IL_PG_shadows(bpy.types.PropertyGroup):
     receiver: StringProperty(name="Receiver", description="Plane object for planar shadows (empty: Floor)")
     methods: EnumProperty(name="Methods", items=_METHOD_ITEMS, options={"ENUM_FLAG"},
                           default={"planar", "shadowmap", "volume_zpass", "volume_zfail"})
-    resolution: IntProperty(name="Resolution", default=128, min=8, max=8192)
-    shadowmap_size: IntProperty(name="Shadow Map Size", default=1024, min=2, max=16384)
+    resolution: IntProperty(name="Resolution", default=128, min=8, max=shadow_map.MAX_RESOLUTION,
+                            description="Render width in pixels (memory is checked before rendering)")
+    shadowmap_size: IntProperty(name="Shadow Map Size", default=1024, min=2, max=shadow_map.MAX_SIZE,
+                                description="N x N texels per map (memory is checked before rendering)")
     bias: FloatProperty(name="Bias", default=0.01, min=0.0, precision=4, unit="LENGTH")
     slope_bias: FloatProperty(name="Slope Bias", default=2.0, min=0.0, description="In texels x tan(theta)")
     pcf: IntProperty(name="PCF", default=1, min=1, max=15, step=2, description="Odd kernel size")
@@ -80,12 +82,11 @@ class IL_OT_run_shadow_comparison(bpy.types.Operator):
         if not light:
             self.report({"ERROR"}, f"scene '{scene.name}' has no light: add one (or Build Shadow Scene)")
             return {"CANCELLED"}
-        try:
-            report = shadows.compare(scene, light, ["raytraced", *sorted(st.methods)], bpy.path.abspath(st.output),
-                                     resolution=st.resolution, shadowmap_size=st.shadowmap_size, bias=st.bias,
-                                     slope_bias=st.slope_bias, pcf=st.pcf, receiver=st.receiver or None)
-        except ILError as e:
-            self.report({"ERROR"}, str(e))
+        ok, report = common.run_job(self, lambda: shadows.compare(
+            scene, light, ["raytraced", *sorted(st.methods)], bpy.path.abspath(st.output),
+            resolution=st.resolution, shadowmap_size=st.shadowmap_size, bias=st.bias,
+            slope_bias=st.slope_bias, pcf=st.pcf, receiver=st.receiver or None))
+        if not ok:
             return {"CANCELLED"}
         st.last_report = report["report"]
         st.last_summary = "  ".join(f"{m} {e['error']:.2%}" for m, e in report["methods"].items() if m != "raytraced")

@@ -5,7 +5,7 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 
 from .. import compat
-from ..core.errors import ILError
+from ..core import ssao as core_ssao
 from . import common, polls
 
 _SCENES = [("plane", "Plane", "One open plane: k_A = 1 (the sphere kernel reads 0.5)"),
@@ -29,12 +29,15 @@ class IL_PG_ssao(bpy.types.PropertyGroup):
     methods: EnumProperty(name="Methods", items=_METHODS, options={"ENUM_FLAG"},
                           default={"crytek", "hemisphere", "hbao", "gtao"},
                           description="Methods compared with the ray-traced reference")
-    resolution: IntProperty(name="Resolution", default=128, min=16, max=2048,
-                            description="Frame width in pixels (height keeps the scene's aspect)")
-    samples: IntProperty(name="Samples", default=16, min=1, max=1024, description="Samples per pixel")
+    resolution: IntProperty(name="Resolution", default=128, min=16, max=core_ssao.MAX_RESOLUTION,
+                            description="Frame width in pixels (height keeps the scene's aspect; memory and "
+                                        "time are checked before rendering)")
+    samples: IntProperty(name="Samples", default=16, min=1, max=core_ssao.MAX_SAMPLES,
+                         description="Samples per pixel")
     radius: FloatProperty(name="Radius", default=1.0, min=0.001, soft_max=10.0, unit="LENGTH",
                           description="SSAO radius = the reference's AO distance")
-    reference_samples: IntProperty(name="Reference Samples", default=1024, min=1, max=65536,
+    reference_samples: IntProperty(name="Reference Samples", default=1024, min=1,
+                                   max=core_ssao.MAX_REFERENCE_SAMPLES,
                                    description="Cycles AO samples per pixel of the reference")
     blur: BoolProperty(name="Depth-Aware Blur", default=False, description="Blur the numpy methods' results")
     output_dir: StringProperty(name="Output", subtype="DIR_PATH", default="//ssao/",
@@ -83,14 +86,11 @@ class IL_OT_ssao_compare(bpy.types.Operator):
         scene = context.scene
         s = scene.illumination.ssao
         out = bpy.path.abspath(s.output_dir)
-        try:
-            report = lab.compare(scene, sorted(s.methods, key=[m[0] for m in _METHODS].index), out,
-                                 samples=s.samples, radius=s.radius, reference_samples=s.reference_samples,
-                                 resolution=s.resolution, blur=s.blur)
-        except ILError as e:
-            self.report({"ERROR"}, str(e))
+        ok, report = common.run_job(self, lambda: lab.compare(
+            scene, sorted(s.methods, key=[m[0] for m in _METHODS].index), out, samples=s.samples, radius=s.radius,
+            reference_samples=s.reference_samples, resolution=s.resolution, blur=s.blur))
+        if not ok:
             return {"CANCELLED"}
-        report.pop("_arrays", None)
         s.last_report = json.dumps({m: [r["rmse"], r["bias"], r["seconds"]] for m, r in report["methods"].items()})
         self.report({"INFO"}, f"SSAO report written to {out}")
         return {"FINISHED"}

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from addon.core import exr, fileio, imageio
+from addon.core.errors import ILError
 
 
 def test_exr_roundtrip_channels_and_attributes(tmp_path):
@@ -66,8 +67,20 @@ def test_tonemap_is_finite_on_bad_values():
 
 def test_failed_write_leaves_nothing(tmp_path):
     target = tmp_path / "r.json"
-    with pytest.raises(ValueError):
+    with pytest.raises(ILError, match=r"r.json: non-finite number at x \(nan\)"):
         fileio.write_json(target, {"x": float("nan")})
+    with pytest.raises(ILError, match=r"non-finite number at methods.gtao.rmse.1 \(inf\)"):
+        fileio.write_json(target, {"methods": {"gtao": {"rmse": [0.1, float("inf")]}}})
     assert not os.listdir(tmp_path)
     fileio.write_json(target, {"x": 1})
     assert json.loads(target.read_text()) == {"x": 1}
+
+
+def test_exr_refuses_non_finite_values_naming_the_file_and_channel(tmp_path):
+    good = np.ones((4, 8), np.float32)
+    for bad, text in ((np.nan, "1 NaN, 0 infinite"), (np.inf, "0 NaN, 1 infinite"), (3e38 * 10, "0 NaN, 1 infinite")):
+        r = good.astype(np.float64).copy()
+        r[2, 3] = bad
+        with pytest.raises(ILError, match=f"irr.exr: non-finite values \\(R: {text}\\)"):
+            exr.write_exr(tmp_path / "irr.exr", {"R": r, "G": good})
+    assert not os.listdir(tmp_path)
