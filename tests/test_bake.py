@@ -207,6 +207,23 @@ def _wall_material(name, rho, le):
     return mat
 
 
+def test_bright_enclosure_is_not_clamped(tmp_path):
+    """Blender clamps indirect samples at 10 by default; a bright room (rho L_e = 30 per bounce) must still
+    follow E = pi Le (1 - rho^(K+1)) / (1 - rho), and the user's clamp settings come back."""
+    scene = sc.new_scene("T")
+    scene.cycles.sample_clamp_direct, scene.cycles.sample_clamp_indirect = 0.0, 10.0
+    le, rho = 50.0, 0.6
+    box = sc.box(scene, "Room", 2.0, location=(0, 0, 0))
+    box.data.materials.append(_wall_material("Wall", rho, le))
+    r = receiver(scene, 0.2)
+    bake(scene, [r], ["irradiance"], tmp_path, resolution=16, samples=16, bounces=3)
+    e = read(tmp_path, "R", "irradiance")[0]["R"]
+    expected = lm.irradiance_enclosure(le, rho, 3)
+    se = e.std() / math.sqrt(e.size)
+    assert abs(e.mean() - expected) < 4 * se + 0.01 * expected, (e.mean(), expected)
+    assert (scene.cycles.sample_clamp_direct, scene.cycles.sample_clamp_indirect) == (0.0, 10.0)
+
+
 @pytest.mark.both_versions
 def test_baked_enclosure_walls_keep_their_own_albedo_and_emission(tmp_path):
     """The box IS the baked object: its walls must light each other with their own rho and L_e

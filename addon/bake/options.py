@@ -1,9 +1,8 @@
 """Bake options: one dataclass shared by the operator, scripts/bake.py and other tools."""
 import dataclasses
-import os
-import tempfile
 
 from ..core.errors import InputError
+from ..core.fileio import check_output_dir as check_out_dir  # noqa: F401  (one home: core.fileio)
 from ..core.lightmap import MAX_RESOLUTION
 
 MAPS = ("ao", "irradiance")
@@ -89,6 +88,20 @@ class BakeOptions:
         return self
 
 
+def article(word):
+    """``word`` with its indefinite article, as it is read: 'an empty', 'a curve', 'an 8x8', 'an 11x11', 'a 16x16'.
+    Numbers by their leading group of three digits (eight, eleven, eighteen, eighty… and eight hundred… are
+    read with a vowel first)."""
+    text = str(word)
+    head = text.split("x")[0]
+    if head.isdigit():
+        lead = head[:len(head) % 3 or 3]
+        vowel = lead.startswith("8") or lead in ("11", "18")
+    else:
+        vowel = text[:1].lower() in "aeiou"
+    return ("an " if vowel else "a ") + text
+
+
 def validate_maps(maps):
     maps = [m.lower() for m in maps]
     if not maps:
@@ -97,26 +110,3 @@ def validate_maps(maps):
         if m not in MAPS:
             raise InputError(f"unknown map {m!r}: choose from {', '.join(MAPS)}")
     return list(dict.fromkeys(maps))
-
-
-def check_out_dir(out):
-    """The output folder exists or can be created, and is writable: a probe file is created and removed in
-    the folder or its nearest existing parent (permission bits alone say nothing for root or read-only mounts)."""
-    out = os.path.abspath(os.fspath(out))
-    if os.path.exists(out) and not os.path.isdir(out):
-        raise InputError(f"output folder is a file: {out}")
-    probe = out
-    while not os.path.exists(probe):
-        parent = os.path.dirname(probe)
-        if parent == probe:
-            break
-        probe = parent
-    if not os.path.isdir(probe):
-        raise InputError(f"output folder cannot be written: {out} ({probe} is not a folder)")
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=".il_probe_", dir=probe)
-    except OSError as e:
-        raise InputError(f"output folder cannot be written: {out} ({probe}: {e.strerror})") from None
-    os.close(fd)
-    os.remove(tmp)
-    return out

@@ -1,5 +1,6 @@
 """The light-map pipeline: validate, UVs, temporary materials (white at the baked point), Cycles bakes, files,
 restore."""
+import contextlib
 import json
 import math
 import os
@@ -8,14 +9,14 @@ import time
 import bpy
 import numpy as np
 
-from .. import compat
-from ..core import exr, imageio, lightmap
+from .. import compat, interrupt
+from ..core import errors, exr, imageio, lightmap
 from ..core.errors import ILError, InputError
 from ..core.fileio import write_json
 from ..progress import Progress
 from ..lab import scene as sc
-from . import uv as uvmod
-from .options import BakeOptions, check_out_dir, validate_maps
+from . import cost, orientation, uv as uvmod
+from .options import BakeOptions, article, check_out_dir, validate_maps
 from .state import SavedState
 
 REPORT = "bake_report.json"
@@ -34,6 +35,8 @@ ESTIMATES = {
 ALPHA = 0.7        # err ∝ N^-α of Cycles' AO and irradiance bakes (measured; stratified sampling of a 2-D
                    # integrand with visibility edges converges as N^-3/4, Mitchell 1996)
 MAX_PAIRS = 4      # pairs of bakes target_error may spend (pilot included)
+MIN_COVERAGE_TEXT = (f"covered texels >= {uvmod.MIN_COVERAGE:g} x side^2 x chart_area (the charts' UV area inside "
+                     "the unit square)")
 DENOISED = "; noise of the map before denoising: the denoised map's error is lower (measured) but not estimated"
 
 
@@ -57,34 +60,107 @@ class BakeResult:
 
 # ------------------------------------------------------------------ validation
 
+def applicable(scene, objects, options):
+    """Split the asked objects into (the ones a bake applies to, {skipped name: reason}).
+
+    Skipped, as Blender's own operators skip what they do not apply to: non-meshes (cameras, lights,
+    curves, text, metaballs), meshes without faces, meshes linked from a library (their UV layers and
+    materials cannot be edited), objects of another scene, and objects Cycles cannot see (in a collection
+    excluded from the view layer or disabled for renders)."""
+    vl = scene.view_layers[0]
+    vl.update()
+    keep, skipped = [], {}
+    seen = set()
+    for o in objects:
+        if o is None:
+            raise InputError("no such object")
+        if o.name in seen:
+            continue
+        seen.add(o.name)
+        if o.type != "MESH":
+            skipped[o.name] = f"not a mesh ({article(o.type.lower())})"
+        elif len(o.data.polygons) == 0:
+            skipped[o.name] = "a mesh with no faces"
+        elif o.library is not None or o.data.library is not None:
+            skipped[o.name] = "linked from a library (not editable: make it local)"
+        elif scene.objects.get(o.name) != o:
+            skipped[o.name] = f"not in scene '{scene.name}'"
+        elif not _renderable(vl.layer_collection, o):
+            skipped[o.name] = "in a collection excluded from the view layer or disabled for renders"
+        else:
+            keep.append(o)
+    return keep, skipped
+
+
+def _renderable(layer_collection, obj):
+    """``obj`` is in a collection reachable from ``layer_collection`` through collections neither excluded
+    nor disabled for renders."""
+    if layer_collection.exclude or layer_collection.collection.hide_render:
+        return False
+    if obj.name in layer_collection.collection.objects:
+        return True
+    return any(_renderable(child, obj) for child in layer_collection.children)
+
+
+def _say_skipped(skipped):
+    if skipped:
+        errors.warn("skipped " + "; ".join(f"{name}: {why}" for name, why in skipped.items()))
+
+
 def validate(scene, objects, maps, out, options):
-    """Every input check, before anything in the file is touched. Returns (objects, maps, out)."""
+    """Every input check, before anything in the file is touched. Returns (objects, maps, out, skipped, flips):
+    ``flips`` {object name: mesh} are meshes inside out (:mod:`.orientation`) whose normals the bake flips."""
     options.validate()
     maps = validate_maps(maps)
     objects = list(objects)
     if not objects:
         raise InputError("nothing selected: select or name at least one mesh object")
+    objects, skipped = applicable(scene, objects, options)
+    if not objects:
+        raise InputError("nothing to bake: " + "; ".join(f"'{n}' is {why}" for n, why in skipped.items()))
     for o in objects:
-        if o is None:
-            raise InputError("no such object")
-        if o.type != "MESH":
-            raise InputError(f"'{o.name}' is not a mesh (it is a {o.type.lower()})")
-        if len(o.data.polygons) == 0:
-            raise InputError(f"mesh '{o.name}' has no faces to bake")
-        if scene.objects.get(o.name) != o:
-            raise InputError(f"'{o.name}' is not in scene '{scene.name}'")
         if o.mode != "OBJECT":
             raise InputError(f"'{o.name}' is in {o.mode.lower()} mode: switch to object mode first")
         if options.uv_layer and options.target == "image":
             uvmod.check_layer(o, options.uv_layer)
-    if options.atlas and len({o.data.name for o in objects}) != len(objects):
-        raise InputError("objects sharing one mesh cannot share an atlas: bake them separately")
+        uvmod.check_valid(o)
+        if uvmod.world_area(o) <= 0:
+            raise InputError(f"mesh '{o.name}' has no surface area: all its faces are degenerate")
+    flips, inward = orientation.check(scene, objects)
+    if inward:
+        skipped.update(inward)
+        objects = [o for o in objects if o.name not in inward]
+        if not objects:
+            raise InputError("nothing to bake: " + "; ".join(f"'{n}': {why}" for n, why in inward.items()))
+    if options.atlas and options.target == "image":
+        meshes, shared = {}, {}
+        for o in objects:
+            if o.data.name in meshes:
+                shared[o.name] = f"shares its mesh with {meshes[o.data.name]} (one atlas place per mesh: bake it separately)"
+            else:
+                meshes[o.data.name] = o.name
+        objects = [o for o in objects if o.name not in shared]
+        skipped.update(shared)
+    if options.target == "image":
+        for w, h in _fixed_sizes(objects, options):
+            refusal = cost.check(w, h, maps, options.denoise)
+            if refusal:
+                raise InputError(refusal)
     out = check_out_dir(out)
     if not options.overwrite:
         for path in output_files(objects, maps, out, options):
             if os.path.exists(path):
                 raise InputError(f"{path} exists: turn on Overwrite (--overwrite) to replace it")
-    return objects, maps, out
+    return objects, maps, out, skipped, flips
+
+
+def _fixed_sizes(objects, options):
+    """The map sizes known before the UV step (fixed resolution, per-object sizes)."""
+    if options.sizes:
+        return [tuple(options.sizes[o.name]) for o in objects if o.name in options.sizes]
+    if options.texel_density is None:
+        return [(int(options.resolution), int(options.resolution))]
+    return []
 
 
 def output_files(objects, maps, out, options):
@@ -121,40 +197,134 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     """
     options = options or BakeOptions()
     scene = scene or bpy.context.scene
-    objects, maps, out = validate(scene, objects, maps, out, options)
+    objects, maps, out, skipped, flips = validate(scene, objects, maps, out, options)
+    _say_skipped(skipped)
+    if options.denoise and options.target != "image":
+        errors.warn("denoise ignored: the denoiser works on image maps, not on vertex colours")
     t_all = time.perf_counter()
     groups = [(ATLAS, objects)] if (options.atlas and options.target == "image") else [(o.name, [o]) for o in objects]
     steps = (1 if options.target == "image" else 0) + len(groups) * len(maps)
-    report = {"objects": {}}
-    os.makedirs(out, exist_ok=True)
+    report = {"objects": {}, "skipped": dict(skipped)}
+    report_path = os.path.join(out, REPORT)
     with Progress("bake", steps) as progress, SavedState(scene, objects) as state:
         def step(message):
             progress.step(message)
             if on_step:
                 on_step(message)
 
+        _show(objects, state)
+        _flip_inside_out(scene, objects, flips, state)
         _setup_render(scene, options, state)
-        layers, sides = {}, {}
+        layers, sides, margins = {}, {}, {}
         materials = TemporaryMaterials(state)
         if options.target == "image":
             step("light-map UVs")
-            layers, sides = uvmod.prepare(scene, objects, state, options, together=options.atlas)
-        for name, group in groups:
+            layers, sides, margins = uvmod.prepare(scene, objects, state, options, together=options.atlas)
+        plan = []
+        for name, group in groups:             # every size and coverage check before the first bake
             size = _map_size(group, layers, sides, options)
+            areas, overlap = None, None
+            if size is not None:
+                refusal = cost.check(size[0], size[1], maps, options.denoise)
+                if refusal:
+                    raise InputError(f"'{name}': {refusal}")
+                areas = uvmod.check_coverage(group, layers, size)
+                overlap = uvmod.check_overlap(scene, group, layers, size)
+            plan.append((name, group, size, areas, overlap))
+        for name, group, size, areas, overlap in plan:
             for m in maps:
-                step(f"{name}: {m}" + (f" {size[0]}x{size[1]}" if size else " (vertices)"))
+                estimate = ""
+                if size:
+                    estimate = (f" {size[0]}x{size[1]} (about {cost.human(cost.peak_bytes(size[0], size[1], [m], options.denoise))}, "
+                                f"{cost.seconds(size[0], size[1], [m], _planned_samples(options)):.2g} s)")
+                step(f"{name}: {m}" + (estimate or " (vertices)"))
                 t_map = time.perf_counter()
                 result = bake_map(scene, group, m, options, layers, size, materials.assign(group, m), state)
-                entries = _write(name, group, m, result, out, options, layers)
+                if size is not None:
+                    _check_covered(name, group, m, result, layers, areas)
+                if m == "ao":
+                    _check_plausible(scene, name, group, result, options)
+                margin = margins.get(group[0].name, int(options.margin))
+                entries = _write(name, group, m, result, out, options, layers, margin, overlap)
+                part = {"objects": {}}
                 for o in group:
                     entries[o.name]["seconds"] = round(time.perf_counter() - t_map, 4)    # files included
                     report["objects"].setdefault(o.name, {})[m] = entries[o.name]
+                    part["objects"].setdefault(o.name, {})[m] = entries[o.name]
+                part["seconds"] = time.perf_counter() - t_all
+                _merge_report(report_path, part)      # finished maps are in the report, also if a later one fails
         if options.keep_products:       # products stay only when the whole bake succeeded
             state.keep |= {(o.data.name, uvmod.LIGHTMAP) for o in objects}
             state.keep |= {(o.data.name, ATTRIBUTE[m]) for o in objects for m in maps}
     report["seconds"] = time.perf_counter() - t_all
-    _merge_report(os.path.join(out, REPORT), report)
+    report["report"] = report_path
     return report
+
+
+def summary(report):
+    """One line: what was baked and what was skipped, with the reason."""
+    baked = ", ".join(f"{o} ({', '.join(maps)})" for o, maps in report["objects"].items()) or "nothing"
+    line = f"baked {baked}"
+    if report.get("skipped"):
+        line += "; skipped " + "; ".join(f"{n} ({why})" for n, why in report["skipped"].items())
+    return line
+
+
+def _planned_samples(options):
+    return int(options.samples) if options.target_error is None else int(options.max_samples)
+
+
+def _show(objects, state):
+    """Hidden objects are baked: shown in the viewport for the bake (Cycles ignores viewport hiding); objects
+    hidden for render are shown to Cycles only while their own map bakes (:func:`_bake_once`), so they
+    occlude and light themselves but no other object, as in a render without them."""
+    vl = state.scene.view_layers[0]
+    state.render_hidden = [o for o in objects if o.hide_render]
+    for o in objects:
+        state.unhide(o)
+    if state.render_hidden:
+        errors.warn("baked although hidden for render: " + ", ".join(o.name for o in state.render_hidden)
+                    + " (each is shown to Cycles only for its own map: it occludes itself, and other objects' "
+                    "maps are baked without it, as a render sees them)")
+    return vl
+
+
+def _flip_inside_out(scene, objects, flips, state):
+    """Flip the normals of the inside-out meshes found by :func:`validate` for the bake (with a warning), and
+    check that the evaluated meshes now face out (a modifier may depend on the side the normals face)."""
+    if not flips:
+        return
+    for mesh in dict.fromkeys(flips.values()):
+        state.flip_normals(mesh)
+    scene.view_layers[0].update()
+    for o in objects:
+        if o.name in flips and orientation.empty_inward_shells(scene, o)[0] > 0:
+            raise InputError(f"'{o.name}': its normals point into a closed, empty surface and flipping them does "
+                             f"not turn its evaluated mesh outward (a modifier depends on them): {orientation.FIX}")
+    errors.warn(orientation.describe(list(flips)))
+
+
+def _check_plausible(scene, name, group, result, options):
+    """An AO map that is 0 on every covered texel (vertex) of objects whose faces look into the objects themselves
+    (most face normals hit their own object: a surface wound inside out that :mod:`.orientation` could not turn,
+    e.g. faces split apart) with nothing inside (no light, no other object: not a room) measures the empty inside
+    of the object: refuse it instead of writing it."""
+    values = _flat(result.values) if isinstance(result.values, dict) else result.values[result.mask]
+    if values.size and float(np.max(values)) <= 0.0 and all(
+            orientation.faces_into_itself(scene, o) > 0.5 and not orientation.holds_something(scene, o) for o in group):
+        raise ILError(f"'{name}' ao: 0 on every {'texel' if result.mask is not None else 'vertex'}: its faces look "
+                      f"into the object itself, so the bake measured its inside (normals pointing inward; "
+                      f"{orientation.FIX}): nothing written")
+
+
+def _check_covered(name, group, kind, result, layers, areas):
+    """The baked mask must cover MIN_COVERAGE of the charts' area (never report an empty map as a success)."""
+    h, w = result.mask.shape
+    expected = sum(areas.values()) * w * h
+    covered = int(result.mask.sum())
+    if covered < uvmod.MIN_COVERAGE * expected:
+        raise ILError(f"'{name}' {kind}: Cycles covered {covered} texels of the {expected:.0f} its charts span "
+                      f"(minimum {100 * uvmod.MIN_COVERAGE:.0f} %): nothing written")
 
 
 # ------------------------------------------------------------------ bakes
@@ -172,18 +342,31 @@ def _map_size(group, layers, sides, options):
 
 
 def _setup_render(scene, options, state):
-    """Cycles on the CPU, no denoising or adaptive sampling, fixed seed, AO distance; a black world if none."""
+    """Cycles on the CPU, no denoising, adaptive sampling or sample clamping (Blender clamps indirect light at
+    10 by default: a biased E where light is trapped, e.g. under a lamp near a ceiling), fixed seed, AO
+    distance; a black world if none."""
     scene.render.engine = compat.CYCLES
     cy = scene.cycles
     cy.device = "CPU"
     cy.use_denoising = False
     cy.use_adaptive_sampling = False
+    cy.sample_clamp_direct = cy.sample_clamp_indirect = 0.0
     if hasattr(cy, "use_animated_seed"):
         cy.use_animated_seed = False
     if scene.world is None:
-        scene.world = state.track(bpy.data.worlds, bpy.data.worlds.new("IL temporary world"))
-        scene.world.color = (0.0, 0.0, 0.0)
+        scene.world = state.track(bpy.data.worlds, _black_world())
     scene.world.light_settings.distance = float(options.ao_distance)
+
+
+def _black_world():
+    """A world that emits nothing, as Cycles renders a scene without a world. ``bpy.data.worlds.new`` gives
+    5.0 worlds a node tree whose Background is grey (0.05, strength 1), which ``world.color`` does not
+    change: the tree is emptied (no World Output: black). 4.5 worlds have no tree and use ``color``."""
+    w = bpy.data.worlds.new("IL temporary world")
+    w.color = (0.0, 0.0, 0.0)
+    if w.node_tree is not None:
+        w.node_tree.nodes.clear()
+    return w
 
 
 class TemporaryMaterials:
@@ -289,6 +472,9 @@ def bake_map(scene, group, kind, options, layers, size, image_nodes, state):
     Denoising (image target) runs last; the estimate then stays that of the map before denoising.
     """
     t0 = time.perf_counter()
+    for o in state.render_hidden:               # hidden for render: seen by Cycles only for its own map
+        if o.hide_render != (o not in group):
+            o.hide_render = o not in group
     image_target = options.target == "image"
     image = None
     if image_target:
@@ -331,6 +517,8 @@ def bake_map(scene, group, kind, options, layers, size, image_nodes, state):
         else:
             err, estimate = float("nan"), "none"
     estimate = ESTIMATES[estimate]
+    if image is not None:
+        bpy.data.images.remove(image)           # one map's image at a time (memory, cost.BYTES_PER_TEXEL)
     if image_target and options.denoise:
         filled, _ = lightmap.nearest_fill(values, mask)
         from .denoise import denoise
@@ -412,7 +600,7 @@ def _bake_once(scene, group, kind, samples, seed, image, uv_name, options):
     cy.samples, cy.seed = int(samples), int(seed)
     _set_bounces(cy, kind, options)
     vl = scene.view_layers[0]
-    for o in vl.objects:
+    for o in filter(None, vl.objects):
         want = o in group
         if o.select_get(view_layer=vl) != want:
             o.select_set(want, view_layer=vl)
@@ -432,7 +620,7 @@ def _bake_once(scene, group, kind, samples, seed, image, uv_name, options):
                selected_objects=list(group), selected_editable_objects=list(group))
     t = time.perf_counter()
     try:
-        with bpy.context.temp_override(**ctx):
+        with interrupt.blender_call(), bpy.context.temp_override(**ctx):
             result = bpy.ops.object.bake(**kwargs)
     except RuntimeError as e:
         raise ILError(f"Cycles bake failed: {str(e).strip().splitlines()[-1]}") from e
@@ -495,23 +683,49 @@ def _entry(path, res, result, extra=None):
     return e
 
 
-def _write(name, group, kind, result, out, options, layers):
-    """Write the files of one baked map; return ``{object: report entry}``."""
+def _finite(name, kind, values):
+    """A map with NaN or Inf is an error, not a file."""
+    flat = _flat(values) if isinstance(values, dict) else values
+    if not np.all(np.isfinite(flat)):
+        raise ILError(f"'{name}' {kind}: the baked values are not finite (NaN or Inf, e.g. from an emission or a "
+                      f"light of infinite strength): nothing written")
+
+
+def _write(name, group, kind, result, out, options, layers, margin=None, overlap=None):
+    """Write the files of one baked map (dilated by ``margin`` texels); return ``{object: report entry}``.
+    ``overlap`` = ({object: fraction}, group fraction) of covered texels shared by several faces."""
+    margin = int(options.margin) if margin is None else int(margin)
     if options.target == "image":
-        values, grown = lightmap.dilate(result.values, result.mask, options.margin)
+        _finite(name, kind, result.values[result.mask])
+        values, grown = lightmap.dilate(result.values, result.mask, margin)
         values = np.where(grown[..., None] if values.ndim == 3 else grown, values, 0.0)
         alpha = result.mask.astype(np.float32)
         uv_name = layers.get(group[0].name)
+        h, w = result.mask.shape
+        areas = {o.name: uvmod.chart_area(uvmod.triangles_uv(o, layers[o.name])) for o in group}
+        covered = {o.name: float((lightmap.coverage_mask(uvmod.triangles_uv(o, layers[o.name]), w, h) & result.mask).mean())
+                   for o in group} if len(group) > 1 else {group[0].name: float(result.mask.mean())}
+        attrs = _attributes(kind, result, options, uv_name)
+        attrs["il:coverage"] = float(result.mask.mean())
+        attrs["il:chart_area"] = float(sum(areas.values()))
+        attrs["il:min_coverage"] = MIN_COVERAGE_TEXT
+        if overlap is not None:
+            attrs["il:overlap"] = float(overlap[1])
         path = os.path.join(out, f"{name}_{kind}.exr")
-        exr.write_exr(path, _channels(kind, np.flipud(values), np.flipud(alpha)),
-                      _attributes(kind, result, options, uv_name))
+        exr.write_exr(path, _channels(kind, np.flipud(values), np.flipud(alpha)), attrs)
         png = os.path.join(out, f"{name}_{kind}.png")
         imageio.write_png(png, np.flipud(_preview(kind, values, grown)))
         res = (values.shape[1], values.shape[0])
-        extra = {"preview": png, "uv_layer": uv_name, "coverage": float(result.mask.mean()),
-                 "denoised": bool(options.denoise)}
-        return {o.name: _entry(path, res, result, extra) for o in group}
+        entries = {}
+        for o in group:
+            extra = {"preview": png, "uv_layer": uv_name, "coverage": covered[o.name],
+                     "chart_area": areas[o.name], "margin": margin, "denoised": bool(options.denoise)}
+            if overlap is not None:
+                extra["overlap"] = float(overlap[0][o.name])
+            entries[o.name] = _entry(path, res, result, extra)
+        return entries
     entries = {}
+    _finite(name, kind, result.values)
     for o in group:
         v = np.asarray(result.values[o.name], np.float32)
         row = v[None, :] if v.ndim == 1 else v[None, :, :]
@@ -529,19 +743,66 @@ def _write(name, group, kind, result, out, options, layers):
 
 
 def _merge_report(path, report):
-    """Merge this run's entries into ``path`` (bakes of other objects into the same folder keep theirs);
-    the top-level "seconds" is this run's."""
-    old = {}
-    if os.path.exists(path):
-        try:
-            with open(path, encoding="utf-8") as f:
-                old = json.load(f)
-        except (OSError, ValueError):
-            old = {}
-    objects = old.get("objects", {}) if isinstance(old.get("objects"), dict) else {}
-    for name, maps in report["objects"].items():
-        objects.setdefault(name, {}).update(maps)
-    merged = {"objects": objects, "seconds": round(report["seconds"], 4),
-              "blender_version": bpy.app.version_string}
-    write_json(path, merged)
+    """Merge this run's entries into ``path`` under a lock on the folder (concurrent bakes of other objects
+    into the same folder keep theirs); the top-level "seconds" is this run's. A report that cannot be read
+    is kept aside under a new name, with a warning, never replaced silently."""
+    with report_lock(os.path.dirname(path)):
+        old = {}
+        if os.path.exists(path):
+            try:
+                with open(path, encoding="utf-8") as f:
+                    old = json.load(f)
+                if not isinstance(old, dict):
+                    raise ValueError("not a JSON object")
+            except (OSError, ValueError) as e:
+                aside = _aside(path)
+                os.replace(path, aside)
+                errors.warn(f"{path} could not be read ({e}): kept as {aside}, a new report started")
+                old = {}
+        objects = old.get("objects", {}) if isinstance(old.get("objects"), dict) else {}
+        for name, maps in report["objects"].items():
+            objects.setdefault(name, {}).update(maps)
+        merged = {"objects": objects, "seconds": round(report["seconds"], 4),
+                  "blender_version": bpy.app.version_string}
+        write_json(path, merged)
     report["report"] = path
+
+
+def _aside(path):
+    stem, ext = os.path.splitext(path)
+    n = 1
+    while os.path.exists(f"{stem}.unreadable-{n}{ext}"):
+        n += 1
+    return f"{stem}.unreadable-{n}{ext}"
+
+
+@contextlib.contextmanager
+def report_lock(folder):
+    """Exclusive lock of ``folder`` for one report merge: ``flock`` on the folder itself (POSIX, no lock
+    file left behind); on Windows ``msvcrt.locking`` on a ``.bake_report.lock`` file in the folder."""
+    os.makedirs(folder, exist_ok=True)
+    try:
+        import fcntl
+    except ImportError:
+        fcntl = None
+    if fcntl is not None:
+        fd = os.open(folder, os.O_RDONLY)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+            yield
+        finally:
+            os.close(fd)              # closing releases the lock
+        return
+    import msvcrt
+    with open(os.path.join(folder, ".bake_report.lock"), "a+b") as f:
+        while True:
+            try:
+                msvcrt.locking(f.fileno(), msvcrt.LK_LOCK, 1)
+                break
+            except OSError:           # LK_LOCK gives up after 10 s: keep waiting
+                continue
+        try:
+            yield
+        finally:
+            f.seek(0)
+            msvcrt.locking(f.fileno(), msvcrt.LK_UNLCK, 1)

@@ -9,7 +9,7 @@ Usage::
 On exit (normal, exception or KeyboardInterrupt) the render engine, Cycles sampling settings and bake
 settings, the world and its AO distance, selection, active object, material slots, active UV layer /
 render UV layer, active colour attributes and the mode are restored; every temporary data-block
-registered with ``track`` is removed, and so are UV layers / colour attributes registered with
+registered with ``track`` is removed, meshes flipped with ``flip_normals`` are flipped back, and so are UV layers / colour attributes registered with
 ``created_uv`` / ``created_attribute``, and layers saved with ``save_uv`` get their UVs back, unless
 their (mesh name, name) is in ``keep`` (the products of a successful bake).
 """
@@ -18,7 +18,8 @@ import numpy as np
 
 _CYCLES = ("device", "samples", "seed", "use_denoising", "use_adaptive_sampling", "max_bounces",
            "diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces",
-           "transparent_max_bounces", "use_animated_seed", "sample_offset")
+           "transparent_max_bounces", "use_animated_seed", "sample_offset", "sample_clamp_direct",
+           "sample_clamp_indirect")
 
 
 def _rna_values(struct):
@@ -45,6 +46,14 @@ def _set_rna_values(struct, values):
             pass
 
 
+def _hidden(obj, view_layer):
+    """Hidden in the viewport (the eye); False for an object outside ``view_layer``."""
+    try:
+        return obj.hide_get(view_layer=view_layer)
+    except RuntimeError:
+        return False
+
+
 class SavedState:
     """Context manager: the state of ``scene`` and of ``objects`` (and their meshes) as the user left it."""
 
@@ -56,6 +65,8 @@ class SavedState:
         self.attr_created = []    # (mesh, attribute name) removed on exit unless kept
         self.uv_saved = {}        # (mesh name, layer name) -> (mesh, UVs) of a rewritten layer, put back unless kept
         self.keep = set()         # (mesh name, layer/attribute name) to keep
+        self.render_hidden = []   # objects hidden for render, shown to Cycles for their own map only
+        self.flipped = []         # meshes whose normals are flipped for the bake, flipped back last on exit
 
     # ---- save
     def __enter__(self):
@@ -67,6 +78,7 @@ class SavedState:
         self.world = sc.world
         self.ao_distance = sc.world.light_settings.distance if sc.world else None
         self.selection = {o.name: o.select_get(view_layer=vl) for o in vl.objects}
+        self.visibility = {o.name: (o, _hidden(o, vl), o.hide_viewport, o.hide_render) for o in self.objects}
         self.active = vl.objects.active
         self.slots = {}
         self.meshes = {}
@@ -82,6 +94,22 @@ class SavedState:
                 "attr_active": me.attributes.active.name if me.attributes.active else None,
             }
         return self
+
+    def unhide(self, obj, render=False):
+        """Show ``obj`` in the viewport (and to Cycles rays with ``render``) until exit."""
+        vl = self.scene.view_layers[0]
+        if _hidden(obj, vl):
+            obj.hide_set(False, view_layer=vl)
+        if obj.hide_viewport:
+            obj.hide_viewport = False
+        if render and obj.hide_render:
+            obj.hide_render = False
+
+    def flip_normals(self, mesh):
+        """Flip ``mesh``'s normals (winding; each corner keeps its UVs and attributes) until exit."""
+        if mesh not in self.flipped:
+            mesh.flip_normals()
+            self.flipped.append(mesh)
 
     # ---- register temporaries
     def track(self, collection, idblock):
@@ -168,10 +196,23 @@ class SavedState:
             sc.world = self.world
         if self.world is not None and self.world.light_settings.distance != self.ao_distance:
             self.world.light_settings.distance = self.ao_distance
-        for o in vl.objects:
+        for obj, hidden, viewport, render in self.visibility.values():
+            try:
+                if obj.hide_render != render:
+                    obj.hide_render = render
+                if obj.hide_viewport != viewport:
+                    obj.hide_viewport = viewport
+                if _hidden(obj, vl) != hidden:
+                    obj.hide_set(hidden, view_layer=vl)
+            except ReferenceError:
+                pass
+        for o in filter(None, vl.objects):
             want = self.selection.get(o.name, False)
             if o.select_get(view_layer=vl) != want:
                 o.select_set(want, view_layer=vl)
         if vl.objects.active != self.active:
             vl.objects.active = self.active
+        for me in reversed(self.flipped):     # last: UVs put back above were saved in the flipped order
+            me.flip_normals()
+        self.flipped = []
         return False

@@ -1,25 +1,52 @@
 """Light-map UVs: an existing layer used as it is, or a generated non-overlapping "Lightmap" layer.
 
-The generated layer comes from Blender's Smart UV Project run on that layer only (the user's
-other layers, the active layer and the layer that renders are left as they were; the caller's
-SavedState restores the active index). Its islands are packed with a margin given as a fraction
-of the map ("FRACTION"): ``margin`` texels of empty space around every chart at the side the map
-gets, so charts lie 2 × margin texels apart and the dilation by ``margin`` texels never reaches
-into a neighbour's gutter.
+The generated layer comes from Blender's Smart UV Project run on temporary copies of the meshes
+(built with bmesh, every face revealed and selected, one UV layer): the user's meshes never enter
+edit mode and their select / hide flags are never written, only the finished UVs are copied into
+their "Lightmap" layer (the other layers, the active layer and the layer that renders stay as they
+were). Writing those flags through RNA is unsafe: in bpy 5.0.1 a mesh made by ``Mesh.from_pydata``
+(``Mesh.update(calc_edges=True)``; the torus primitive is one) carries a ``.select_edge`` attribute
+typed INT32_2D instead of BOOLEAN, and ``edges.foreach_set("select", ...)`` (or ``edge.select = ...``)
+on it kills Blender with signal 11.
+
+Islands are packed with a margin given as a fraction of the map ("FRACTION"): ``margin`` texels of
+empty space around every chart at the side the map gets, so charts lie 2 × margin texels apart and
+the dilation by ``margin`` texels never reaches into a neighbour's chart. When the asked margin does
+not fit (Blender's packer then leaves charts outside the unit square, or shrinks them below a texel)
+the margin is halved down to half a texel; a layout is accepted only when its charts cover the map
+(:data:`MIN_COVERAGE`).
 """
+import math
+
+import bmesh
 import bpy
 import numpy as np
 
-from ..core import lightmap
+from ..core import errors, lightmap
 from ..core.errors import InputError
+from .options import article
 
 LIGHTMAP = "Lightmap"
 MAX_UV_LAYERS = 8
+MIN_COVERAGE = 0.5
+"""A map is accepted when its covered texels (texel centres inside a chart) are at least this fraction of
+side² × the charts' UV area inside the unit square (Σ |UV triangle area|, clipped): below it, charts are
+thinner than a texel and most faces get no texel of their own."""
+MIN_CHART_AREA = 0.2
+"""A margin is lowered (down to half a texel) until the charts fill at least this fraction of the map: a
+margin wider than that wastes most texels of a small map."""
+_OUTSIDE = 1e-4       # UVs this far outside [0, 1]: the packer failed
 
+
+# ------------------------------------------------------------------ reading layers
 
 def triangles_uv(obj, layer):
     """(T, 3, 2) UV coordinates of the mesh's loop triangles in ``layer``."""
-    me = obj.data
+    return mesh_triangles_uv(obj.data, layer)
+
+
+def mesh_triangles_uv(me, layer):
+    """(T, 3, 2) UV coordinates of mesh ``me``'s loop triangles in ``layer``."""
     me.calc_loop_triangles()
     loops = np.zeros(len(me.loop_triangles) * 3, np.int64)
     me.loop_triangles.foreach_get("loops", loops)
@@ -29,7 +56,7 @@ def triangles_uv(obj, layer):
 
 
 def world_area(obj):
-    """Surface area in m² of the evaluated mesh in world space (object scale included)."""
+    """Surface area in m² of the mesh in world space (object scale included)."""
     me = obj.data
     me.calc_loop_triangles()
     n = len(me.vertices)
@@ -44,124 +71,372 @@ def world_area(obj):
     return float(0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum())
 
 
+def check_valid(obj):
+    """Refuse a mesh Blender itself reports invalid (``Mesh.validate`` on a throw-away copy would change it: a
+    face repeating a vertex, an edge out of range, ...): Blender's edit mode hangs or crashes on such data."""
+    tmp = obj.data.copy()
+    try:
+        broken = tmp.validate(verbose=False)
+    finally:
+        bpy.data.meshes.remove(tmp)
+    if broken:
+        raise InputError(f"mesh '{obj.data.name}' of '{obj.name}' is invalid (e.g. a face that repeats a vertex): "
+                         f"repair it first (Mesh > Clean Up, or mesh.validate() in Python)")
+
+
 def check_layer(obj, name):
     if name not in obj.data.uv_layers:
         have = ", ".join(l.name for l in obj.data.uv_layers) or "none"
         raise InputError(f"object '{obj.name}' has no UV layer '{name}' (it has: {have})")
 
 
+# ------------------------------------------------------------------ coverage (numpy only)
+
+def chart_area(tri_uv):
+    """The charts' UV area inside the unit square (Σ |triangle area| of the clipped UVs)."""
+    return lightmap.uv_area(np.clip(tri_uv, 0.0, 1.0))
+
+
+def coverage_ratio(tri_uv, width, height):
+    """(covered texels / (W H × chart area), chart area); (0, 0) for charts without area."""
+    area = chart_area(tri_uv)
+    if area <= 0:
+        return 0.0, 0.0
+    return float(lightmap.coverage_mask(tri_uv, width, height).sum()) / (area * width * height), area
+
+
+def _outside(tri_uv):
+    return bool(len(tri_uv)) and (tri_uv.min() < -_OUTSIDE or tri_uv.max() > 1 + _OUTSIDE)
+
+
+def check_coverage(objects, layers, size):
+    """Raise InputError unless every object's charts in its layer cover its faces in a ``size`` = (W, H) map.
+
+    Returns ``{object name: chart area}``."""
+    w, h = size
+    areas = {}
+    for o in objects:
+        layer = layers[o.name]
+        tri = triangles_uv(o, layer)
+        ratio, area = coverage_ratio(tri, w, h)
+        if area <= 0:
+            raise InputError(f"UV layer '{layer}' of '{o.name}' has no area inside the unit square (its faces "
+                             f"collapse to points or lines, or lie outside 0..1): unwrap it, or let the bake "
+                             f"generate a light-map layer")
+        if ratio < MIN_COVERAGE:
+            need = _side_that_fits(tri, w, h)
+            hint = f"use a resolution of at least {need}" if need else "use a layer with larger charts"
+            raise InputError(f"UV layer '{layer}' of '{o.name}' covers only {100 * ratio:.0f} % of its charts' "
+                             f"area in {article(f'{w}x{h}')} map (minimum {100 * MIN_COVERAGE:.0f} %): {hint}")
+        areas[o.name] = area
+    return areas
+
+
+MAX_OVERLAP = 0.01
+"""Covered texels shared by several faces of the rendered mesh above which a bake warns (the bake writes such a
+texel once for all of them: one value for faces that see different light)."""
+OVERLAP_SIDE = 1024
+"""Overlap is a fraction of the charts' area: measured on a map of at most this side (same aspect), which
+bounds its cost (about 0.7 s for 7200 triangles filling a 1024² map)."""
+_COPIES = {"ARRAY": "Array", "MIRROR": "Mirror"}
+
+
+def evaluated_triangles_uv(obj, layer, depsgraph):
+    """(T, 3, 2) UVs in ``layer`` of the loop triangles of ``obj``'s evaluated mesh (modifiers applied, what
+    Cycles bakes), or None when the evaluated mesh does not carry the layer."""
+    ev = obj.evaluated_get(depsgraph)
+    me = ev.to_mesh()
+    try:
+        return mesh_triangles_uv(me, layer) if layer in me.uv_layers else None
+    finally:
+        ev.to_mesh_clear()
+
+
+def check_overlap(scene, objects, layers, size):
+    """Fraction of each object's covered texels shared by several faces of its evaluated mesh
+    (``core.lightmap.overlap_fraction``): ``({object name: fraction}, fraction over the whole group)``.
+
+    Measured at the map's size, scaled down to OVERLAP_SIDE. Warns above MAX_OVERLAP, naming the Array / Mirror modifiers whose copies repeat the base mesh's UVs (the
+    light-map layer is made on the base mesh, so every copy gets the same texels), else the layer itself."""
+    scale = min(1.0, OVERLAP_SIDE / max(size))
+    w, h = max(1, round(size[0] * scale)), max(1, round(size[1] * scale))
+    depsgraph = scene.view_layers[0].depsgraph
+    fractions, every = {}, []
+    for o in objects:
+        layer = layers[o.name]
+        tri = evaluated_triangles_uv(o, layer, depsgraph)
+        if tri is None:
+            tri = triangles_uv(o, layer)
+        every.append(tri)
+        fractions[o.name] = frac = lightmap.overlap_fraction(tri, w, h)
+        if frac <= MAX_OVERLAP:
+            continue
+        copies = [m for m in o.modifiers if m.type in _COPIES and m.show_render]
+        if copies and lightmap.overlap_fraction(triangles_uv(o, layer), w, h) <= MAX_OVERLAP:
+            kinds = " and ".join(dict.fromkeys(_COPIES[m.type] for m in copies))
+            names = ", ".join(f"'{m.name}'" for m in copies)
+            errors.warn(f"'{o.name}': {kinds} copies share the light-map texels ({100 * frac:.0f} % of its texels "
+                        f"hold several faces, modifier {names}): apply the modifier to give each copy its own")
+        else:
+            errors.warn(f"'{o.name}': faces share texels of UV layer '{layer}' ({100 * frac:.0f} % of its texels "
+                        f"hold several faces, which get one value): use a layer without overlapping charts, or let "
+                        f"the bake generate one")
+    group = lightmap.overlap_fraction(np.concatenate(every), w, h) if len(objects) > 1 else fractions[objects[0].name]
+    return fractions, group
+
+
+def _side_that_fits(tri, w, h, cap=lightmap.MAX_RESOLUTION):
+    """Smallest side 2^k · max(w, h) ≤ cap at which the layout ``tri`` meets MIN_COVERAGE, or None."""
+    side = max(w, h)
+    while side < cap:
+        side = min(2 * side, cap)
+        if coverage_ratio(tri, side, side)[0] >= MIN_COVERAGE:
+            return side
+    return None
+
+
+# ------------------------------------------------------------------ generated layouts
+
 def prepare(scene, objects, state, options, together=False):
-    """Return ``({object name: layer name}, {object name: map side the generated layout was made for})``.
+    """Return ``({object: layer name}, {object: side its layout was made for}, {object: dilation texels})``.
 
     ``options.uv_layer`` is used as it is; otherwise an existing "Lightmap" layer (from an earlier
-    bake) is reused as it is, or one is generated. With ``together`` the objects are unwrapped in
-    one go, so their charts share one UV square (an atlas) without overlapping.
+    bake) is reused as it is when it still covers the map, or one is generated. With ``together`` the
+    objects are unwrapped in one go, so their charts share one UV square (an atlas) without overlapping.
     """
-    names, sides = {}, {}
+    names, sides, margins = {}, {}, {}
     todo = []
     for o in objects:
         if options.uv_layer:
             names[o.name] = options.uv_layer
-        elif LIGHTMAP in o.data.uv_layers and not together:
+        elif LIGHTMAP in o.data.uv_layers and not together and _reusable(o, options):
             names[o.name] = LIGHTMAP
         else:
             todo.append(o)
+    for o in objects:
+        margins[o.name] = int(options.margin)
     groups = [todo] if together else [[o] for o in todo]
     for group in groups:
         if group:
             for o in group:
                 names[o.name] = LIGHTMAP
-            side = _unwrap_with_margin(scene, group, state, options, names)
+            side, margin = _unwrap_with_margin(scene, group, state, options, names)
             sides.update((o.name, side) for o in group)
-    return names, sides
+            margins.update((o.name, margin) for o in group)
+    return names, sides, margins
+
+
+def _reusable(obj, options):
+    """An earlier bake's "Lightmap" layer is reused when it covers the map it will get."""
+    tri = triangles_uv(obj, LIGHTMAP)
+    if _outside(tri):
+        return False
+    side = fixed_side(obj, options) or resolution([obj], {obj.name: LIGHTMAP}, options)
+    return coverage_ratio(tri, side, side)[0] >= MIN_COVERAGE
+
+
+def fixed_side(obj, options):
+    size = options.sizes.get(obj.name) if options.sizes else None
+    if size:
+        return max(size)
+    return None if options.texel_density is not None else int(options.resolution)
 
 
 def margin_fraction(margin, side):
-    """Island margin as a fraction of the map: max(margin, 1/2) texels / side (charts at least a texel
-    apart), at most 5 % of the map (a margin wider than that only wastes a tiny map)."""
-    return min(max(float(margin), 0.5) / max(int(side), 1), 0.05)
+    """Island margin as a fraction of the map: max(margin, 1/2) texels / side (charts at least a texel apart)."""
+    return max(float(margin), 0.5) / max(int(side), 1)
+
+
+def _margins(margin):
+    """The margins tried, in texels: the asked one, halved down to half a texel."""
+    m, out = float(margin), []
+    while m >= 1:
+        out.append(m)
+        m = m / 2 if m > 1 else 0
+    return out + [0.5]
 
 
 def _unwrap_with_margin(scene, group, state, options, names):
-    """Generate "Lightmap" for ``group`` so that its margin holds at the side the map gets; return that side.
+    """Generate "Lightmap" for ``group``; return (side the layout was made for, dilation texels).
 
-    A fixed resolution gives the side at once. With a texel density the side N = T √(A / coverage)
-    depends on the packing, which depends on the margin: start from the lower bound T √A (coverage 1)
-    and re-unwrap for the side the last layout asks for, up to three times; the map then gets
-    max(asked side, side the margin was made for), so the margin always holds.
+    A fixed resolution gives the side at once; the margin is lowered (down to half a texel, with a
+    warning) until the charts lie inside the unit square and cover the map (MIN_COVERAGE), else the
+    bake is refused with the side that would fit. With a texel density the side N = T √(A / coverage)
+    depends on the packing: start from the lower bound T √A (coverage 1) and re-unwrap for the side the
+    last layout asks for, up to three times; when even half a texel of margin does not fit, the side is
+    doubled (more texels than asked, with a warning) up to the maximum resolution.
     """
-    fixed = options.sizes.get(group[0].name) if options.sizes else None
-    side = max(fixed) if fixed else resolution(group, names, options, coverage=1.0)
-    for _ in range(3):
-        _generate(scene, group, state, margin_fraction(options.margin, side))
-        if fixed or options.texel_density is None:
+    label = ", ".join(f"'{o.name}'" for o in group)
+    fixed = fixed_side(group[0], options)
+    with _Copies(scene, group, state) as copies:
+        if fixed:
+            margin = _fit(copies, group, fixed, options.margin)
+            if margin is None:
+                need = _fit_side(copies, group, fixed)
+                hint = (f"use a resolution of at least {need}" if need else
+                        "the charts do not fit even the largest map: bake the parts separately")
+                raise InputError(f"{label}: the light-map charts do not fit {article(f'{fixed}x{fixed}')} map (they would "
+                                 f"cover under {100 * MIN_COVERAGE:.0f} % of their UV area): {hint}")
+            return fixed, _dilation(label, options.margin, margin, fixed)
+        side = resolution(group, names, options, coverage=1.0)
+        made = None
+        for _ in range(3):
+            margin = _fit(copies, group, side, options.margin)
+            if margin is None:
+                break
+            made = side
+            need = resolution(group, names, options)
+            if side <= need <= 1.05 * side:
+                break
+            side = need
+        if margin is None:
+            asked = side
+            while margin is None and side < int(options.max_resolution):
+                side = min(2 * side, int(options.max_resolution))
+                margin = _fit(copies, group, side, options.margin)
+            if margin is None:
+                raise InputError(f"{label}: the light-map charts do not fit a map of the maximum resolution "
+                                 f"{options.max_resolution} (they would cover under {100 * MIN_COVERAGE:.0f} % "
+                                 f"of their UV area): raise the maximum resolution or the texel density")
+            errors.warn(f"{label}: light map enlarged from {asked}x{asked} to {side}x{side} texels so that its "
+                        f"charts cover their faces")
+            made = side
+        side = made
+        return side, _dilation(label, options.margin, margin, side)
+
+
+def _dilation(label, asked, margin, side):
+    if margin < float(asked):
+        errors.warn(f"{label}: light-map margin lowered from {asked} to {margin:g} texel(s) so that the charts "
+                    f"fit and fill {article(f'{side}x{side}')} map")
+    return min(int(asked), math.ceil(margin))
+
+
+def _fit(copies, group, side, margin):
+    """Unwrap at ``side`` with the largest margin (texels) of :func:`_margins` whose layout fits and whose charts
+    fill at least MIN_CHART_AREA of the map (else the fitting layout that fills most); leave it in place and
+    return that margin, or None when none fits."""
+    best = None
+    for m in _margins(margin):
+        copies.unwrap(margin_fraction(m, side))
+        if _fits(copies, group, side):
+            area = sum(chart_area(triangles_uv(o, LIGHTMAP)) for o in group)
+            if area >= MIN_CHART_AREA:
+                return m
+            if best is None or area > best[1]:
+                best = (m, area)
+    if best is not None and best[0] != _margins(margin)[-1]:
+        copies.unwrap(margin_fraction(best[0], side))
+    return None if best is None else best[0]
+
+
+def _fit_side(copies, group, side):
+    """Smallest 2^k · side whose half-texel layout fits, or None."""
+    while side < lightmap.MAX_RESOLUTION:
+        side = min(2 * side, lightmap.MAX_RESOLUTION)
+        copies.unwrap(margin_fraction(0.5, side))
+        if _fits(copies, group, side):
             return side
-        need = resolution(group, names, options)
-        if side <= need <= 1.05 * side:
-            return need
-        side = need
-    return max(side, resolution(group, names, options))
+    return None
 
 
-def _generate(scene, group, state, margin_uv):
-    vl = scene.view_layers[0]
+def _fits(copies, group, side):
     for o in group:
-        me = o.data
-        if len(me.uv_layers) >= MAX_UV_LAYERS and LIGHTMAP not in me.uv_layers:
-            raise InputError(f"mesh '{me.name}' already has {MAX_UV_LAYERS} UV layers: pass an existing one")
-        if LIGHTMAP not in me.uv_layers:
-            me.uv_layers.new(name=LIGHTMAP, do_init=False)
-            state.created_uv(me, LIGHTMAP)
-        else:
-            state.save_uv(me, LIGHTMAP)          # an earlier bake's layer, re-unwrapped: put back unless kept
-        me.uv_layers.active = me.uv_layers[LIGHTMAP]
-        o.select_set(True, view_layer=vl)
-    for o in vl.objects:
-        if o not in group:
-            o.select_set(False, view_layer=vl)
-    lead = group[0]
-    vl.objects.active = lead
-    ctx = dict(scene=scene, view_layer=vl, active_object=lead, object=lead,
-               selected_objects=list(group), selected_editable_objects=list(group))
-    saved = [(o.data, _mesh_flags(o.data)) for o in group]
-    for o in group:                       # smart_project unwraps the visible, selected faces: all of them
-        for items in (o.data.vertices, o.data.edges, o.data.polygons):
-            items.foreach_set("hide", np.zeros(len(items), bool))
-            items.foreach_set("select", np.ones(len(items), bool))
-    try:
+        tri = triangles_uv(o, LIGHTMAP)
+        if _outside(tri) or coverage_ratio(tri, side, side)[0] < MIN_COVERAGE:
+            return False
+    return True
+
+
+class _Copies:
+    """Temporary objects with bmesh copies of the group's meshes (all faces revealed and selected, one
+    UV layer), where Smart UV Project runs; :meth:`unwrap` copies the result into each mesh's "Lightmap"
+    layer (loop order is kept by the bmesh round trip). Removed on exit, also on errors."""
+
+    def __init__(self, scene, group, state):
+        self.scene, self.group, self.state = scene, list(group), state
+        self.copies = []
+
+    def __enter__(self):
+        for o in self.group:
+            me = o.data
+            if LIGHTMAP not in me.uv_layers:
+                if len(me.uv_layers) >= MAX_UV_LAYERS:
+                    raise InputError(f"mesh '{me.name}' already has {MAX_UV_LAYERS} UV layers: pass an existing one")
+                if me.library is not None or o.library is not None:
+                    raise InputError(f"mesh '{me.name}' is linked from a library: it cannot get a light-map "
+                                     f"UV layer (make it local)")
+        try:
+            for o in self.group:
+                tmp = self.state.track(bpy.data.meshes, bpy.data.meshes.new(f"IL unwrap {o.data.name}"))
+                bm = bmesh.new()
+                try:
+                    bm.from_mesh(o.data)
+                    for seq in (bm.verts, bm.edges, bm.faces):
+                        for item in seq:
+                            item.hide = False
+                            item.select = True
+                    bm.to_mesh(tmp)
+                finally:
+                    bm.free()
+                while len(tmp.uv_layers):
+                    tmp.uv_layers.remove(tmp.uv_layers[0])
+                tmp.uv_layers.new(name=LIGHTMAP, do_init=False)
+                tmp.uv_layers.active_index = 0
+                obj = self.state.track(bpy.data.objects, bpy.data.objects.new(f"IL unwrap {o.name}", tmp))
+                obj.matrix_world = o.matrix_world
+                self.scene.collection.objects.link(obj)
+                self.copies.append((o, obj))
+        except BaseException:
+            self._remove()
+            raise
+        return self
+
+    def __exit__(self, *exc):
+        self._remove()
+        return False
+
+    def _remove(self):
+        for _, obj in self.copies:
+            me = obj.data
+            bpy.data.objects.remove(obj)
+            bpy.data.meshes.remove(me)
+        if self.copies:
+            self.scene.view_layers[0].update()   # no stale base of a removed copy is left for the Cycles bake
+        self.copies = []
+
+    def unwrap(self, margin_uv):
+        """Smart UV Project of every copy in one edit session (one UV square), then the UVs into "Lightmap"."""
+        vl = self.scene.view_layers[0]
+        temps = [obj for _, obj in self.copies]
+        for o in filter(None, vl.objects):
+            want = o in temps
+            if o.select_get(view_layer=vl) != want:
+                o.select_set(want, view_layer=vl)
+        lead = temps[0]
+        vl.objects.active = lead
+        ctx = dict(scene=self.scene, view_layer=vl, active_object=lead, object=lead,
+                   selected_objects=temps, selected_editable_objects=temps)
         with bpy.context.temp_override(**ctx):
             bpy.ops.object.mode_set(mode="EDIT")
         try:
             with bpy.context.temp_override(edit_object=lead, **ctx):
-                bpy.ops.uv.smart_project(angle_limit=1.15192, island_margin=float(margin_uv), margin_method="FRACTION",
-                                         area_weight=0.0, correct_aspect=True, scale_to_bounds=False)
+                bpy.ops.uv.smart_project(angle_limit=1.15192, island_margin=float(margin_uv),
+                                         margin_method="FRACTION", area_weight=0.0, correct_aspect=True,
+                                         scale_to_bounds=False)
         finally:
             with bpy.context.temp_override(**ctx):
                 bpy.ops.object.mode_set(mode="OBJECT")
-    finally:
-        for me, (flags, names) in saved:
-            _restore_flags(me, flags, names)
-
-
-def _mesh_flags(me):
-    """The user's select and hide flags of vertices, edges and faces, and the names of the mesh's attributes."""
-    flags = []
-    for items in (me.vertices, me.edges, me.polygons):
-        for key in ("select", "hide"):
-            values = np.zeros(len(items), bool)
-            items.foreach_get(key, values)
-            flags.append((items, key, values))
-    return flags, {a.name for a in me.attributes}
-
-
-def _restore_flags(me, flags, names):
-    """Put the flags back and drop the internal attributes (".select_vert", ".uv_select_face", ...) that the
-    edit-mode round trip added: absent, they read as all False, which is what they were."""
-    for items, key, values in flags:
-        items.foreach_set(key, values)
-    for name in [a.name for a in me.attributes if a.name.startswith(".") and a.name not in names]:
-        if name in me.attributes and not me.attributes[name].is_required:
-            me.attributes.remove(me.attributes[name])
+        for o, obj in self.copies:
+            uv = np.zeros(len(obj.data.loops) * 2, np.float32)
+            obj.data.uv_layers[LIGHTMAP].data.foreach_get("uv", uv)
+            me = o.data
+            if LIGHTMAP not in me.uv_layers:
+                me.uv_layers.new(name=LIGHTMAP, do_init=False)
+                self.state.created_uv(me, LIGHTMAP)
+            else:
+                self.state.save_uv(me, LIGHTMAP)   # an earlier bake's layer, re-unwrapped: put back unless kept
+            me.uv_layers[LIGHTMAP].data.foreach_set("uv", uv)
 
 
 def resolution(objects, layers, options, coverage=None):
@@ -171,5 +446,5 @@ def resolution(objects, layers, options, coverage=None):
         return int(options.resolution)
     area = sum(world_area(o) for o in objects)
     if coverage is None:
-        coverage = sum(lightmap.uv_area(np.clip(triangles_uv(o, layers[o.name]), 0, 1)) for o in objects)
+        coverage = sum(chart_area(triangles_uv(o, layers[o.name])) for o in objects)
     return lightmap.resolution_for_density(area, min(coverage, 1.0), options.texel_density, options.max_resolution)

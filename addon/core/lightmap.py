@@ -33,26 +33,139 @@ def uv_area(tri_uv):
     return float(0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum())
 
 
+def _texels_inside(tri_uv, width, height, strict=False, chunk=1 << 20):
+    """Yield flat texel indices (row · W + column, row 0 at v = 0) of the texel centres inside each UV triangle,
+    a block of triangles at a time (a centre inside k triangles is yielded k times).
+
+    A centre p is inside triangle abc when its barycentric coordinates w1, w2 (of b, c) satisfy
+    w1 ≥ 0, w2 ≥ 0, w1 + w2 ≤ 1 within 1e-6 (edges included), or, with ``strict``, w1, w2 > 1e-6 and
+    w1 + w2 < 1 − 1e-6 (interiors only). Triangles without area are skipped. Vectorised: triangles are
+    grouped by the power of two k ≥ their texel bounding box, and each group tests its k × k candidate
+    texels at once (work about 4 × Σ bounding-box areas, memory bounded by ``chunk`` candidates)."""
+    t = np.asarray(tri_uv, float).reshape(-1, 3, 2) * (width, height)
+    if not len(t):
+        return
+    lo = np.maximum(np.floor(t.min(axis=1) - 0.5), 0).astype(np.int64)
+    hi = np.minimum(np.ceil(t.max(axis=1) - 0.5), (width - 1, height - 1)).astype(np.int64)
+    a, b, c = t[:, 0], t[:, 1], t[:, 2]
+    d = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    span = hi - lo + 1
+    ok = (span.min(axis=1) > 0) & (np.abs(d) >= 1e-12)
+    k = np.where(ok, 2 ** np.ceil(np.log2(np.maximum(span.max(axis=1), 1))).astype(np.int64), 0)
+    eps = 1e-6 if strict else -1e-6
+    for size in np.unique(k[ok]):
+        idx = np.flatnonzero(k == size)
+        step = max(1, chunk // int(size * size))
+        r = np.arange(size)
+        for s in range(0, len(idx), step):
+            i = idx[s:s + step]
+            xs = lo[i, 0][:, None, None] + r[None, None, :]
+            ys = lo[i, 1][:, None, None] + r[None, :, None]
+            valid = (xs <= hi[i, 0][:, None, None]) & (ys <= hi[i, 1][:, None, None])
+            px, py = xs + 0.5 - a[i, 0][:, None, None], ys + 0.5 - a[i, 1][:, None, None]
+            e1, e2 = (b[i] - a[i])[:, :, None, None], (c[i] - a[i])[:, :, None, None]
+            dd = d[i][:, None, None]
+            w1 = (px * e2[:, 1] - py * e2[:, 0]) / dd
+            w2 = (e1[:, 0] * py - e1[:, 1] * px) / dd
+            inside = valid & (w1 >= eps) & (w2 >= eps) & (w1 + w2 <= 1 - eps)
+            yield np.broadcast_to(ys, inside.shape)[inside] * width + np.broadcast_to(xs, inside.shape)[inside]
+
+
+def triangle_counts(tri_uv, width, height, strict=False):
+    """(H, W) int32: how many UV triangles contain each texel centre (rule of :func:`_texels_inside`; with
+    ``strict`` only interiors count, so triangles of one chart sharing an edge never both count a centre on
+    it and a count ≥ 2 means overlapping charts)."""
+    counts = np.zeros(height * width, np.int32)
+    for flat in _texels_inside(tri_uv, width, height, strict):
+        np.add.at(counts, flat, 1)
+    return counts.reshape(height, width)
+
+
 def coverage_mask(tri_uv, width, height):
     """Boolean (H, W) mask of texels whose centre lies in at least one UV triangle (edges included)."""
-    mask = np.zeros((height, width), bool)
-    t = np.asarray(tri_uv, float) * (width, height)
-    for a, b, c in t:
-        lo = np.floor(np.minimum(np.minimum(a, b), c) - 0.5).astype(int)
-        hi = np.ceil(np.maximum(np.maximum(a, b), c) - 0.5).astype(int)
-        x0, y0 = max(lo[0], 0), max(lo[1], 0)
-        x1, y1 = min(hi[0], width - 1), min(hi[1], height - 1)
-        if x1 < x0 or y1 < y0:
-            continue
-        ys, xs = np.mgrid[y0:y1 + 1, x0:x1 + 1] + 0.5
-        d = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
-        if abs(d) < 1e-12:
-            continue
-        w1 = ((xs - a[0]) * (c[1] - a[1]) - (ys - a[1]) * (c[0] - a[0])) / d
-        w2 = ((b[0] - a[0]) * (ys - a[1]) - (b[1] - a[1]) * (xs - a[0])) / d
-        inside = (w1 >= -1e-6) & (w2 >= -1e-6) & (w1 + w2 <= 1 + 1e-6)
-        mask[y0:y1 + 1, x0:x1 + 1] |= inside
-    return mask
+    mask = np.zeros(height * width, bool)
+    for flat in _texels_inside(tri_uv, width, height):
+        mask[flat] = True
+    return mask.reshape(height, width)
+
+
+def overlap_fraction(tri_uv, width, height):
+    """Fraction of the covered texels (:func:`coverage_mask`) whose centre lies inside two or more UV
+    triangles (interiors, :func:`triangle_counts` ``strict``): texels the bake writes once for several
+    faces. 0.0 for a layout without covered texels."""
+    covered = int(coverage_mask(tri_uv, width, height).sum())
+    if covered == 0:
+        return 0.0
+    return float((triangle_counts(tri_uv, width, height, strict=True) >= 2).sum()) / covered
+
+
+# ---------------------------------------------------------------- closed shells
+
+def shell_labels(tris, vertices=None):
+    """(T,) shell index 0..K-1 of each triangle: triangles sharing a vertex belong to one shell
+    (union-find by minimum label with pointer jumping). Returns ``(labels, K)``."""
+    tris = np.asarray(tris, np.int64).reshape(-1, 3)
+    if not len(tris):
+        return np.zeros(0, np.int64), 0
+    n = int(tris.max()) + 1 if vertices is None else int(vertices)
+    parent = np.arange(n)
+    a = tris.ravel()
+    b = np.repeat(tris[:, 0], 3)
+    while True:
+        pa, pb = parent[a], parent[b]
+        differ = pa != pb
+        if not differ.any():
+            break
+        np.minimum.at(parent, np.maximum(pa, pb)[differ], np.minimum(pa, pb)[differ])
+        while True:
+            jumped = parent[parent]
+            if np.array_equal(jumped, parent):
+                break
+            parent = jumped
+    roots = parent[tris[:, 0]]
+    _, labels = np.unique(roots, return_inverse=True)
+    return labels.ravel(), int(labels.max()) + 1
+
+
+def closed_shells(tris, labels, count):
+    """(K,) bool: shell k is closed and consistently wound: every directed edge (i, j) of its triangles
+    appears once and its reverse (j, i) once (a watertight, orientable surface)."""
+    tris = np.asarray(tris, np.int64).reshape(-1, 3)
+    closed = np.ones(count, bool)
+    if not len(tris):
+        return closed
+    i = tris.ravel()
+    j = np.roll(tris, -1, axis=1).ravel()
+    lab = np.repeat(labels, 3)
+    n = int(tris.max()) + 1
+    key = i * n + j
+    rev = j * n + i
+    order = np.sort(key)
+    dup = np.zeros(len(key), bool)
+    dup_keys = order[1:][order[1:] == order[:-1]]
+    dup[np.isin(key, dup_keys)] = True
+    open_ = ~np.isin(rev, key) | dup | (i == j)
+    closed[np.unique(lab[open_])] = False
+    return closed
+
+
+def signed_volumes(co, tris, labels, count):
+    """(K,) signed volume of each shell, V = Σ a·(b × c)/6 over its triangles abc: positive for a closed
+    surface whose triangles wind counter-clockwise seen from outside (normals pointing out)."""
+    co = np.asarray(co, float).reshape(-1, 3)
+    t = co[np.asarray(tris, np.int64).reshape(-1, 3)]
+    v = np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2])) / 6.0
+    return np.bincount(labels, weights=v, minlength=count)
+
+
+def inward_shells(co, tris):
+    """Closed shells of a mesh whose normals point inward (negative :func:`signed_volumes`): their baked
+    side faces the inside of a closed surface. Returns ``(labels (T,), inward (K,) bool, volumes (K,))``."""
+    labels, count = shell_labels(tris, len(np.asarray(co).reshape(-1, 3)))
+    if count == 0:
+        return labels, np.zeros(0, bool), np.zeros(0)
+    vol = signed_volumes(co, tris, labels, count)
+    return labels, closed_shells(tris, labels, count) & (vol < 0), vol
 
 
 # ---------------------------------------------------------------- dilation

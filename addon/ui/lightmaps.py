@@ -3,8 +3,14 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 
 from .. import compat
-from ..core.errors import ILError
+from ..bake.cost import panel_max_side
+from ..core.lightmap import MAX_RESOLUTION
 from . import polls
+from .common import run_job
+
+MAX_SIDE = panel_max_side(MAX_RESOLUTION)
+"""The panel's resolution limit: the largest side whose bake fits this machine's memory (bake/cost.py, the
+same estimate the bake checks against the memory available when it starts)."""
 
 
 class IL_PG_lightmaps(bpy.types.PropertyGroup):
@@ -17,10 +23,10 @@ class IL_PG_lightmaps(bpy.types.PropertyGroup):
     size_mode: EnumProperty(name="Size", items=(("RESOLUTION", "Resolution", "A fixed map side"),
                                                 ("DENSITY", "Texel Density", "Texels per metre, capped")),
                             default="RESOLUTION")
-    resolution: IntProperty(name="Resolution", default=256, min=1, max=16384, description="Map side in texels")
+    resolution: IntProperty(name="Resolution", default=256, min=1, max=MAX_SIDE, description="Map side in texels")
     texel_density: FloatProperty(name="Texels/m", default=32.0, min=0.01, soft_max=1024.0,
                                  description="Texels per metre of surface")
-    max_resolution: IntProperty(name="Max Resolution", default=2048, min=1, max=16384,
+    max_resolution: IntProperty(name="Max Resolution", default=min(2048, MAX_SIDE), min=1, max=MAX_SIDE,
                                 description="Cap of the side chosen from the texel density")
     quality_mode: EnumProperty(name="Quality", items=(("SAMPLES", "Samples", "A fixed sample count"),
                                                       ("ERROR", "Target Error", "Samples from a pilot bake's variance")),
@@ -69,17 +75,15 @@ class IL_OT_bake_lightmaps(bpy.types.Operator):
                 and polls.saved_or_absolute(cls, context.scene.illumination.lightmaps.out_dir))
 
     def execute(self, context):
-        from ..bake import bake_lightmaps
+        from ..bake import bake_lightmaps, summary
         settings = context.scene.illumination.lightmaps
-        objects = [o for o in context.selected_objects]
-        try:
-            report = bake_lightmaps(objects, settings.maps(), bpy.path.abspath(settings.out_dir),
-                                    settings.options(), scene=context.scene)
-        except ILError as e:
-            self.report({"ERROR"}, str(e))
+        objects = list(context.selected_objects)
+        ok, report = run_job(self, lambda: bake_lightmaps(objects, settings.maps(), bpy.path.abspath(settings.out_dir),
+                                                          settings.options(), scene=context.scene))
+        if not ok:
             return {"CANCELLED"}
         n = sum(len(m) for m in report["objects"].values())
-        self.report({"INFO"}, f"Baked {n} map(s) in {report['seconds']:.1f} s: {report['report']}")
+        self.report({"INFO"}, f"Baked {n} map(s) in {report['seconds']:.1f} s: {summary(report)}; {report['report']}")
         return {"FINISHED"}
 
 

@@ -194,3 +194,82 @@ def test_inverse_variance_combination_reaches_the_predicted_error():
     assert lm.rms(lm.combine(parts, weights), truth) == pytest.approx(error, rel=0.022)
     assert lm.rms(lm.combine(parts, [1, 1, 1]), truth) > 1.2 * error             # equal weights do worse
     assert lm.inverse_variance_weights([0.1, 0.0]) == ([0.0, 1.0], 0.0)
+
+
+def _loop_coverage_mask(tri_uv, width, height):
+    """The former per-triangle loop of ``coverage_mask`` (the reference the vectorised rasteriser must match)."""
+    mask = np.zeros((height, width), bool)
+    t = np.asarray(tri_uv, float) * (width, height)
+    for a, b, c in t:
+        lo = np.floor(np.minimum(np.minimum(a, b), c) - 0.5).astype(int)
+        hi = np.ceil(np.maximum(np.maximum(a, b), c) - 0.5).astype(int)
+        x0, y0 = max(lo[0], 0), max(lo[1], 0)
+        x1, y1 = min(hi[0], width - 1), min(hi[1], height - 1)
+        if x1 < x0 or y1 < y0:
+            continue
+        ys, xs = np.mgrid[y0:y1 + 1, x0:x1 + 1] + 0.5
+        d = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+        if abs(d) < 1e-12:
+            continue
+        w1 = ((xs - a[0]) * (c[1] - a[1]) - (ys - a[1]) * (c[0] - a[0])) / d
+        w2 = ((b[0] - a[0]) * (ys - a[1]) - (b[1] - a[1]) * (xs - a[0])) / d
+        inside = (w1 >= -1e-6) & (w2 >= -1e-6) & (w1 + w2 <= 1 + 1e-6)
+        mask[y0:y1 + 1, x0:x1 + 1] |= inside
+    return mask
+
+
+def _grid_mesh_uv(n, jitter, rng):
+    """UV triangles of an n × n grid of quads, vertices jittered: a chart of shared edges and texel-aligned
+    corners (centres exactly on edges at jitter 0)."""
+    g = np.stack(np.meshgrid(np.linspace(0.05, 0.95, n + 1), np.linspace(0.05, 0.95, n + 1)), -1)
+    g = g + rng.normal(0, jitter, g.shape)
+    q = np.array([[g[i, j], g[i, j + 1], g[i + 1, j + 1], g[i + 1, j]] for i in range(n) for j in range(n)])
+    return np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])
+
+
+def test_one_rasteriser_matches_the_former_loop_on_meshes_and_random_triangles():
+    rng = np.random.default_rng(7)
+    cases = [_grid_mesh_uv(4, 0.0, rng), _grid_mesh_uv(7, 0.01, rng),
+             np.array([[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], [[1.0, 1.0], [0.0, 1.0], [1.0, 0.0]]]),  # two halves
+             np.array([[[0.2, 0.2], [0.2, 0.2], [0.8, 0.8]]]),                                        # no area
+             np.array([[[-0.5, -0.5], [2.0, 0.1], [0.1, 2.0]]])]                                       # overhanging
+    for n, spread in ((300, 0.2), (2000, 0.01), (20, 2.0)):
+        cases.append(rng.random((n, 1, 2)) + rng.normal(0, spread, (n, 3, 2)))
+    for tri in cases:
+        for w, h in ((32, 32), (40, 8), (16, 64)):
+            assert np.array_equal(lm.coverage_mask(tri, w, h), _loop_coverage_mask(tri, w, h))
+
+
+def test_overlap_counts_shared_texels_not_shared_edges():
+    rng = np.random.default_rng(1)
+    chart = _grid_mesh_uv(4, 0.0, rng) * 0.5                      # one chart in the lower-left quarter
+    assert lm.overlap_fraction(chart, 64, 64) == 0.0              # edges inside a chart are not overlaps
+    # an Array copy: every texel shared except the few whose centre lies on a diagonal (a strict interior
+    # test counts those for neither copy); the chart's side is 28.8 texels, its 16 diagonals ≈ 16 × 7 texels
+    dup = lm.overlap_fraction(np.concatenate([chart, chart]), 64, 64)
+    assert 1.0 - 16 * 8 / 28.8 ** 2 <= dup <= 1.0
+    # shifted by half its width (0.225 of a 0.45 chart): shared area 0.225 × 0.45 of the union 0.675 × 0.45
+    half = np.concatenate([chart, chart + (0.225, 0.0)])
+    assert lm.overlap_fraction(half, 64, 64) == pytest.approx(1 / 3, abs=0.05)
+    assert lm.triangle_counts(np.concatenate([chart] * 3), 64, 64, strict=True).max() == 3
+
+
+def _cube(offset=0.0):
+    co = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float) + offset
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    return co, np.array([t for q in quads for t in ((q[0], q[1], q[2]), (q[0], q[2], q[3]))])
+
+
+def test_inward_shells_find_a_closed_surface_wound_inside_out():
+    co, tris = _cube()
+    labels, inward, vol = lm.inward_shells(co, tris)
+    assert list(inward) == [False] and vol[0] == pytest.approx(1.0)            # unit cube, outward
+    labels, inward, vol = lm.inward_shells(co, tris[:, ::-1])                  # every face reversed
+    assert list(inward) == [True] and vol[0] == pytest.approx(-1.0)
+    co2, tris2 = _cube(5.0)
+    labels, inward, vol = lm.inward_shells(np.vstack([co, co2]), np.vstack([tris, tris2[:, ::-1] + 8]))
+    assert list(labels) == [0] * 12 + [1] * 12 and list(inward) == [False, True]
+    assert not lm.inward_shells(co, tris[:-1, ::-1])[1].any()                  # open (a face missing): no inside
+    mixed = tris[:, ::-1].copy()
+    mixed[0] = mixed[0, ::-1]                                                  # inconsistent winding: not judged
+    assert not lm.inward_shells(co, mixed)[1].any()

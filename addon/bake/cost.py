@@ -1,0 +1,79 @@
+"""Cost of a light-map bake before it starts: peak memory per map side, rough seconds, the largest side
+that fits the machine (no bpy; the memory available comes from ``core.budget``).
+
+Maps are baked one after the other, so the peak is that of the largest map: Blender's float RGBA
+image, its pixels read back, the two half bakes and their combination (irradiance), the mask, the
+dilation's index arrays, the flipped EXR channels and the PNG preview. BYTES_PER_TEXEL is the
+measured peak RSS growth of a bake divided by its texels (scripts/bake.py, 2048² and 1024²,
+``getrusage`` max RSS minus the RSS before the bake), with a margin.
+"""
+import os
+
+from ..core import budget
+from .options import article
+
+BYTES_PER_TEXEL = {"ao": 240, "irradiance": 300}
+"""Peak bytes per texel of one map: measured peak RSS growth over a 16² bake, bpy 5.0.1, 1024² and 2048²:
+AO 181-185, irradiance 222-230 (two half bakes); ×1.3 margin."""
+DENOISE_BYTES_PER_TEXEL = 620
+"""Extra peak bytes per texel with the denoiser (compositor images and OpenImageDenoise buffers): measured
+AO 661-667 and irradiance 665-674 in all, so about 475 more; ×1.3."""
+SECONDS_PER_TEXEL_SAMPLE = {"ao": 9e-7, "irradiance": 1.6e-6}
+"""Rough Cycles CPU seconds per covered texel and sample on this project's 2-core machine (a fully covered
+1024² plane beside a cube, 16 samples: AO 14.4 s, irradiance with 3 bounces 26.3 s); an upper bound of
+a map's time, as every texel is counted covered."""
+RESERVE = 0.8
+"""Fraction of the available memory a bake may plan to use (Blender, the scene and the OS need the rest)."""
+PANEL_FALLBACK_MEMORY = 8 << 30
+
+
+def total_memory():
+    """Bytes of physical memory, or None if unknown."""
+    try:
+        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+def per_texel(maps, denoise=False):
+    """Peak bytes per texel of the most expensive of ``maps``."""
+    return max(BYTES_PER_TEXEL[m] for m in maps) + (DENOISE_BYTES_PER_TEXEL if denoise else 0)
+
+
+def peak_bytes(width, height, maps, denoise=False):
+    """Estimated peak memory in bytes of baking ``maps`` of one (width × height) map."""
+    return int(width) * int(height) * per_texel(maps, denoise)
+
+
+def seconds(width, height, maps, samples):
+    """Rough Cycles seconds of baking ``maps`` of one (width × height) map with ``samples`` samples."""
+    return int(width) * int(height) * int(samples) * sum(SECONDS_PER_TEXEL_SAMPLE[m] for m in maps)
+
+
+def largest_side(memory, maps=("ao", "irradiance"), denoise=False):
+    """The largest square side whose bake fits in RESERVE × ``memory`` bytes."""
+    return int((RESERVE * memory / per_texel(maps, denoise)) ** 0.5)
+
+
+def panel_max_side(cap):
+    """The panel's resolution limit: the largest side that fits this machine's physical memory, at most ``cap``."""
+    return max(1, min(int(cap), largest_side(total_memory() or PANEL_FALLBACK_MEMORY)))
+
+
+def human(nbytes):
+    for unit, scale in (("GiB", 2 ** 30), ("MiB", 2 ** 20), ("KiB", 2 ** 10)):
+        if nbytes >= scale:
+            return f"{nbytes / scale:.3g} {unit}"
+    return f"{int(nbytes)} B"
+
+
+def check(width, height, maps, denoise=False, memory=None, what="resolution"):
+    """None when a (width × height) bake of ``maps`` fits RESERVE × ``memory`` (default: the memory available
+    now, ``core.budget.available_bytes``, the machine's one measure of it), else the one-line refusal naming the
+    largest side that fits."""
+    memory = budget.available_bytes() if memory is None else memory
+    need = peak_bytes(width, height, maps, denoise)
+    if need <= RESERVE * memory:
+        return None
+    return (f"{article(f'{width}x{height}')} map needs about {need / 2 ** 30:.1f} GiB of memory and {memory / 2 ** 30:.1f} GiB "
+            f"is available: the largest {what} that fits is {largest_side(memory, maps, denoise)}")
