@@ -27,21 +27,26 @@ def test_cornell_run_against_cycles_and_outputs(tmp_path):
     r = L.run(str(tmp_path), cornell=True, max_edge=0.5, samples=32, solver="gauss_seidel")
     rep = json.loads((tmp_path / "radiosity_report.json").read_text())
     assert rep["patches"] == len(r["patches"]) and rep["solver"] == "gauss_seidel" and rep["iterations"] > 1
-    # the bake and the solution agree on the mean irradiance within 6 % and patch by patch to an RMS of 20 % of
-    # the mean (constant patches and one visibility ray per pair against a 32-sample bake)
-    H, Hc = r["H"], r["cycles"]
+    # the bake and the solution agree on the area-weighted mean irradiance (∫ H dA / A) within 6 % and patch by
+    # patch to an RMS of 20 % of the mean (constant 0.5 m patches against a 32-sample bake)
+    H, Hc = r["H_front"], r["cycles"]         # light maps and the bake hold the front side of every face
     ok = np.isfinite(Hc).all(axis=1)
     assert ok.all()                        # the bake pipeline bakes emitters (albedo 0) too
-    assert abs(np.mean(H[ok]) / np.mean(Hc[ok]) - 1) < 0.06
+    a = r["patches"].take(r["front"]).area[:, None]
+    assert abs((H * a).sum() / (Hc * a).sum() - 1) < 0.06
     assert rep["relative_rms_vs_cycles"] < 0.2
-    assert rep["rms_vs_cycles"] == pytest.approx(np.sqrt(np.mean((H[ok] - Hc[ok]) ** 2)))
+    assert rep["comparison"]["lightmap"]["rms"] == pytest.approx(np.sqrt(np.mean((H[ok] - Hc[ok]) ** 2)))
+    Hp = r["H_points"]                     # the solution at the baked texel centres, averaged per patch
+    assert rep["rms_vs_cycles"] == pytest.approx(np.sqrt(np.mean((Hp[ok] - Hc[ok]) ** 2)))
+    assert bpy.data.objects["Floor radiosity"].hide_render      # results never shadow later renders of the file
     # light map = the solution painted per patch; vertex colours on a new object
     ch, hdr = exr.read_exr(tmp_path / "Floor_radiosity.exr")
     assert hdr["il:units"] == "W/m^2"
-    floor = r["patches"].owner == r["patches"].names.index("Floor")
+    front = r["patches"].take(r["front"])
+    floor = front.owner == front.names.index("Floor")
     img = np.stack([ch[c] for c in "RGB"], -1)
     atlas = R.make_atlas(int(floor.sum()))
-    assert np.allclose(R.atlas_means(atlas, img, r["patches"].is_tri[floor]), H[floor], rtol=1e-5)
+    assert np.allclose(R.atlas_means(atlas, img, front.is_tri[floor]), H[floor], rtol=1e-5)
     obj = bpy.data.objects["Floor radiosity"]
     col = obj.data.color_attributes[L.ATTRIBUTE]
     c = np.empty(len(col.data) * 4, np.float32)
@@ -71,6 +76,7 @@ def test_closed_emissive_box_in_blender_gives_e_over_one_minus_rho():
     p.inputs["Base Color"].default_value = (0.5, 0.5, 0.5, 1)
     p.inputs["Emission Color"].default_value = (1, 1, 1, 1)
     p.inputs["Emission Strength"].default_value = 2.0
+    nt.links.new(p.outputs[0], nt.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])   # what Cycles shades
     box.data.materials.append(mat)
     meshes, used = L.meshes_from_scene(sc)
     assert [o.name for o in used] == ["Room"]
@@ -112,3 +118,37 @@ def test_operators(tmp_path):
         assert bpy.ops.illumination.radiosity(out_dir=str(tmp_path), max_edge=1.0, samples=0) == {"FINISHED"}
     assert (tmp_path / "radiosity_report.json").exists()
     assert "IL Radiosity" in bpy.data.collections
+
+
+def test_triangle_patches_compare_on_the_texels_cycles_bakes(tmp_path):
+    """A triangle's atlas cell: Cycles leaves the texels centred on its diagonal edge unbaked (0, alpha 0), so
+    the comparison reads the texels strictly inside. Measured before: the pole triangles of a UV sphere read
+    0.6 of their irradiance (4 of 10 texels 0), +69 % error. A triangulated floor 0.5 m under a 1 m Emission
+    quad (L_e 5): the bake's and the solution's area-weighted means agree as on quads (within 6 %), and every
+    triangle cell's unbaked texels are exactly the diagonal ones."""
+    bpy.ops.mesh.primitive_plane_add(size=2.0)
+    floor = bpy.context.object
+    floor.modifiers.new("t", "TRIANGULATE")
+    bpy.ops.mesh.primitive_plane_add(size=1.0, location=(0, 0, 0.5))
+    lamp = bpy.context.object
+    mat = bpy.data.materials.new("L")
+    mat.use_nodes = True
+    nt = mat.node_tree
+    nt.nodes.clear()
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 5.0
+    nt.links.new(em.outputs[0], nt.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
+    lamp.data.materials.append(mat)
+    r = L.run(str(tmp_path), scene=bpy.context.scene, max_edge=0.5, samples=16, chart=False)
+    p = r["patches"].take(r["front"])
+    tri = p.is_tri & (p.owner == p.names.index(floor.name))
+    assert tri.sum() >= 8
+    H, Hc, a = r["H_front"][tri], r["cycles"][tri], p.area[tri, None]
+    assert abs((H * a).sum() / (Hc * a).sum() - 1) < 0.06, ((H * a).sum(), (Hc * a).sum())
+    ch, _ = exr.read_exr(tmp_path / "cycles_bake" / f"{floor.name} radiosity_irradiance.exr")
+    atlas = R.make_atlas(int((p.owner == p.names.index(floor.name)).sum()))
+    x0, y0 = atlas.origin(np.arange(atlas.count))
+    yy, xx = np.mgrid[0:atlas.cell, 0:atlas.cell]
+    for k in range(atlas.count):
+        cell = ch["A"][y0[k]:y0[k] + atlas.cell, x0[k]:x0[k] + atlas.cell]
+        assert np.array_equal(cell > 0.5, xx + yy > atlas.cell - 1)

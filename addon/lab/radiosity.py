@@ -13,8 +13,9 @@ import numpy as np
 
 from ..core import charts, exr
 from ..core import radiosity as core
-from ..core.errors import InputError
-from ..core.fileio import write_json
+from ..core.errors import ILError, InputError, warn
+from ..core.fileio import check_output_dir, write_json
+from .. import interrupt
 from ..progress import Progress
 from . import scene as scn
 
@@ -59,45 +60,213 @@ def _material(name, rho, emission):
     return mat
 
 
-def material_rho_emission(mat):
-    """(ρ RGB, L_e RGB) of a material: Diffuse BSDF / Principled base colour, Emission / Principled emission.
+NOTES = {
+    "metallic": "metallic reflection treated as diffuse of the same colour",
+    "glossy": "glossy BSDFs treated as diffuse of the same colour",
+    "specular": "the specular layer of Principled BSDFs ignored (diffuse base colour only)",
+    "transmission": "transmission and transparency not modelled (that light is lost)",
+    "layers": "coat, sheen and subsurface treated as the diffuse base",
+    "texture": "image textures replaced by their mean colour",
+}
+GEOMETRY = {"CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME", "GPENCIL", "GREASEPENCIL"}
 
-    Only unlinked default values are read; anything textured is refused.
+
+class _Unsupported(InputError):
+    pass
+
+
+def material_rho_emission(mat, notes=None):
+    """(ρ RGB, L_e RGB) of a material as Cycles shades its surface, read from the active output's Surface
+    link: Emission (Color × Strength; ρ 0), Diffuse BSDF (Color), Principled BSDF (ρ = Base Color × (1 −
+    Transmission), L_e = Emission Color × Emission Strength), Add and Mix Shader (constant factor).
+
+    Both sides of a Cycles surface reflect and emit alike (see core.back_side_needed). Radiosity is diffuse
+    only: what it approximates is added to ``notes`` {kind: {material names}} (see NOTES); what it cannot
+    evaluate at all (a factor or colour driven by nodes other than an image texture, node groups, unknown
+    shaders) raises InputError naming the material and the socket.
     """
-    if mat is None or mat.node_tree is None:
-        return np.full(3, 0.8), np.zeros(3)
-    rho, le = np.zeros(3), np.zeros(3)
-    for n in mat.node_tree.nodes:
-        if n.bl_idname == "ShaderNodeBsdfDiffuse":
-            rho = _value(n, "Color", mat)
-        elif n.bl_idname == "ShaderNodeBsdfPrincipled":
-            rho = _value(n, "Base Color", mat)
-            s = n.inputs.get("Emission Strength")
-            if s is not None and s.default_value > 0:
-                le = _value(n, "Emission Color", mat) * s.default_value
-        elif n.bl_idname == "ShaderNodeEmission":
-            le = _value(n, "Color", mat) * n.inputs["Strength"].default_value
-    return np.clip(rho, 0.0, 0.999), le
+    notes = {} if notes is None else notes
+    if mat is None:
+        return np.full(3, 0.8), np.zeros(3)          # Cycles' default surface: diffuse grey 0.8
+    tree = mat.node_tree if getattr(mat, "use_nodes", True) else None
+    if tree is None:
+        return np.clip(np.array(mat.diffuse_color[:3], np.float64), 0.0, 0.999), np.zeros(3)
+    out = tree.get_output_node("CYCLES")
+    if out is None or not out.inputs["Surface"].is_linked:
+        return np.zeros(3), np.zeros(3)              # no surface shader: Cycles renders it black
+    rho, le = _shader(_source(out.inputs["Surface"]), mat, notes)
+    return np.clip(rho, 0.0, 0.999), np.maximum(le, 0.0)
 
 
-def _value(node, name, mat):
+def _source(socket):
+    """The node feeding ``socket``, through reroutes (None when not linked)."""
+    node = socket.links[0].from_node if socket.is_linked else None
+    while node is not None and node.bl_idname == "NodeReroute":
+        node = node.inputs[0].links[0].from_node if node.inputs[0].is_linked else None
+    return node
+
+
+def _note(notes, kind, mat):
+    notes.setdefault(kind, set()).add(mat.name)
+
+
+def _shader(node, mat, notes):
+    zero = np.zeros(3)
+    if node is None:
+        return zero, zero
+    kind = node.bl_idname
+    if kind == "ShaderNodeEmission":
+        return zero, _color(node, "Color", mat, notes) * _float(node, "Strength", mat)
+    if kind == "ShaderNodeBsdfDiffuse":
+        return _color(node, "Color", mat, notes), zero
+    if kind == "ShaderNodeBsdfPrincipled":
+        return _principled(node, mat, notes)
+    if kind == "ShaderNodeAddShader":
+        (r1, e1), (r2, e2) = (_shader(_source(node.inputs[i]), mat, notes) for i in (0, 1))
+        return r1 + r2, e1 + e2
+    if kind == "ShaderNodeMixShader":
+        f = _float(node, "Fac", mat)
+        (r1, e1), (r2, e2) = (_shader(_source(node.inputs[i]), mat, notes) for i in (1, 2))
+        return (1 - f) * r1 + f * r2, (1 - f) * e1 + f * e2
+    if kind in ("ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfMetallic",
+                "ShaderNodeBsdfToon", "ShaderNodeBsdfSheen"):
+        _note(notes, "glossy", mat)
+        name = "Base Color" if "Base Color" in node.inputs else "Color"
+        return _color(node, name, mat, notes), zero
+    if kind in ("ShaderNodeBsdfGlass", "ShaderNodeBsdfRefraction", "ShaderNodeBsdfTransparent",
+                "ShaderNodeBsdfTranslucent", "ShaderNodeHoldout"):
+        _note(notes, "transmission", mat)
+        return zero, zero
+    if kind == "ShaderNodeSubsurfaceScattering":
+        _note(notes, "layers", mat)
+        return _color(node, "Color", mat, notes), zero
+    raise _Unsupported(f"material '{mat.name}': its surface uses a {node.bl_label} node, which radiosity "
+                       f"cannot evaluate (it reads Emission, Diffuse, Principled, Add and Mix Shader)")
+
+
+def _principled(node, mat, notes):
+    def get(name, default=0.0):
+        return _float(node, name, mat) if name in node.inputs else default
+    base = _color(node, "Base Color", mat, notes)
+    metallic, transmission = get("Metallic"), get("Transmission Weight", get("Transmission"))
+    if metallic > 0:
+        _note(notes, "metallic", mat)
+    if transmission > 0 or get("Alpha", 1.0) < 1:
+        _note(notes, "transmission", mat)
+    ior, level = get("IOR", 1.5), get("Specular IOR Level", 0.5)
+    f0 = ((ior - 1) / (ior + 1)) ** 2 * 2 * level
+    if f0 > 1e-3 and metallic < 1 and transmission < 1:
+        _note(notes, "specular", mat)
+    if get("Coat Weight") > 0 or get("Sheen Weight") > 0 or get("Subsurface Weight") > 0:
+        _note(notes, "layers", mat)
+    rho = base * (1 - transmission) * get("Alpha", 1.0)
+    le = np.zeros(3)
+    strength = get("Emission Strength")
+    if strength > 0:
+        le = _color(node, "Emission Color", mat, notes) * strength
+    return rho, le
+
+
+def _float(node, name, mat):
     sock = node.inputs[name]
-    if sock.is_linked:
-        raise InputError(f"material '{mat.name}': {node.name}.{name} is driven by other nodes (a texture or node "
-                         f"setup); radiosity needs plain colours (Diffuse, Principled or Emission, nothing linked)")
-    return np.array(sock.default_value[:3], np.float64)
+    src = _source(sock)
+    if src is None:
+        return float(sock.default_value)
+    if src.bl_idname == "ShaderNodeValue":
+        return float(src.outputs[0].default_value)
+    raise _Unsupported(f"material '{mat.name}': {node.name}.{name} is driven by a {src.bl_label} node, which "
+                       f"radiosity cannot evaluate; give it a plain value")
+
+
+def _color(node, name, mat, notes):
+    sock = node.inputs[name]
+    src = _source(sock)
+    if src is None:
+        return np.array(sock.default_value[:3], np.float64)
+    if src.bl_idname == "ShaderNodeRGB":
+        return np.array(src.outputs[0].default_value[:3], np.float64)
+    if src.bl_idname == "ShaderNodeTexImage" and src.image is not None:
+        mean = _image_mean(src.image)
+        if mean is not None:
+            _note(notes, "texture", mat)
+            return mean
+    raise _Unsupported(f"material '{mat.name}': {node.name}.{name} is driven by a {src.bl_label} node, which "
+                       f"radiosity cannot evaluate; give it a plain colour or an image texture")
+
+
+def _image_mean(image):
+    """Mean linear RGB of an image (None when it has no pixels)."""
+    try:
+        w, h = image.size
+        if not w or not h:
+            return None
+        px = np.empty(w * h * image.channels, np.float32)
+        image.pixels.foreach_get(px)
+    except (RuntimeError, ValueError):
+        return None
+    px = px.reshape(-1, image.channels)[:, :3].astype(np.float64)
+    if px.shape[1] < 3:
+        px = np.repeat(px[:, :1], 3, axis=1)
+    if not image.is_float and image.colorspace_settings.name in ("sRGB", "sRGB OETF"):
+        px = np.where(px <= 0.04045, px / 12.92, ((px + 0.055) / 1.055) ** 2.4)
+    m = px.mean(axis=0)
+    return m if np.all(np.isfinite(m)) else None
+
+
+def approximation_warning(notes):
+    """One line for what the materials made approximate ('' when nothing)."""
+    parts = [f"{NOTES[k]} ({', '.join(sorted(notes[k]))})" for k in NOTES if notes.get(k)]
+    return "radiosity is diffuse only, the result is approximate: " + "; ".join(parts) if parts else ""
+
+
+def _world_is_black(world):
+    if world is None:
+        return True
+    if world.node_tree is not None and getattr(world, "use_nodes", True):
+        out = world.node_tree.get_output_node("CYCLES")
+        src = _source(out.inputs["Surface"]) if out is not None else None
+        if src is None:
+            return True
+        if src.bl_idname == "ShaderNodeBackground":
+            col, strength = src.inputs["Color"], src.inputs["Strength"]
+            if not strength.is_linked and strength.default_value == 0:
+                return True
+            return not col.is_linked and max(col.default_value[:3]) == 0
+        return False
+    return max(world.color[:3]) == 0
 
 
 def meshes_from_scene(scene, objects=None):
-    """World-space mesh arrays of the visible mesh objects (or ``objects``), one material per object slot."""
-    deps = scene.view_layers[0].depsgraph
+    """World-space mesh arrays of the render-visible mesh objects (or ``objects``): evaluated meshes
+    (modifiers applied), faces wound as Blender's normals point (mirrored objects included), per-face
+    ρ, L_e and material slot. Returns (meshes, objects used).
+
+    What radiosity cannot use is skipped with one warning naming it: curves, text, metaballs and other
+    non-mesh geometry, meshes without faces, lamps and the world's light (radiosity counts emissive
+    surfaces only; the comparison bake leaves them out too), collection instances. Materials it reads
+    approximately give one warning (see :func:`material_rho_emission`); nothing usable left is an InputError.
+    """
+    vl = scene.view_layers[0]
+    deps = vl.depsgraph
     deps.update()
-    objs = [o for o in (objects or scene.objects) if o.type == "MESH" and not o.hide_render
-            and o.users_collection and o.users_collection[0].name != COLLECTION]
-    if not objs:
-        raise InputError(f"scene '{scene.name}' has no mesh objects")
-    meshes, used = [], []
-    for o in objs:
+    in_layer = set(vl.objects)
+    pool = list(objects) if objects is not None else [o for o in scene.objects if o in in_layer]
+    pool = [o for o in pool if not o.hide_render and not any(c.name == COLLECTION for c in o.users_collection)]
+    skipped = {"not meshes": [], "no faces": [], "lamps (radiosity counts emissive surfaces only)": [],
+               "collection instances (not expanded)": []}
+    meshes, used, notes = [], [], {}
+    for o in pool:
+        if o.type == "LIGHT":
+            skipped["lamps (radiosity counts emissive surfaces only)"].append(o.name)
+            continue
+        if o.type == "EMPTY" and o.instance_type == "COLLECTION" and o.instance_collection is not None:
+            skipped["collection instances (not expanded)"].append(o.name)
+            continue
+        if o.type in GEOMETRY:
+            skipped["not meshes"].append(o.name)
+            continue
+        if o.type != "MESH":
+            continue
         ev = o.evaluated_get(deps)
         me = ev.to_mesh()
         try:
@@ -105,62 +274,169 @@ def meshes_from_scene(scene, objects=None):
             v = np.empty(len(me.vertices) * 3)
             me.vertices.foreach_get("co", v)
             v = v.reshape(-1, 3) @ mw[:3, :3].T + mw[:3, 3]
-            faces = [tuple(p.vertices) for p in me.polygons]
-            mats = [material_rho_emission(o.material_slots[p.material_index].material
-                                          if o.material_slots else None) for p in me.polygons]
+            mirrored = np.linalg.det(mw[:3, :3]) < 0
+            faces = [tuple(p.vertices)[::-1] if mirrored else tuple(p.vertices) for p in me.polygons]
+            mi = np.zeros(len(me.polygons), int)
+            if len(mi):
+                me.polygons.foreach_get("material_index", mi)
         finally:
             ev.to_mesh_clear()
         if not faces:
+            skipped["no faces"].append(o.name)
             continue
-        meshes.append({"name": o.name, "vertices": v, "faces": faces,
-                       "rho": np.array([m[0] for m in mats]), "emission": np.array([m[1] for m in mats])})
+        slots = [s.material for s in o.material_slots] or [None]
+        mi = np.clip(mi, 0, len(slots) - 1)
+        try:
+            table = [material_rho_emission(m, notes) for m in slots]
+        except _Unsupported as e:
+            raise InputError(f"{o.name}: {e}") from None
+        meshes.append({"name": o.name, "vertices": v, "faces": faces, "material_index": mi,
+                       "rho": np.array([table[k][0] for k in mi]), "emission": np.array([table[k][1] for k in mi])})
         used.append(o)
+    lost = "; ".join(f"{what}: {', '.join(names)}" for what, names in skipped.items() if names)
+    if not meshes:
+        raise InputError(f"scene '{scene.name}' has no mesh objects with faces to solve"
+                         + (f" (skipped {lost})" if lost else ""))
+    if lost:
+        warn(f"radiosity skipped {lost}")
+    if not _world_is_black(scene.world):
+        warn("the world's light is ignored: radiosity counts emissive surfaces only (the comparison bake uses a "
+             "black world)")
+    line = approximation_warning(notes)
+    if line:
+        warn(line)
     return meshes, used
 
 
-def visibility_bvh(patches, offset=1e-4):
-    """Centre-to-centre visibility (N, N) by Blender's BVHTree over the patches: a ray per candidate pair."""
-    from mathutils import Vector
+def _bvh(patches):
     from mathutils.bvhtree import BVHTree
-    n = len(patches)
     corners = patches.corners.reshape(-1, 3)
-    polys = [list(range(4 * k, 4 * k + (3 if patches.is_tri[k] else 4))) for k in range(n)]
-    bvh = BVHTree.FromPolygons([tuple(c) for c in corners], polys, all_triangles=False, epsilon=0.0)
-    i, j = core.candidate_pairs(patches)
-    o = patches.center[i] + offset * patches.normal[i]
-    t = patches.center[j] + offset * patches.normal[j]
+    polys = [list(range(4 * k, 4 * k + (3 if patches.is_tri[k] else 4))) for k in range(len(patches))]
+    return BVHTree.FromPolygons([tuple(c) for c in corners], polys, all_triangles=False, epsilon=0.0)
+
+
+def _cast(bvh, o, t, offset):
+    """True where the segment o -> t (M, 3) is free, ``offset`` short of t."""
+    from mathutils import Vector
     d = t - o
     dist = np.linalg.norm(d, axis=1)
-    d = d / dist[:, None]
-    lim = dist - 2 * offset
+    d = d / np.maximum(dist, 1e-300)[:, None]
+    lim = dist - offset
     cast = bvh.ray_cast
-    vis = np.fromiter((cast(Vector(a), Vector(b), L)[0] is None for a, b, L in zip(o.tolist(), d.tolist(), lim.tolist())),
-                      bool, count=len(i))
-    V = np.zeros((n, n))
-    V[i, j] = V[j, i] = vis
+    return np.fromiter((cast(Vector(a), Vector(b), L)[0] is None
+                        for a, b, L in zip(o.tolist(), d.tolist(), lim.tolist())), bool, count=len(o))
+
+
+def visibility_bvh(patches, offset=1e-4, bvh=None):
+    """Centre-to-centre visibility (N, N) bool by Blender's BVHTree over the patches: a ray per candidate
+    pair, cast a block of rows at a time (bounded memory; Ctrl-C stops between blocks)."""
+    n = len(patches)
+    bvh = bvh or _bvh(patches)
+    V = np.zeros((n, n), bool)
+    for i, j in core.candidate_pair_blocks(patches):
+        if not len(i):
+            continue
+        interrupt.checkpoint()
+        vis = _cast(bvh, patches.center[i] + offset * patches.normal[i],
+                    patches.center[j] + offset * patches.normal[j], 2 * offset)
+        V[i, j] = vis
+        V[j, i] = vis
     return V
+
+
+def visible_bvh(patches, offset=1e-4, bvh=None):
+    """The ``visible(points, normals, src)`` callback of core.near_field_form_factors: 1 where the ray from
+    the point (lifted ``offset`` along its normal) to the source patch's centre is free."""
+    bvh = bvh or _bvh(patches)
+
+    def visible(points, normals, src):
+        interrupt.checkpoint()
+        return _cast(bvh, points + offset * normals, patches.center[src] + offset * patches.normal[src],
+                     2 * offset).astype(float)
+    return visible
 
 
 # ----------------------------------------------------------------------------- the solve
 
 
-def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, threshold=0.25, progress=None):
+def scene_patches(meshes):
+    """Unsplit patches of ``meshes`` with the back sides Cycles would light (core.back_side_needed);
+    zero-area faces are dropped with a warning."""
+    base = core.patches_from_meshes(meshes, drop_degenerate=True)
+    if base.dropped:
+        warn(f"radiosity skipped {base.dropped} zero-area faces")
+    return core.with_back_sides(base, core.back_side_needed(base, core.open_meshes(meshes)))
+
+
+def refine_near_emitters(patches, max_edge, memory=None, timings=None):
+    """Split the patches whose direct light from a near emitter varies across them, and grade the patches
+    facing a bright bounce (core.emitter_refine_mask), edges not below max_edge / 2**EMITTER_LEVELS, adding at
+    most core.refine_budget patches (the share of the up-front estimate); past it the largest of the marked
+    patches are split first and the rest stay, with a warning; a split that would not fit the memory or the
+    time limit is skipped with a warning."""
+    t0 = time.perf_counter()
+    budget = int(core.refine_budget(patches, len(patches)))
+    limit = len(patches) + budget
+    for level in range(2 * core.EMITTER_LEVELS):       # edges >= min_edge bound it; grading lags a level
+        interrupt.checkpoint()
+        mask = core.emitter_refine_mask(patches, visible_bvh(patches),
+                                        min_edge=max_edge / 2 ** core.EMITTER_LEVELS * 1.0001)
+        if not mask.any():
+            break
+        room = int(limit - len(patches)) // 3
+        if room < mask.sum():
+            marked = np.flatnonzero(mask)
+            mask[:] = False
+            mask[marked[np.argsort(-patches.area[marked], kind="stable")[:max(room, 0)]]] = True
+            warn(f"subdivision near emitters stopped at its budget of {budget} more patches (the share of the "
+                 f"up-front estimate; a smaller --max-edge gives it more)")
+            if not mask.any():
+                break
+        n_next = len(patches) + 3 * int(mask.sum())
+        mem = core.available_memory() if memory is None else memory
+        c = core.solve_cost(n_next)
+        if (mem is not None and c.bytes > mem) or c.seconds > core.MAX_SECONDS:
+            warn(f"subdivision near emitters stopped after {level} levels: {n_next} patches would need "
+                 f"{core.human_bytes(c.bytes)} and about {core.human_seconds(c.seconds)}")
+            break
+        patches, _ = core.split(patches, mask)
+        if room <= mask.sum():
+            break
+    if timings is not None:
+        timings["near_emitters"] = time.perf_counter() - t0
+    return patches
+
+
+def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, threshold=0.25, progress=None,
+                memory=None):
     """Patches -> visibility -> form factors -> solution, with ``adaptive`` refinement rounds.
 
-    Returns a dict: patches, F, solution, H (irradiance), timings.
+    ``meshes`` may also be the patches of :func:`scene_patches`. The cost is checked before anything big is
+    allocated (core.check_cost): a split that does not fit is refused, an adaptive round that would not fit
+    is skipped with a warning. Returns a dict: patches, F, V, solution, H (irradiance), timings, cost.
     """
     t = {}
     t0 = time.perf_counter()
-    patches = core.subdivide_to_size(core.patches_from_meshes(meshes), max_edge)
+    base = meshes if isinstance(meshes, core.Patches) else scene_patches(meshes)
+    cost = core.check_cost(base, max_edge, memory=memory)
+    patches = core.subdivide_to_size(base, max_edge)
+    patches = refine_near_emitters(patches, max_edge, memory, t)
     for round_ in range(adaptive + 1):
         if progress:
             progress(f"visibility and form factors of {len(patches)} patches")
+        interrupt.checkpoint()
         tv = time.perf_counter()
-        V = visibility_bvh(patches)
+        bvh = _bvh(patches)
+        V = visibility_bvh(patches, bvh=bvh)
         t["visibility"] = t.get("visibility", 0) + time.perf_counter() - tv
         tf = time.perf_counter()
         F = core.form_factors(patches, V)
         t["form_factors"] = t.get("form_factors", 0) + time.perf_counter() - tf
+        tn = time.perf_counter()
+        near = core.near_pairs(patches, *core.candidate_pairs(patches))
+        visible = visible_bvh(patches, bvh=bvh)
+        F[near], evals = core.near_field_form_factors(patches, *near, visible=visible)
+        t["near_field"] = t.get("near_field", 0) + time.perf_counter() - tn
         sol = core.solve(F, patches.rho, patches.emission, patches.area, solver, tol)
         t["solve"] = t.get("solve", 0) + sol.seconds
         H = core.irradiance(F, sol.B)
@@ -169,9 +445,19 @@ def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, th
         mask = core.refine_mask(patches, H, threshold, min_area=(max_edge / 16) ** 2)
         if not mask.any():
             break
+        n_next = len(patches) + 3 * int(mask.sum())
+        mem = core.available_memory() if memory is None else memory
+        c = core.solve_cost(n_next)
+        if (mem is not None and c.bytes + core.BYTES_PER_PAIR * len(patches) ** 2 > mem) \
+                or c.seconds > core.MAX_SECONDS:
+            warn(f"adaptive refinement stopped after {round_} rounds: {n_next} patches would need "
+                 f"{core.human_bytes(c.bytes)} and about {core.human_seconds(c.seconds)}")
+            break
+        del V, F
         patches, _ = core.split(patches, mask)
     t["total"] = time.perf_counter() - t0
-    return {"patches": patches, "F": F, "V": V, "solution": sol, "H": H, "timings": t}
+    return {"patches": patches, "F": F, "V": V, "solution": sol, "H": H, "timings": t, "cost": cost,
+            "near": near, "near_evals": evals, "visible": visible}
 
 
 def convergence(F, patches, tol=1e-6):
@@ -198,9 +484,16 @@ def convergence_chart(path, solutions, n):
 # ----------------------------------------------------------------------------- outputs
 
 
-def result_objects(scene, patches, H, meshes, cell=4, gutter=2):
-    """One new object per input mesh, built from its patches, in collection "IL Radiosity": colour attribute
-    "IL Radiosity E" (irradiance, smoothed per vertex) and UV layer "IL Radiosity Atlas" (one cell per patch).
+CELL = 4
+
+
+def result_objects(scene, patches, H, meshes, cell=CELL, gutter=2, sources=None):
+    """One new object per input mesh, built from its front-side patches, in collection "IL Radiosity", hidden
+    from rendering (they lie exactly on the originals: renders and bakes of the user's file stay as they
+    were; the viewport shows them, and the comparison bake unhides them while it runs): colour
+    attribute "IL Radiosity E" (irradiance, smoothed per vertex) and UV layer "IL Radiosity Atlas" (one cell
+    per patch), with the source object's materials on the faces they came from (``sources``: the objects
+    ``meshes`` were read from, else looked up by name).
 
     Returns {name: (object, patch indices, atlas)}.
     """
@@ -237,14 +530,22 @@ def result_objects(scene, patches, H, meshes, cell=4, gutter=2):
         if obj is not None:      # the result of an earlier run; an object of the user's with that name stays
             bpy.data.objects.remove(obj)
         obj = bpy.data.objects.new(f"{name} radiosity", me)
+        obj.hide_render = True       # lying on the original, it would shadow later renders and bakes of it
         coll.objects.link(obj)
-        src = scene.objects.get(name)
+        src = sources[k] if sources is not None else scene.objects.get(name)
         if src is not None and src.material_slots:
             for slot in src.material_slots:
                 me.materials.append(slot.material)
-            me.polygons.foreach_set("material_index", [0] * len(me.polygons))
+            mi = np.asarray(meshes[k].get("material_index", np.zeros(len(meshes[k]["faces"]), int)))
+            me.polygons.foreach_set("material_index", mi[patches.source[sel]].astype(np.int32))
         out[name] = (obj, sel, atlas)
     return out
+
+
+def _finite(what, values):
+    """Refuse to write non-finite numbers (ILError naming ``what``)."""
+    if not np.all(np.isfinite(values)):
+        raise ILError(f"{what} is not finite: the solve diverged (check the albedos: they must be below 1)")
 
 
 def write_lightmaps(out, results, patches, H):
@@ -252,6 +553,7 @@ def write_lightmaps(out, results, patches, H):
     files = {}
     for name, (obj, sel, atlas) in results.items():
         img = core.paint_atlas(atlas, H[sel], patches.is_tri[sel])
+        _finite(f"the light map of {name}", img)
         path = os.path.join(out, f"{bpy.path.clean_name(name)}_radiosity.exr")
         exr.write_exr(path, {"R": img[..., 0], "G": img[..., 1], "B": img[..., 2], "A": img[..., 3]},
                       {"il:quantity": "irradiance E (radiosity solution)", "il:units": "W/m^2",
@@ -260,77 +562,170 @@ def write_lightmaps(out, results, patches, H):
     return files
 
 
-def cycles_patch_irradiance(scene, results, patches, out, samples=64, bounces=32, seed=0):
+def cycles_patch_irradiance(scene, results, patches, out, samples=64, bounces=32, seed=0, sources=None):
     """The light-map pipeline's Cycles irradiance bake (addon.bake, E = π × DIFFUSE bake, white only at the
     baked point so emitters and every albedo bake right) of every result object into its own patch atlas
-    (``sizes``), written to ``out``; returns per-patch means (N, 3) and the seconds it took.
+    (``sizes``), written to ``out``; returns per-patch means (N, 3) of the texels inside each cell, the texels
+    themselves (N, cell², 3; NaN outside a triangle's half) and the seconds it took.
 
-    The result objects carry the scene's materials, so the bounces are the real ones; the originals they
-    were built from are hidden from rendering during the bake.
+    The result objects carry the scene's materials, so the bounces are the real ones. The bake sees what
+    the solve sees: every other renderable object (the originals, lamps, what was skipped) is hidden from
+    rendering, the world is black and Cycles' sample clamping is off (Blender clamps indirect light at 10 by
+    default, which cuts the light bouncing between a lamp and a ceiling just above it) while it runs; all of it
+    is restored afterwards, also on errors and Ctrl-C.
     """
     from ..bake import BakeOptions, bake_lightmaps
     t0 = time.perf_counter()
-    originals = [scene.objects[n] for n in results if n in scene.objects]
-    hidden = [o.hide_render for o in originals]
     objs = [obj for obj, _, _ in results.values()]
+    keep = set(objs)
+    others = [o for o in scene.objects if o not in keep and not o.hide_render]
+    world = scene.world
     options = BakeOptions(samples=int(samples), bounces=int(bounces), seed=int(seed), margin=0, uv_layer=UV,
                           sizes={obj.name: atlas.size for obj, _, atlas in results.values()},
                           overwrite=True, keep_products=False)
+    black = None
     try:
-        for o in originals:
+        for o in others:
             o.hide_render = True
+        for o in objs:
+            o.hide_render = False
+        black = scene.world = _black_world()
         report = bake_lightmaps(objs, ["irradiance"], out, options, scene=scene)
     finally:
-        for o, hr in zip(originals, hidden):
-            o.hide_render = hr
+        for o in others:
+            o.hide_render = False
+        for o in objs:
+            o.hide_render = True
+        scene.world = world
+        if black is not None:
+            bpy.data.worlds.remove(black)
     H = np.full((len(patches), 3), np.nan)
+    texels = None
     for obj, sel, atlas in results.values():
         ch, _ = exr.read_exr(report["objects"][obj.name]["irradiance"]["file"])      # row 0 = top
         img = np.stack([ch[c] for c in "RGB"], -1)
         H[sel] = core.atlas_means(atlas, img, patches.is_tri[sel])
-    return H, time.perf_counter() - t0
+        if texels is None:
+            texels = np.full((len(patches), atlas.cell ** 2, 3), np.nan)
+        texels[sel] = core.atlas_texels(atlas, img, patches.is_tri[sel])
+    return H, texels, time.perf_counter() - t0
+
+
+def _black_world():
+    """A temporary world that emits nothing (a new world's Background node is grey 0.05 in Blender 5)."""
+    w = bpy.data.worlds.new("IL radiosity black world")
+    w.color = (0.0, 0.0, 0.0)
+    if w.node_tree is not None:
+        for n in w.node_tree.nodes:
+            if n.bl_idname == "ShaderNodeBackground":
+                n.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+                n.inputs["Strength"].default_value = 0.0
+    return w
 
 
 def rms(a, b):
-    """RMS difference over the rows where both are finite."""
+    """RMS difference over the rows where both are finite (rows of (..., 3) arrays)."""
+    a, b = np.reshape(a, (-1, np.shape(a)[-1])), np.reshape(b, (-1, np.shape(b)[-1]))
     ok = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
     return float(np.sqrt(np.mean((a[ok] - b[ok]) ** 2))) if ok.any() else float("nan")
 
 
-def run(out, scene=None, cornell=False, solver="jacobi", max_edge=0.25, adaptive=0, samples=64,
-        compare=True, tol=1e-5, chart=True):
-    """The whole job of scripts/radiosity.py; returns the report dict (also written to ``out``).
+COMPARISONS = {
+    "patch": "per patch: the mean over the patch's baked texel centres of the radiosity solution's irradiance at "
+             "those points (H(x) = sum_j F(dA_x -> P_j) V(x, j) B_j, point form factors and rays for the near "
+             "pairs, the patch's F_ij for the others) against the mean of Cycles' texels there: the same points "
+             "on both sides",
+    "texel": "per texel: the solution's irradiance at the texel centre against Cycles' texel (adds the bake's "
+             "per-texel noise)",
+    "lightmap": "per patch: the light map's value (the patch-average irradiance radiosity solves for) against "
+                "the mean of Cycles' texels in the patch's cell (adds the cell's midpoint-rule error where the "
+                "irradiance changes inside a patch)",
+}
 
-    ``chart=False`` skips the convergence chart (the UI passes ``charts.available()``: no matplotlib
-    inside Blender); the report's "chart" is then None, the CSV table is written either way.
-    """
+
+def compare_with_cycles(patches, F, B, near, visible, Hf, front, Hc, Hc_texels):
+    """The three comparisons of COMPARISONS as a report dict {kind: {"rms", "relative_rms", "meaning"}}
+    (relative = RMS / Cycles' mean over the same items), plus the arrays: radiosity at the texels
+    (Nf, cell², 3) and their per-patch means (Nf, 3)."""
+    pts, mask = core.texel_points(patches, CELL)
+    Hx = core.point_irradiance(patches, F, B, near[0], near[1], pts, mask, visible)[front]
+    Hx_mean = np.nanmean(Hx, axis=1)
+    out = {}
+    for kind, (a, b) in {"patch": (Hx_mean, Hc), "texel": (Hx, Hc_texels), "lightmap": (Hf, Hc)}.items():
+        e = rms(a, b)
+        bb = np.reshape(b, (-1, 3))
+        ref = float(np.mean(bb[np.isfinite(bb).all(axis=1)]))
+        out[kind] = {"rms": e, "relative_rms": e / max(ref, 1e-300), "meaning": COMPARISONS[kind]}
+    return out, Hx, Hx_mean
+
+
+def check_options(solver="jacobi", max_edge=0.25, adaptive=0, samples=64, tol=1e-5):
+    """InputError for options out of range (the script's parser checks the same at parse time)."""
     if solver not in core.SOLVERS:
         raise InputError(f"unknown solver {solver!r}; choose from {', '.join(core.SOLVERS)}")
-    if max_edge <= 0:
-        raise InputError(f"--max-edge must be positive, got {max_edge}")
-    if samples < 1:
-        raise InputError(f"--samples must be at least 1, got {samples}")
-    if not 0 < tol < 1:
+    if not (isinstance(max_edge, (int, float)) and np.isfinite(max_edge) and max_edge > 0):
+        raise InputError(f"--max-edge must be a positive number, got {max_edge}")
+    if not (isinstance(samples, int) and 1 <= samples <= MAX_SAMPLES):
+        raise InputError(f"--samples must be 1..{MAX_SAMPLES}, got {samples}")
+    if not (np.isfinite(tol) and 0 < tol < 1):
         raise InputError(f"--tol must be between 0 and 1, got {tol}")
-    if adaptive < 0:
-        raise InputError(f"--adaptive must be 0 or more, got {adaptive}")
-    os.makedirs(out, exist_ok=True)
+    if not (isinstance(adaptive, int) and 0 <= adaptive <= MAX_ADAPTIVE):
+        raise InputError(f"--adaptive must be 0..{MAX_ADAPTIVE}, got {adaptive}")
+
+
+MAX_SAMPLES = 65536
+MAX_ADAPTIVE = 8
+
+
+def estimate(scene, max_edge):
+    """(Cost, smallest max_edge that fits the available memory) of a solve of ``scene`` (the panel's
+    figures: the same check as :func:`run`'s). Warnings about the scene are not shown."""
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        meshes, _ = meshes_from_scene(scene)
+    base = scene_patches(meshes)
+    cost = core.solve_cost(core.planned_patches(base, max_edge))
+    mem = core.available_memory()
+    best = core.smallest_edge_that_fits(base, mem if mem is not None else float("inf"))
+    return cost, best
+
+
+def run(out, scene=None, cornell=False, solver="jacobi", max_edge=0.25, adaptive=0, samples=64,
+        compare=True, tol=1e-5, chart=True, memory=None):
+    """The whole job of scripts/radiosity.py; returns the report dict (also written to ``out``).
+
+    Order: options, output folder, scene, emitters and the cost estimate are all checked before the
+    folder is created or anything big is allocated. ``chart=False`` skips the convergence chart (the UI
+    passes ``charts.available()``: no matplotlib inside Blender); the report's "chart" is then None, the
+    CSV table is written either way. Light maps and vertex colours hold the front side of every face
+    (the side its normal points to, what a light-map bake of it measures).
+    """
+    check_options(solver, max_edge, adaptive, samples, tol)
+    out = check_output_dir(out)
     steps = 5 if compare else 4
     with Progress("radiosity", steps) as p:
         p.step("scene")
         if cornell:
             scene = build_cornell_scene()
         scene = scene or bpy.context.scene
-        meshes, _ = meshes_from_scene(scene)
+        meshes, used = meshes_from_scene(scene)
         if not any(np.any(m["emission"] > 0) for m in meshes):     # before the costly visibility and solve
             raise InputError(f"nothing in scene '{scene.name}' emits light: radiosity counts only emissive surfaces "
                              "(an Emission shader or Principled emission), not lamps; give a mesh an emissive "
                              "material or build the Cornell box")
+        base = scene_patches(meshes)
+        core.check_cost(base, max_edge, memory=memory)
         p.step("patches, visibility, form factors, solve")
-        r = solve_scene(meshes, max_edge, solver, tol, adaptive)
+        r = solve_scene(base, max_edge, solver, tol, adaptive, memory=memory)
         patches, F, sol, H = r["patches"], r["F"], r["solution"], r["H"]
+        _finite("the radiosity solution", sol.B)
         p.step("all solvers for the convergence chart")
         sols = convergence(F, patches, tol)
+        del r["V"]
+        front = ~patches.back
+        pf, Hf = patches.take(front), H[front]
+        os.makedirs(out, exist_ok=True)
         if chart:
             chart = convergence_chart(os.path.join(out, "radiosity_convergence.png"), sols, len(patches))
         else:
@@ -339,11 +734,14 @@ def run(out, scene=None, cornell=False, solver="jacobi", max_edge=0.25, adaptive
                          [{"solver": s, "iteration": k + 1, "residual": v}
                           for s, so in sols.items() for k, v in enumerate(so.residuals)])
         p.step("vertex colours and light maps")
-        results = result_objects(scene, patches, H, meshes)
-        files = write_lightmaps(out, results, patches, H)
-        report = {"patches": len(patches), "solver": solver, "iterations": sol.iterations,
+        results = result_objects(scene, pf, Hf, meshes, sources=used)
+        files = write_lightmaps(out, results, pf, Hf)
+        report = {"patches": len(patches), "front_patches": int(front.sum()), "back_patches": int((~front).sum()),
+                  "solver": solver, "iterations": sol.iterations,
                   "seconds": round(r["timings"]["total"], 4),
                   "timings": {k: round(v, 4) for k, v in r["timings"].items()},
+                  "estimate": {"patches": int(r["cost"].patches), "bytes": int(r["cost"].bytes),
+                               "seconds": round(r["cost"].seconds, 2)},
                   "rms_vs_cycles": None, "scene": scene.name, "chart": chart,
                   "solvers": {s: {"iterations": so.iterations, "seconds": round(so.seconds, 5),
                                   "converged": so.converged} for s, so in sols.items()},
@@ -352,15 +750,25 @@ def run(out, scene=None, cornell=False, solver="jacobi", max_edge=0.25, adaptive
                   "units": "irradiance W/m^2"}
         if compare:
             p.step(f"Cycles irradiance bake ({samples} samples)")
-            Hc, secs = cycles_patch_irradiance(scene, results, patches, os.path.join(out, "cycles_bake"), samples)
+            Hc, Hct, secs = cycles_patch_irradiance(scene, results, pf, os.path.join(out, "cycles_bake"), samples,
+                                                    sources=used)
             ok = np.isfinite(Hc).all(axis=1)
-            report["rms_vs_cycles"] = rms(H, Hc)
-            report["relative_rms_vs_cycles"] = report["rms_vs_cycles"] / float(np.mean(Hc[ok]))
-            report["mean_irradiance"] = {"radiosity": float(np.mean(H[ok])), "cycles": float(np.mean(Hc[ok]))}
+            if not ok.any():
+                raise ILError("the Cycles comparison bake covered no patch")
+            cmp, Hx, Hx_mean = compare_with_cycles(patches, F, sol.B, r["near"], r["visible"], Hf, front, Hc, Hct)
+            report["comparison"] = cmp
+            report["rms_vs_cycles"] = cmp["patch"]["rms"]                # the "patch" comparison (like with like)
+            report["relative_rms_vs_cycles"] = cmp["patch"]["relative_rms"]
+            r["cycles_texels"], r["H_texels"], r["H_points"] = Hct, Hx, Hx_mean
+            report["mean_irradiance"] = {"radiosity": float(np.mean(Hf[ok])), "cycles": float(np.mean(Hc[ok]))}
+            report["near_field"] = {"pairs": int(len(r["near"][0])), "evaluations": int(r["near_evals"])}
             report["cycles_seconds"] = round(secs, 4)
             report["cycles_samples"] = int(samples)
             report["cycles_maps"] = os.path.join(out, "cycles_bake")
+            _finite("the comparison with Cycles", [report["rms_vs_cycles"], report["relative_rms_vs_cycles"]])
             r["cycles"] = Hc
     write_json(os.path.join(out, REPORT), report)
     r["report"] = report
+    r["front"] = front
+    r["H_front"] = Hf
     return r

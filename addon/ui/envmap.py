@@ -4,7 +4,7 @@ import bpy
 from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 
 from .. import compat
-from ..core.errors import ILError
+from ..core.errors import InputError
 from . import common, polls
 
 
@@ -43,15 +43,21 @@ class IL_OT_envmap_irradiance(bpy.types.Operator):
         from ..lab import envmap
         if not _output_folder_ok(self):
             return {"CANCELLED"}
-        try:
-            s = envmap.run(bpy.path.abspath(self.out_dir), scene=context.scene,
-                           env_file=bpy.path.abspath(self.env_file) if self.env_file else None,
-                           method=self.method, width=self.width + self.width % 2)
-            img = envmap.load_irradiance_image(s["file"])
-            envmap.ensure_node_group(img)
-        except ILError as e:
-            hint = "" if self.env_file else " (or choose an Environment file in this button's dialog)"
-            self.report({"ERROR"}, f"{e}{hint}")
+
+        def job():
+            try:
+                s = envmap.run(bpy.path.abspath(self.out_dir), scene=context.scene,
+                               env_file=bpy.path.abspath(self.env_file) if self.env_file else None,
+                               method=self.method, width=self.width + self.width % 2)
+            except InputError as e:
+                if self.env_file:
+                    raise
+                raise InputError(f"{e} (or choose an Environment file in this button's dialog)") from None
+            envmap.ensure_node_group(envmap.load_irradiance_image(s["file"]))
+            return s
+
+        ok, s = common.run_job(self, job)
+        if not ok:
             return {"CANCELLED"}
         self.report({"INFO"}, f"Wrote {s['file']} ({s['seconds'] * 1e3:.1f} ms); node group '{envmap.GROUP}' ready")
         return {"FINISHED"}
@@ -69,7 +75,10 @@ class IL_OT_radiosity(bpy.types.Operator):
                             options=compat.BLEND_RELATIVE_PATH)
     solver: EnumProperty(name="Solver", items=(("jacobi", "Jacobi", ""), ("gauss_seidel", "Gauss-Seidel", ""),
                                                ("progressive", "Progressive refinement", "")))
-    max_edge: FloatProperty(name="Patch size", default=0.25, min=0.001, unit="LENGTH")
+    max_edge: FloatProperty(name="Patch size", default=0.25, min=0.001, unit="LENGTH",
+                            description="Longest patch edge; a size whose N² solve would not fit in the available "
+                                        "memory or would take more than an hour is refused (the dialog shows "
+                                        "the estimate and the smallest size that fits)")
     adaptive: IntProperty(name="Adaptive rounds", default=0, min=0, max=4)
     samples: IntProperty(name="Cycles samples", default=32, min=0, max=4096,
                          description="Samples of the comparison bake (0 = no comparison)")
@@ -81,6 +90,12 @@ class IL_OT_radiosity(bpy.types.Operator):
     def invoke(self, context, event):
         return context.window_manager.invoke_props_dialog(self, width=400)
 
+    def draw(self, context):
+        layout = self.layout
+        for name in ("out_dir", "solver", "max_edge", "adaptive", "samples"):
+            layout.prop(self, name)
+        layout.label(text=_estimate_line(context.scene, self.max_edge))
+
     def execute(self, context):
         from ..core import charts
         from ..lab import radiosity
@@ -89,17 +104,35 @@ class IL_OT_radiosity(bpy.types.Operator):
         chart = charts.available()
         if not chart:
             self.report({"WARNING"}, charts.MISSING)
-        try:
-            r = radiosity.run(bpy.path.abspath(self.out_dir), scene=context.scene, solver=self.solver,
-                              max_edge=self.max_edge, adaptive=self.adaptive, samples=max(self.samples, 1),
-                              compare=self.samples > 0, chart=chart)
-        except ILError as e:
-            self.report({"ERROR"}, str(e))
+        ok, r = common.run_job(self, lambda: radiosity.run(
+            bpy.path.abspath(self.out_dir), scene=context.scene, solver=self.solver, max_edge=self.max_edge,
+            adaptive=self.adaptive, samples=max(self.samples, 1), compare=self.samples > 0, chart=chart))
+        if not ok:
             return {"CANCELLED"}
         rep = r["report"]
         extra = "" if rep["rms_vs_cycles"] is None else f", RMS vs Cycles {rep['rms_vs_cycles']:.3g} W/m²"
         self.report({"INFO"}, f"{rep['patches']} patches, {rep['iterations']} iterations{extra}")
         return {"FINISHED"}
+
+
+_ESTIMATES = {}
+
+
+def _estimate_line(scene, max_edge):
+    """The dialog's cost line, from the same estimate that refuses a run (lab.radiosity.estimate)."""
+    from ..core import radiosity as core
+    from ..lab import radiosity
+    key = (scene.name, round(max_edge, 9), bpy.data.is_dirty)
+    if key not in _ESTIMATES:
+        try:
+            cost, best = radiosity.estimate(scene, max_edge)
+            fits = "" if best is None else f", smallest size that fits: {best:.2g} m"
+            _ESTIMATES.clear()
+            _ESTIMATES[key] = (f"~{core.human_count(cost.patches)} patches, {core.human_bytes(cost.bytes)}, "
+                               f"about {core.human_seconds(cost.seconds)}{fits}")
+        except Exception as e:  # noqa: BLE001 - a label, never an error in a draw callback
+            _ESTIMATES[key] = f"no estimate: {e}"[:120]
+    return _ESTIMATES[key]
 
 
 class IL_OT_build_cornell(bpy.types.Operator):

@@ -182,3 +182,28 @@ def test_bad_inputs():
         R.solve_jacobi(np.zeros((2, 2)), np.zeros((2, 3)), np.zeros((2, 3)))
     with pytest.raises(InputError, match="solver"):
         R.solve(np.zeros((1, 1)), np.zeros((1, 3)), np.ones((1, 3)), np.ones(1), "magic")
+
+
+def test_ceiling_over_a_lamp_edge_is_split_at_its_rim():
+    """A ceiling patch (0..0.25 m, facing down, z = 2) whose edge lies over the edge of a lamp (−0.25..0.25,
+    facing up, z = 1.98): at the texel centres (≥ 3 cm inside the edge) the lamp fills nearly the whole
+    hemisphere, at its rim only half of it (a half-plane 2 cm below: F = ½), so the direct light varies by
+    about half its mean and the patch must be split; a patch 0.5 m beyond the lamp's edge is not."""
+    lamp = [(-0.25, -0.25, 1.98), (0.25, -0.25, 1.98), (0.25, 0.25, 1.98), (-0.25, 0.25, 1.98)]
+    over = [(0, 0, 2.0), (0, 0.25, 2.0), (0.25, 0.25, 2.0), (0.25, 0, 2.0)]
+    far = [(0.75, 0, 2.0), (0.75, 0.25, 2.0), (1.0, 0.25, 2.0), (1.0, 0, 2.0)]
+    m = [{"name": n, "vertices": np.array(v), "faces": [(0, 1, 2, 3)], "rho": 0.7, "emission": e}
+         for n, v, e in (("lamp", lamp, 10.0), ("over", over, 0.0), ("far", far, 0.0))]
+    p = R.patches_from_meshes(m)
+    pts, _ = R.texel_points(p, 4)
+    inner = R.pointwise_form_factors(pts[1], np.repeat(p.normal[1:2], 16, 0), np.repeat(p.corners[:1], 16, 0))
+    rim = R.pointwise_form_factors(R.rim_points(p)[1], np.repeat(p.normal[1:2], 8, 0),
+                                   np.repeat(p.corners[:1], 8, 0))
+    def corner(a, b, h=0.02):       # point h above a corner of an a × b rectangle parallel to it
+        A, B = np.hypot(a, h), np.hypot(b, h)
+        return (a / A * np.arctan(b / A) + b / B * np.arctan(a / B)) / (2 * np.pi)
+    x = 0.25 - R.RIM_INSET * 0.125           # the corner rim point over the lamp's corner, pulled inside
+    exact = corner(0.25 + x, 0.25 + x) + 2 * corner(0.25 + x, 0.25 - x) + corner(0.25 - x, 0.25 - x)
+    assert rim.min() == pytest.approx(exact, rel=1e-6) and exact < 0.35 and inner.min() > 0.85
+    mask = R.emitter_refine_mask(p)
+    assert mask[1] and not mask[2]
