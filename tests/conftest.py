@@ -13,6 +13,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if ROOT not in sys.path:
     sys.path.insert(0, ROOT)
 
+from tests.support import corpus  # noqa: E402,F401  (session fixture: the scene corpus)
+
 
 def _needs_bpy(request):
     return "core" not in request.node.path.relative_to(ROOT).parts[1:2]

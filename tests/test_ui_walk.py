@@ -456,7 +456,7 @@ def test_walk_every_button_on_the_demo_scene(tmp_path, no_matplotlib_no_scipy, p
         ("ssao_compare", {}, "FINISHED", "", ()),
         ("envmap_irradiance", {"out_dir": str(tmp_path / "env")}, "ERROR", "Environment Texture", ()),
         ("envmap_irradiance", {"out_dir": str(tmp_path / "env"), "env_file": env}, "FINISHED", "", ()),
-        ("radiosity", {"out_dir": str(tmp_path / "rad"), "samples": 0}, "ERROR", "User Painted", ()),
+        ("radiosity", {"out_dir": str(tmp_path / "rad"), "samples": 0}, "ERROR", "emits light", ()),
         ("assign_shading_model", {"model": "OREN_NAYAR"}, "FINISHED", "", (box, sphere)),
         ("relink_lights", {}, "FINISHED", "", ()),
         ("radiosity", {"out_dir": str(tmp_path / "rad"), "samples": 0}, "ERROR", "", ()),

@@ -232,26 +232,56 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
     return mat
 
 
+_SKIP_REASONS = {"type": ("not a mesh", "not meshes"), "faces": ("a mesh without faces", "meshes without faces")}
+
+
+def _unshadable(obj):
+    """Why ``obj`` cannot take a shading material (a key of _SKIP_REASONS or a sentence), or None."""
+    if obj.type == "LIGHT":
+        return None
+    if obj.type != "MESH":
+        return "type"
+    lib = obj.library or obj.data.library
+    if lib is not None:
+        return f"linked from {bpy.path.basename(lib.filepath)}, not editable here"
+    if len(obj.data.polygons) == 0:
+        return "faces"
+    return None
+
+
+def split_shadable(objects):
+    """(meshes that can be shaded, ["A, B: reason", ...] for the rest); selected lights are neither."""
+    meshes, by_reason = [], {}
+    for obj in objects:
+        reason = _unshadable(obj)
+        if reason is not None:
+            by_reason.setdefault(reason, []).append(obj.name)
+        elif obj.type == "MESH":
+            meshes.append(obj)
+    return meshes, [f"{', '.join(names)}: {_SKIP_REASONS.get(r, (r, r))[len(names) > 1]}"
+                    for r, names in by_reason.items()]
+
+
 def assign_shading_model(scene, objects, model, lights="ALL", attenuation="PHYSICAL",
                          coefficients=(1.0, 0.0, 1.0), params=None, name=None):
     """Give every mesh in ``objects`` one new material summing ``model`` over the lights.
 
-    ``objects`` is the selection: meshes get the material, lights in it are the ones linked
-    when ``lights`` is "SELECTED". Returns (material, warnings). Raises InputError (and changes
-    nothing) without a mesh or with an object that is neither a mesh nor a light.
+    ``objects`` is the selection: its editable meshes with faces get the material, lights in it
+    are the ones linked when ``lights`` is "SELECTED"; the rest (cameras, curves, empties, meshes
+    without faces, meshes linked from a library) are skipped with one warning naming them, as
+    Blender's own operators do. Returns (material, warnings). Raises InputError (and changes
+    nothing) when no mesh can be shaded.
     """
     if model not in groups.MODEL_GROUPS:
         raise InputError(f"unknown shading model '{model}' (one of {', '.join(groups.MODEL_GROUPS)})")
     if lights not in ("ALL", "SELECTED"):
         raise InputError(f"lights must be ALL or SELECTED, got '{lights}'")
     objects = list(objects)
-    others = [o.name for o in objects if o.type not in ("MESH", "LIGHT")]
-    if others:
-        raise InputError(f"cannot shade {', '.join(others)}: not a mesh (select mesh objects)")
-    meshes = [o for o in objects if o.type == "MESH"]
+    meshes, skipped = split_shadable(objects)
     if not meshes:
-        raise InputError("nothing to shade: select at least one mesh object")
-    warnings = []
+        what = "; ".join(skipped) if skipped else "nothing is selected"
+        raise InputError(f"nothing to shade: select at least one mesh object ({what})")
+    warnings = [f"skipped {'; '.join(skipped)}"] if skipped else []
     linked = []
     for obj in scene_lights(scene, lights, objects):
         if light_type(obj) is None:

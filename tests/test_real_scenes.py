@@ -1,0 +1,519 @@
+"""Every tool on files made the way users make them (tests/support/corpus.py), run as subprocesses.
+
+Outputs are checked, not only exit codes: maps finite, AO in [0, 1], irradiance >= 0, coverage at
+least MIN_COVERAGE, the floor's irradiance at least the sun's E = S cos(theta), the irradiance
+map of a two-valued sky against its closed form, shadow and SSAO errors bounded, radiosity
+within the built-in scene's agreement with Cycles. A crash names the signal and the objects
+that crash alone.
+"""
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from addon.core import exr
+from tests.support.corpus import SUN_ROTATION, SUN_STRENGTH
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+RES, SAMPLES = 32, 4
+MIN_COVERAGE = 0.5          # covered texels / (side^2 x the charts' UV area): the bake's stated minimum
+MIN_MAP_COVERAGE = 0.02     # and never an (almost) empty map, whatever the charts
+BAKE_FILES = ("primitives", "modifiers", "odd_meshes", "imported", "emissive")
+ALL_FILES = BAKE_FILES + ("unsupported",)
+MODELS = ("PHONG", "BLINN_PHONG", "OREN_NAYAR", "COOK_TORRANCE")
+
+
+def outcome(proc):
+    rc = proc.returncode
+    if rc < 0:
+        return f"killed by {signal.Signals(-rc).name} (signal {-rc})"
+    return f"exit {rc}"
+
+
+def last_line(proc):
+    lines = [ln for ln in (proc.stderr or "").splitlines() if ln.strip() and not ln.startswith("Info:")]
+    return lines[-1].strip() if lines else "(stderr empty)"
+
+
+def failure(tool, stem, proc, what=""):
+    return f"{tool} on {stem}.blend{' ' + what if what else ''}: {outcome(proc)}; last stderr line: {last_line(proc)}"
+
+
+def bake(script, entry, names, out, *extra):
+    return script("bake.py", entry["path"], "--objects", *names, "--maps", "ao", "irradiance",
+                  "--samples", SAMPLES, "--out", out, *extra, timeout=300)
+
+
+def isolate(proc, script, entry, names, out, *extra):
+    """After a bake killed by a signal: which objects fail alone, and how (stderr names the rest)."""
+    if proc.returncode >= 0:
+        return ""
+    lines = []
+    for name in names:
+        p = bake(script, entry, [name], os.path.join(out, "alone", name), *extra)
+        if p.returncode != 0:
+            lines.append(f"  alone: {name!r}: {outcome(p)}; {last_line(p)}")
+    return "\n".join(lines) or "  every object bakes alone"
+
+
+def named_in_stderr(proc, name):
+    return any(name in ln for ln in proc.stderr.splitlines())
+
+
+def covered(ch):
+    a = ch["A"]
+    return a > 0.5
+
+
+def check_map(obj, kind, path, rep, min_coverage, side, atlas_objects=None):
+    """Problems of one image map (a list of strings; empty when the map is plausible)."""
+    if not os.path.isfile(path):
+        return [f"{obj} {kind}: no file {path}"]
+    ch, header = exr.read_exr(path)
+    out = []
+    a = ch["A"]
+    if not np.all((a == 0) | (a == 1)):
+        out.append(f"{obj} {kind}: A channel not 0/1")
+    cov = float(a.mean())
+    if a.shape != (side, side):
+        out.append(f"{obj} {kind}: map {a.shape}, asked {side}x{side}")
+    charts = rep.get("chart_area")
+    if charts is None or not 0 < charts <= 1:
+        out.append(f"{obj} {kind}: no plausible chart_area in the report ({charts})")
+    elif cov < max(min_coverage * charts, MIN_MAP_COVERAGE):
+        out.append(f"{obj} {kind}: coverage {cov:.3f} < {min_coverage} x chart area {charts:.3f} "
+                   f"or < {MIN_MAP_COVERAGE} (exit 0)")
+    if atlas_objects is None:
+        reported = rep.get("coverage")
+    else:           # an atlas: each object reports the coverage of its own charts; together they are the map's
+        reported = sum(r.get("coverage") or 0.0 for r in atlas_objects)
+    if reported is None or abs(reported - cov) > len(atlas_objects or [0]) / a.size:
+        out.append(f"{obj} {kind}: report coverage {reported} != map's {cov:.4f}")
+    hdr = {k: v for k, v in header.items() if "coverage" in str(k)}
+    if not hdr:
+        out.append(f"{obj} {kind}: no coverage in the EXR header")
+    else:
+        try:
+            value = float(next(iter(hdr.values())))
+            if abs(value - cov) > 1.0 / a.size:
+                out.append(f"{obj} {kind}: EXR header coverage {value} != map's {cov:.4f}")
+        except (TypeError, ValueError):
+            out.append(f"{obj} {kind}: EXR header coverage not a number: {hdr}")
+    m = covered(ch)
+    out += check_values(obj, kind, ch, m)
+    return out
+
+
+def check_values(obj, kind, ch, m):
+    out = []
+    if not m.any():
+        return out + [f"{obj} {kind}: no covered texel"]
+    if kind == "ao":
+        y = ch["Y"]
+        if not np.all(np.isfinite(y)):
+            out.append(f"{obj} ao: {int((~np.isfinite(y)).sum())} non-finite texels")
+        elif y[m].min() < 0 or y[m].max() > 1:
+            out.append(f"{obj} ao: k_A outside [0, 1]: {y[m].min():.3f} .. {y[m].max():.3f}")
+        elif y[m].mean() <= 0:
+            out.append(f"{obj} ao: all covered texels fully occluded")
+    else:
+        rgb = np.stack([ch[c] for c in "RGB"])
+        if not np.all(np.isfinite(rgb)):
+            out.append(f"{obj} irradiance: {int((~np.isfinite(rgb)).sum())} non-finite values")
+        elif rgb.min() < 0:
+            out.append(f"{obj} irradiance: negative E {rgb.min():.4g} W/m^2")
+        elif rgb[:, m].mean() <= 0:
+            out.append(f"{obj} irradiance: E = 0 on every covered texel of a lit scene")
+    return out
+
+
+def sun_irradiance():
+    """E = S cos(theta) of the corpus sun on a floor facing +z (Blender: the sun shines along local -z)."""
+    x, y, z = SUN_ROTATION
+    rx = np.array([[1, 0, 0], [0, math.cos(x), -math.sin(x)], [0, math.sin(x), math.cos(x)]])
+    ry = np.array([[math.cos(y), 0, math.sin(y)], [0, 1, 0], [-math.sin(y), 0, math.cos(y)]])
+    rz = np.array([[math.cos(z), -math.sin(z), 0], [math.sin(z), math.cos(z), 0], [0, 0, 1]])
+    d = rz @ ry @ rx @ np.array([0.0, 0.0, -1.0])
+    return SUN_STRENGTH * max(0.0, -d[2])
+
+
+# ------------------------------------------------------------------------------------------ bake
+
+
+@pytest.mark.parametrize("stem", BAKE_FILES)
+def test_bake_per_object_maps_cover_their_faces(corpus, stem, tmp_path, script):
+    entry = corpus["files"][stem]
+    names = [m["name"] for m in entry["meshes"]]
+    out = tmp_path / "maps"
+    proc = bake(script, entry, names, out, "--resolution", RES)
+    if proc.returncode != 0:
+        pytest.fail(failure("bake.py", stem, proc, f"({len(names)} objects)") + "\n"
+                    + isolate(proc, script, entry, names, str(tmp_path), "--resolution", RES))
+    report = json.loads((out / "bake_report.json").read_text())["objects"]
+    problems = []
+    for m in entry["meshes"]:
+        name = m["name"]
+        if name not in report:
+            if not (m["hidden_render"] and named_in_stderr(proc, name)):
+                problems.append(f"{name}: not in the report and not named on stderr")
+            continue
+        for kind in ("ao", "irradiance"):
+            rep = report[name].get(kind)
+            if rep is None:
+                problems.append(f"{name} {kind}: missing from the report")
+                continue
+            problems += check_map(name, kind, rep["file"], rep, MIN_COVERAGE, RES)
+    floor = entry.get("receiver")
+    if stem == "primitives" and floor in report and not problems:
+        ch, _ = exr.read_exr(report[floor]["irradiance"]["file"])
+        e = np.stack([ch[c] for c in "RGB"])[:, covered(ch)]
+        lower = 0.95 * sun_irradiance()
+        if np.median(e.min(axis=0)) < lower:
+            problems.append(f"{floor} irradiance: median {np.median(e.min(axis=0)):.3f} W/m^2 below the sun's "
+                            f"own S cos(theta) = {sun_irradiance():.3f}")
+    assert not problems, f"bake.py on {stem}.blend:\n  " + "\n  ".join(problems)
+
+
+@pytest.mark.parametrize("stem", BAKE_FILES)
+def test_bake_atlas_covers_its_faces(corpus, stem, tmp_path, script):
+    entry = corpus["files"][stem]
+    names = [m["name"] for m in entry["meshes"] if not m["hidden_render"]]
+    out = tmp_path / "atlas"
+    proc = bake(script, entry, names, out, "--resolution", 2 * RES, "--atlas")
+    if proc.returncode != 0:
+        pytest.fail(failure("bake.py --atlas", stem, proc, f"({len(names)} objects)") + "\n"
+                    + isolate(proc, script, entry, names, str(tmp_path), "--resolution", 2 * RES, "--atlas"))
+    report = json.loads((out / "bake_report.json").read_text())["objects"]
+    # a linked duplicate (shares its mesh, so its UVs) cannot have charts of its own in one atlas:
+    # it is skipped, and a line must say so
+    first_of_mesh, duplicates = set(), []
+    for m in entry["meshes"]:
+        if m["name"] in names:
+            (duplicates if m["mesh"] in first_of_mesh else []).append(m["name"])
+            first_of_mesh.add(m["mesh"])
+    problems = [f"{n}: not in the atlas report" for n in names if n not in report and n not in duplicates]
+    problems += [f"{n}: shares its mesh, skipped without a line naming it" for n in duplicates
+                 if n not in report and not named_in_stderr(proc, n)]
+    files = {(kind, report[n][kind]["file"]) for n in names if n in report for kind in ("ao", "irradiance")
+             if kind in report[n]}
+    if len(files) != 2:
+        problems.append(f"expected one atlas file per map, got {sorted(files)}")
+    for kind, path in sorted(files):
+        entries = [report[n][kind] for n in names if n in report and report[n].get(kind, {}).get("file") == path]
+        rep = dict(entries[0], chart_area=sum(e.get("chart_area") or 0.0 for e in entries))
+        problems += check_map("atlas", kind, path, rep, MIN_COVERAGE, 2 * RES, atlas_objects=entries)
+    assert not problems, f"bake.py --atlas on {stem}.blend:\n  " + "\n  ".join(problems)
+
+
+@pytest.mark.parametrize("stem", BAKE_FILES)
+def test_bake_to_vertices(corpus, stem, tmp_path, script):
+    entry = corpus["files"][stem]
+    names = [m["name"] for m in entry["meshes"] if not m["hidden_render"]]
+    out = tmp_path / "vertex"
+    proc = bake(script, entry, names, out, "--target", "vertex")
+    if proc.returncode != 0:
+        pytest.fail(failure("bake.py --target vertex", stem, proc, f"({len(names)} objects)") + "\n"
+                    + isolate(proc, script, entry, names, str(tmp_path), "--target", "vertex"))
+    report = json.loads((out / "bake_report.json").read_text())["objects"]
+    problems = []
+    for m in entry["meshes"]:
+        name = m["name"]
+        if name not in names:
+            continue
+        for kind in ("ao", "irradiance"):
+            rep = report.get(name, {}).get(kind)
+            if rep is None or not os.path.isfile(rep["file"]):
+                problems.append(f"{name} {kind}: no vertex file")
+                continue
+            ch, _ = exr.read_exr(rep["file"])
+            n = ch["A"].size
+            if n not in (m["vertices"], m["evaluated_vertices"]):
+                problems.append(f"{name} {kind}: {n} values for {m['vertices']} vertices "
+                                f"({m['evaluated_vertices']} evaluated)")
+            if covered(ch).mean() < 0.5:
+                problems.append(f"{name} {kind}: only {covered(ch).mean():.2f} of the vertices baked")
+            problems += check_values(name, kind, ch, covered(ch))
+    assert not problems, f"bake.py --target vertex on {stem}.blend:\n  " + "\n  ".join(problems)
+
+
+def test_bake_skips_what_it_cannot_bake_and_bakes_the_rest(corpus, tmp_path, script):
+    entry = corpus["files"]["unsupported"]
+    good = [m["name"] for m in entry["meshes"]]
+    bad = [u["name"] for u in entry["unsupported"]]
+    out = tmp_path / "maps"
+    proc = bake(script, entry, good + bad, out, "--resolution", RES)
+    assert proc.returncode == 0, failure("bake.py", "unsupported", proc, f"--objects {good + bad}")
+    report = json.loads((out / "bake_report.json").read_text())["objects"]
+    problems = [f"{n}: skipped without a line naming it on stderr" for n in bad if not named_in_stderr(proc, n)]
+    problems += [f"{n}: baked, but it is {entry['objects'][n]}" for n in bad if n in report]
+    for name in good:
+        for kind in ("ao", "irradiance"):
+            rep = report.get(name, {}).get(kind)
+            problems += ([f"{name} {kind}: not baked"] if rep is None
+                         else check_map(name, kind, rep["file"], rep, MIN_COVERAGE, RES))
+    assert not problems, "bake.py on unsupported.blend:\n  " + "\n  ".join(problems)
+
+
+def test_bake_refuses_with_one_line_when_nothing_can_be_baked(corpus, tmp_path, script):
+    entry = corpus["files"]["unsupported"]
+    bad = [u["name"] for u in entry["unsupported"]]
+    proc = bake(script, entry, bad, tmp_path / "maps", "--resolution", RES)
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip() and not ln.startswith(("Info:", "00:", "["))]
+    assert proc.returncode == 2 and len(lines) >= 1 and "Traceback" not in proc.stderr, \
+        failure("bake.py", "unsupported", proc, f"--objects {bad} (want exit 2, one line)")
+    assert not (tmp_path / "maps" / "bake_report.json").exists()
+
+
+# ------------------------------------------------------------------------------------ shading
+
+SHADING_DRIVER = textwrap.dedent("""
+    import json, sys
+    import numpy as np
+    sys.path.insert(0, {root!r})
+    import bpy
+    import addon
+    from addon import compat
+    from addon.core import exr
+    addon.register()
+    model, out = sys.argv[1], sys.argv[2]
+    for stem, path in json.loads(sys.argv[3]).items():
+        bpy.ops.wm.open_mainfile(filepath=path)
+        print("@@FILE " + stem, flush=True)
+        bpy.ops.object.select_all(action="SELECT")
+        before = {{m.name for m in bpy.data.materials}}
+        try:
+            result = sorted(bpy.ops.illumination.assign_shading_model(model=model))
+        except RuntimeError as e:
+            result = ["RuntimeError: " + str(e)]
+        sys.stdout.flush()
+        print("", flush=True)
+        shaded = sorted(o.name for o in bpy.context.scene.objects if o.type == "MESH"
+                        and any(s.material is not None and "il_model" in s.material for s in o.material_slots))
+        scene = bpy.context.scene
+        scene.render.engine = "CYCLES"
+        scene.cycles.device = "CPU"
+        scene.cycles.samples = 4
+        scene.cycles.use_denoising = False
+        scene.render.resolution_x, scene.render.resolution_y = 48, 36
+        scene.render.resolution_percentage = 100
+        bpy.context.view_layer.use_pass_object_index = True
+        for i, name in enumerate(shaded):
+            bpy.data.objects[name].pass_index = i + 1
+        compat.set_multilayer_exr(scene.render.image_settings)
+        scene.render.filepath = f"{{out}}/{{stem}}_{{model}}.exr"
+        bpy.ops.render.render(write_still=True)
+        parts = exr.read_multipart(scene.render.filepath)
+        chans = {{k: v for p in parts.values() for k, v in p.items()}}
+        get = lambda suffix: next(v for k, v in chans.items() if k.endswith(suffix))
+        rgb = np.stack([get("Combined.R"), get("Combined.G"), get("Combined.B")])
+        index = np.rint(get(compat.OBJECT_INDEX_PASS + ".X")).astype(int)
+        pixels = {{}}
+        for i, name in enumerate(shaded):
+            sel = index == i + 1
+            v = rgb[:, sel]
+            pixels[name] = {{"pixels": int(sel.sum()), "finite": bool(np.all(np.isfinite(v))),
+                            "max": float(np.nanmax(v)) if v.size else 0.0}}
+        kept = sorted(before - {{m.name for m in bpy.data.materials}})
+        print("@@RESULT " + json.dumps({{"result": result, "shaded": shaded, "pixels": pixels,
+                                        "lost_materials": kept,
+                                        "images": sorted(i.name for i in bpy.data.images)}}), flush=True)
+""")
+
+
+def shading_runs(proc):
+    """{stem: (printed lines, result dict)} from the driver's stdout."""
+    runs, stem, lines = {}, None, []
+    for ln in proc.stdout.splitlines():
+        if ln.startswith("@@FILE "):
+            stem, lines = ln[7:], []
+        elif ln.startswith("@@RESULT ") and stem:
+            runs[stem] = (lines, json.loads(ln[9:]))
+        elif stem:
+            lines.append(ln)
+    return runs
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_shading_operator_with_everything_selected(corpus, model, tmp_path):
+    """Select all (A), Assign Shading Model, render a tiny Cycles frame: shaded meshes finite and lit."""
+    driver = tmp_path / "driver.py"
+    driver.write_text(SHADING_DRIVER.format(root=ROOT))
+    files = {s: corpus["files"][s]["path"] for s in ALL_FILES}
+    proc = subprocess.run([sys.executable, str(driver), model, str(tmp_path), json.dumps(files)],
+                          capture_output=True, text=True, timeout=400, cwd=ROOT)
+    runs = shading_runs(proc)
+    problems = []
+    if proc.returncode != 0:
+        problems.append(f"driver: {outcome(proc)} after {sorted(runs)}; last stderr line: {last_line(proc)}")
+    for stem in ALL_FILES:
+        if stem not in runs:
+            problems.append(f"{stem}: no result")
+            continue
+        entry = corpus["files"][stem]
+        lines, res = runs[stem]
+        text = "\n".join(lines)
+        if res["result"] != ["FINISHED"]:
+            problems.append(f"{stem}: operator {res['result']} with everything selected")
+            continue
+        want = {m["name"] for m in entry["meshes"]}
+        missing = sorted(want - set(res["shaded"]))
+        if missing:
+            problems.append(f"{stem}: meshes not shaded: {missing}")
+        for u in entry["unsupported"]:
+            if u["name"] not in text:
+                problems.append(f"{stem}: skipped {u['name']} ({u['kind']}) without naming it in a warning")
+        if entry["camera"] and entry["camera"] not in text:
+            problems.append(f"{stem}: skipped the camera without naming it in a warning")
+        seen = {n: px for n, px in res["pixels"].items() if px["pixels"] > 0}
+        problems += [f"{stem}: {n}: non-finite pixels in the Cycles render" for n, px in seen.items()
+                     if not px["finite"]]
+        # a face turned away from every light is black (no ambient in Oren-Nayar and Cook-Torrance): most
+        # visible meshes, and the largest, face some light in these scenes
+        lit = [n for n, px in seen.items() if px["max"] > 0]
+        largest = max(seen, key=lambda n: seen[n]["pixels"], default=None)
+        if not seen:
+            problems.append(f"{stem}: no shaded mesh visible from the camera")
+        elif largest not in lit or 2 * len(lit) < len(seen):
+            problems.append(f"{stem}: black in the render: {sorted(set(seen) - set(lit))} of {sorted(seen)}")
+        if res["lost_materials"]:
+            problems.append(f"{stem}: the user's materials lost: {res['lost_materials']}")
+        if "Checker" in corpus_images(stem) and "Checker" not in res["images"]:
+            problems.append(f"{stem}: the user's packed image was lost")
+    assert not problems, f"assign_shading_model({model}):\n  " + "\n  ".join(problems)
+
+
+def corpus_images(stem):
+    return {"modifiers": {"Checker", "Sky"}}.get(stem, set())
+
+
+# ------------------------------------------------------------------------------ shadows, SSAO
+
+
+@pytest.mark.parametrize("stem,light", [("primitives", "Sun"), ("modifiers", "Spot"), ("imported", "Light")])
+def test_shadows_on_a_file_it_did_not_build(corpus, stem, light, tmp_path, script):
+    entry = corpus["files"][stem]
+    out = tmp_path / "shadows"
+    methods = ["raytraced", "planar", "shadowmap", "volume_zfail"]
+    proc = script("shadows.py", entry["path"], "--light", light, "--receiver", entry["receiver"],
+                  "--methods", ",".join(methods), "--resolution", 64, "--shadowmap-size", 512,
+                  "--out", out, timeout=300)
+    assert proc.returncode == 0, failure("shadows.py", stem, proc, f"--light {light}")
+    rep = json.loads((out / "shadows_report.json").read_text())
+    problems = []
+    shadowed = rep["reference"].get("shadowed_fraction")
+    if not (isinstance(shadowed, float) and 0 < shadowed < 1):
+        problems.append(f"reference shadowed fraction {shadowed}: objects on the floor must cast some shadow")
+    for m in methods:
+        r = rep["methods"].get(m)
+        if r is None or not os.path.isfile(out / f"{m}_mask.png"):
+            problems.append(f"{m}: no result or no mask")
+            continue
+        err = r["error"]
+        if not (isinstance(err, float) and math.isfinite(err) and 0 <= err <= 1):
+            problems.append(f"{m}: error {err} not a fraction")
+        elif m == "raytraced" and err != 0:
+            problems.append(f"raytraced: error {err} against itself")
+        elif m in ("planar", "shadowmap") and err > 0.05:
+            problems.append(f"{m}: {err:.3f} of the receiver misclassified (> 0.05)")
+    assert not problems, f"shadows.py on {stem}.blend --light {light}:\n  " + "\n  ".join(problems)
+
+
+@pytest.mark.parametrize("stem", ["primitives", "imported"])
+def test_ssao_on_a_file_it_did_not_build(corpus, stem, tmp_path, script):
+    entry = corpus["files"][stem]
+    out = tmp_path / "ssao"
+    methods = ["crytek", "hemisphere", "hbao", "gtao"]
+    proc = script("ssao.py", entry["path"], "--methods", ",".join(methods), "--resolution", 48,
+                  "--samples", 8, "--reference-samples", 64, "--out", out, timeout=300)
+    assert proc.returncode == 0, failure("ssao.py", stem, proc)
+    rep = json.loads((out / "ssao_report.json").read_text())
+    problems = []
+    ref, _ = exr.read_exr(out / "reference_ao.exr")
+    geo = ref["A"] > 0.5
+    if not (0 < geo.mean() < 1):
+        problems.append(f"reference: geometry covers {geo.mean():.2f} of the frame (want both geometry and sky)")
+    for name in ["reference"] + methods:
+        ch, _ = exr.read_exr(out / f"{name}_ao.exr")
+        y = ch["Y"][geo]
+        if not np.all(np.isfinite(y)):
+            problems.append(f"{name}: non-finite k_A")
+        elif y.min() < 0 or y.max() > 1:
+            problems.append(f"{name}: k_A outside [0, 1]: {y.min():.3f} .. {y.max():.3f}")
+    for m in ("hemisphere", "hbao", "gtao"):
+        rmse = rep["methods"][m]["rmse"]
+        if not (math.isfinite(rmse) and rmse < 0.3):
+            problems.append(f"{m}: RMSE {rmse} against the reference (want < 0.3)")
+    assert not problems, f"ssao.py on {stem}.blend:\n  " + "\n  ".join(problems)
+
+
+# --------------------------------------------------------------------------- radiosity, envmap
+
+
+def test_radiosity_on_a_users_emissive_room(corpus, tmp_path, script):
+    """Principled Emission Color x Strength and an Emission shader: the solver agrees with Cycles as on
+    the built-in Cornell box (relative RMS < 0.2 there)."""
+    entry = corpus["files"]["emissive"]
+    out = tmp_path / "rad"
+    proc = script("radiosity.py", entry["path"], "--samples", 32, "--out", out, timeout=400)
+    assert proc.returncode == 0, failure("radiosity.py", "emissive", proc)
+    rep = json.loads((out / "radiosity_report.json").read_text())
+    problems = []
+    if not rep.get("patches", 0) > 0:
+        problems.append(f"patches {rep.get('patches')}")
+    for name, o in rep.get("objects", {}).items():
+        ch, _ = exr.read_exr(o["lightmap"])
+        v = np.stack([ch[c] for c in "RGB" if c in ch])
+        if not np.all(np.isfinite(v)) or v.min() < 0:
+            problems.append(f"{name}: light map not finite or negative")
+    rel = rep.get("relative_rms_vs_cycles")
+    if rel is None or not rel < 0.25:
+        problems.append(f"relative RMS against its own Cycles bake {rel} (want < 0.25; the built-in box < 0.2)")
+    assert not problems, "radiosity.py on emissive.blend:\n  " + "\n  ".join(problems)
+
+
+def test_radiosity_without_emissive_meshes_refuses_with_one_line(corpus, tmp_path, script):
+    entry = corpus["files"]["primitives"]
+    proc = script("radiosity.py", entry["path"], "--no-compare", "--out", tmp_path / "rad", timeout=300)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr and "emi" in last_line(proc).lower(), \
+        failure("radiosity.py", "primitives", proc, "(lamps only, no emissive mesh: want exit 2 naming emission)")
+
+
+@pytest.mark.parametrize("method", ["sh9", "brute"])
+def test_envmap_of_a_users_sky_texture(corpus, method, tmp_path, script):
+    """A world lit by a packed lat-long image, L1 above the horizon and L2 below: the irradiance of a
+    normal at elevation a is E = pi (L1 (1 + sin a) + L2 (1 - sin a)) / 2, a band-0/1 function that
+    sh9 reproduces too."""
+    entry = corpus["files"]["modifiers"]
+    out = tmp_path / "env"
+    proc = script("envmap.py", entry["path"], "--method", method, "--width", 32, "--out", out, timeout=300)
+    assert proc.returncode == 0, failure("envmap.py", "modifiers", proc, f"--method {method}")
+    ch, _ = exr.read_exr(out / "irradiance_latlong.exr")
+    upper, lower = entry["sky"]
+    h = ch["R"].shape[0]
+    a = np.radians(90 - (np.arange(h) + 0.5) * 180 / h)
+    want = math.pi * (upper * (1 + np.sin(a)) + lower * (1 - np.sin(a))) / 2
+    for c in "RGB":
+        assert np.all(np.isfinite(ch[c])), f"envmap.py {method}: non-finite {c}"
+        np.testing.assert_allclose(ch[c], np.repeat(want[:, None], ch[c].shape[1], axis=1), rtol=0.02,
+                                   err_msg=f"envmap.py {method} on modifiers.blend, channel {c}")
+
+
+def test_envmap_of_a_plain_world_colour(corpus, tmp_path, script):
+    """The default world is a flat colour: either E = pi L everywhere or one line saying what it needs."""
+    entry = corpus["files"]["primitives"]
+    out = tmp_path / "env"
+    proc = script("envmap.py", entry["path"], "--width", 16, "--out", out, timeout=300)
+    if proc.returncode == 2:
+        assert "Traceback" not in proc.stderr and "nvironment" in last_line(proc), failure("envmap.py", "primitives", proc)
+        assert not out.exists(), "envmap.py created its output folder before refusing"
+        return
+    assert proc.returncode == 0, failure("envmap.py", "primitives", proc)
+    ch, _ = exr.read_exr(out / "irradiance_latlong.exr")
+    for c, L in zip("RGB", (0.05, 0.05, 0.06)):
+        np.testing.assert_allclose(ch[c], math.pi * L, rtol=0.02)
