@@ -395,3 +395,21 @@ def _box_faces(lo, hi):
         [(x0, y1, z0), (x0, y1, z1), (x1, y1, z1), (x1, y1, z0)],
         [(x0, y0, z0), (x0, y0, z1), (x0, y1, z1), (x0, y1, z0)],
         [(x1, y0, z0), (x1, y1, z0), (x1, y1, z1), (x1, y0, z1)])]
+
+
+def test_a_users_layer_with_overlapping_charts_is_used_as_it_is(tmp_path):
+    """Each face of a cube fills the whole UV square (a tiled layout): the layer is baked as it is, with the
+    overlap reported, not refused for a chart area counted six times. Open sky: k_A = 1 on every face."""
+    scene = sc.new_scene("T")
+    cube = sc.box(scene, "Cube", 1.0)
+    me = cube.data
+    layer = me.uv_layers.new(name="Tiled")
+    corners = np.array([(0, 0), (1, 0), (1, 1), (0, 1)], float)
+    uv = np.concatenate([corners[: p.loop_total] for p in me.polygons])
+    layer.data.foreach_set("uv", uv.ravel())
+    rep = bake(scene, [cube], ["ao"], tmp_path, resolution=16, samples=4, uv_layer="Tiled")
+    entry = rep["objects"]["Cube"]["ao"]
+    ch, _ = read(tmp_path, "Cube", "ao")
+    assert entry["chart_area"] == pytest.approx(1.0, abs=0.01)
+    assert ch["A"].mean() == 1.0 and entry["overlap"] > 0.9
+    np.testing.assert_array_equal(ch["Y"], 1.0)

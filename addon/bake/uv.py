@@ -92,9 +92,18 @@ def check_layer(obj, name):
 
 # ------------------------------------------------------------------ coverage (numpy only)
 
+UNION_SIDE = 1024
+"""Side of the raster that measures the area of overlapping charts (their union)."""
+
+
 def chart_area(tri_uv):
-    """The charts' UV area inside the unit square (Σ |triangle area| of the clipped UVs)."""
-    return lightmap.uv_area(np.clip(tri_uv, 0.0, 1.0))
+    """The charts' UV area inside the unit square, overlapping charts counted once: Σ |triangle area| of the
+    clipped UVs, or, when that exceeds the fraction of a UNION_SIDE² raster's texel centres they cover (a
+    user's layer with mirrored or tiled charts), that fraction."""
+    tri = np.clip(tri_uv, 0.0, 1.0)
+    total = lightmap.uv_area(tri)
+    union = float(lightmap.coverage_mask(tri, UNION_SIDE, UNION_SIDE).mean()) if total > 0 else 0.0
+    return total if total <= union * 1.02 else union
 
 
 def coverage_ratio(tri_uv, width, height):
@@ -185,7 +194,7 @@ def check_overlap(scene, objects, layers, size):
     return fractions, group
 
 
-def _side_that_fits(tri, w, h, cap=lightmap.MAX_RESOLUTION):
+def _side_that_fits(tri, w, h, cap=4096):
     """Smallest side 2^k · max(w, h) ≤ cap at which the layout ``tri`` meets MIN_COVERAGE, or None."""
     side = max(w, h)
     while side < cap:

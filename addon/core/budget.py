@@ -55,8 +55,9 @@ def largest(cost, lo, hi, memory=None, seconds=MAX_SECONDS):
     return lo
 
 
-def check(option, value, cost, lo=1, what=""):
-    """Raise InputError unless ``cost(value)`` fits; the message names the largest ``option`` that does.
+def check(option, value, cost, lo=1, what="", multiple=1):
+    """Raise InputError unless ``cost(value)`` fits; the message names the largest ``option`` that does
+    (a multiple of ``multiple``, for options that must be even).
 
     ``what`` says what the other settings are ("at 128x128 pixels").
     """
@@ -65,6 +66,9 @@ def check(option, value, cost, lo=1, what=""):
     if need_b <= memory and need_s <= MAX_SECONDS:
         return value
     best = largest(cost, lo, int(value) - 1, memory)
+    if best is not None:
+        best -= best % multiple
+        best = best if best >= lo else None
     if need_b > memory:
         reason = f"needs about {format_bytes(need_b)} of memory ({format_bytes(memory)} usable here)"
     else:

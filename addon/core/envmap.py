@@ -162,7 +162,7 @@ def check_cost(width, method="sh9", quadrature_directions=0):
     ((width²/2) x BYTES_PER_MAP_PIXEL) or brute-force time (pixels x directions x SECONDS_PER_PRODUCT)
     does not fit :mod:`budget`."""
     per_pixel = SECONDS_PER_PRODUCT * quadrature_directions if method == "brute" else 0.0
-    budget.check("width", int(width), lambda w: ((w // 2) * w * BYTES_PER_MAP_PIXEL, (w // 2) * w * per_pixel), 4)
+    budget.check("width", int(width), lambda w: ((w // 2) * w * BYTES_PER_MAP_PIXEL, (w // 2) * w * per_pixel), 4, multiple=2)
 
 
 def brute_directions(env_shape, max_width=256):

@@ -54,21 +54,24 @@ def _texels_inside(tri_uv, width, height, strict=False, chunk=1 << 20):
     k = np.where(ok, 2 ** np.ceil(np.log2(np.maximum(span.max(axis=1), 1))).astype(np.int64), 0)
     eps = 1e-6 if strict else -1e-6
     for size in np.unique(k[ok]):
+        size = int(size)
         idx = np.flatnonzero(k == size)
-        step = max(1, chunk // int(size * size))
+        rows = min(size, max(1, chunk // size))          # a box larger than chunk is tested in bands of rows
+        step = max(1, chunk // (rows * size))
         r = np.arange(size)
         for s in range(0, len(idx), step):
             i = idx[s:s + step]
             xs = lo[i, 0][:, None, None] + r[None, None, :]
-            ys = lo[i, 1][:, None, None] + r[None, :, None]
-            valid = (xs <= hi[i, 0][:, None, None]) & (ys <= hi[i, 1][:, None, None])
-            px, py = xs + 0.5 - a[i, 0][:, None, None], ys + 0.5 - a[i, 1][:, None, None]
             e1, e2 = (b[i] - a[i])[:, :, None, None], (c[i] - a[i])[:, :, None, None]
             dd = d[i][:, None, None]
-            w1 = (px * e2[:, 1] - py * e2[:, 0]) / dd
-            w2 = (e1[:, 0] * py - e1[:, 1] * px) / dd
-            inside = valid & (w1 >= eps) & (w2 >= eps) & (w1 + w2 <= 1 - eps)
-            yield np.broadcast_to(ys, inside.shape)[inside] * width + np.broadcast_to(xs, inside.shape)[inside]
+            for y0 in range(0, size, rows):
+                ys = lo[i, 1][:, None, None] + r[None, y0:y0 + rows, None]
+                valid = (xs <= hi[i, 0][:, None, None]) & (ys <= hi[i, 1][:, None, None])
+                px, py = xs + 0.5 - a[i, 0][:, None, None], ys + 0.5 - a[i, 1][:, None, None]
+                w1 = (px * e2[:, 1] - py * e2[:, 0]) / dd
+                w2 = (e1[:, 0] * py - e1[:, 1] * px) / dd
+                inside = valid & (w1 >= eps) & (w2 >= eps) & (w1 + w2 <= 1 - eps)
+                yield np.broadcast_to(ys, inside.shape)[inside] * width + np.broadcast_to(xs, inside.shape)[inside]
 
 
 def triangle_counts(tri_uv, width, height, strict=False):

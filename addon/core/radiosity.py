@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .budget import memory_budget
 from .errors import InputError
 
 
@@ -259,9 +260,11 @@ def longest_edge(corners):
 # ----------------------------------------------------------------------------
 # Cost of a solve: refuse what cannot finish before allocating anything
 
-# Peak memory of a solve with N patches: F (N² float64) and the visibility matrix V (N² bool) live
-# together, plus a product of the same size while a solver checks its residual, plus bounded chunks.
-BYTES_PER_PAIR = 17.0
+# Peak memory of a solve with N patches, per patch pair: measured with tracemalloc on the Cornell box at
+# N = 7104: form factors with the visibility matrix alive 21.3 B (F float64, V bool and their temporaries),
+# near pairs beside F 11.6 B (found block by block), a solve 8.0 B, the emitter split mask 8.8 B; plus bounded
+# chunks. Rounded up.
+BYTES_PER_PAIR = 24.0
 OVERHEAD_BYTES = 600e6                  # Blender, numpy and the chunked temporaries
 # Seconds per patch pair (visibility ray + form factor + the three solvers of the convergence chart),
 # measured on the 2-core reference machine (tests/test_radiosity.py states the run it comes from).
@@ -286,22 +289,6 @@ def solve_cost(n):
     n = float(n)
     return Cost(n, BYTES_PER_PAIR * n * n + OVERHEAD_BYTES + NEAR_PEAK_BYTES,
                 SECONDS_PER_PAIR * n * n + SECONDS_PER_NEAR_EVAL * NEAR_EVALS_PER_PATCH * n)
-
-
-def available_memory():
-    """Bytes the machine can give now: MemAvailable of /proc/meminfo, else physical memory, else None."""
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return float(line.split()[1]) * 1024
-    except OSError:
-        pass
-    try:
-        import os
-        return float(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
-    except (ValueError, OSError, AttributeError):
-        return None
 
 
 def human_bytes(b):
@@ -352,8 +339,8 @@ def check_cost(patches, max_edge, memory=None, max_seconds=MAX_SECONDS, option="
     """Estimate the solve of ``patches`` split to ``max_edge`` (an upper bound: :func:`planned_patches`) and
     refuse (InputError, one line naming the
     limit and the smallest edge that fits) what needs more than ``memory`` bytes (default: the memory
-    available now) or more than ``max_seconds``. Returns the :class:`Cost`."""
-    memory = available_memory() if memory is None else memory
+    a job may plan to use, core.budget) or more than ``max_seconds``. Returns the :class:`Cost`."""
+    memory = memory_budget() if memory is None else memory
     cost = solve_cost(planned_patches(patches, max_edge))
     over_mem = memory is not None and cost.bytes > memory
     over_time = max_seconds is not None and cost.seconds > max_seconds
@@ -362,7 +349,7 @@ def check_cost(patches, max_edge, memory=None, max_seconds=MAX_SECONDS, option="
     mem = memory if memory is not None else float("inf")
     secs = max_seconds if max_seconds is not None else float("inf")
     best = smallest_edge_that_fits(patches, mem, secs)
-    limits = " and ".join(x for x in (f"{human_bytes(mem)} of available memory" if memory is not None else "",
+    limits = " and ".join(x for x in (f"{human_bytes(mem)} of usable memory" if memory is not None else "",
                                       f"{human_seconds(secs)} (at {SECONDS_PER_PAIR * 1e6:g} µs a patch pair)"
                                       if max_seconds is not None else "") if x)
     hint = (f"the smallest edge that fits in {limits} is {best:.2g}" if best is not None
@@ -524,6 +511,7 @@ NEAR_EVALS_PER_PATCH = 600
 NEAR_CHUNK = 5000          # pairs per chunk, at most NEAR_CHUNK_EVALS evaluations each: bounded memory
 NEAR_CHUNK_EVALS = 600_000
 NEAR_PEAK_BYTES = 400e6    # the arrays of one chunk's evaluations (about 600 B each)
+EMITTER_PAIR_BLOCK = 1_000_000   # (receiver, emitter) candidates screened at once (about 100 B each)
 
 
 def bounding_radius(patches):
@@ -699,15 +687,21 @@ def emitter_refine_mask(patches, visible=None, threshold=EMITTER_SPREAD, min_edg
     mask = np.zeros(n, bool)
     if not len(em):
         return mask
-    i = np.repeat(np.arange(n), len(em))
-    e = np.tile(em, n)
-    d = patches.center[e] - patches.center[i]
-    ok = (np.einsum("mk,mk->m", d, patches.normal[i]) > 1e-9) & (np.einsum("mk,mk->m", d, patches.normal[e]) < -1e-9)
-    i, e = i[ok], e[ok]
     r = bounding_radius(patches)
-    gap = np.linalg.norm(patches.center[i] - patches.center[e], axis=1) - r[i] - r[e]
-    near = gap < NEAR_RATIO * 2 * r[i]
-    i, e = i[near], e[near]
+    rows = max(1, EMITTER_PAIR_BLOCK // len(em))
+    parts = []
+    for s in range(0, n, rows):             # (receiver, emitter) pairs in blocks: memory bounded, not n x emitters
+        i = np.repeat(np.arange(s, min(s + rows, n)), len(em))
+        e = np.tile(em, len(i) // len(em))
+        d = patches.center[e] - patches.center[i]
+        ok = ((np.einsum("mk,mk->m", d, patches.normal[i]) > 1e-9)
+              & (np.einsum("mk,mk->m", d, patches.normal[e]) < -1e-9))
+        i, e = i[ok], e[ok]
+        gap = np.linalg.norm(patches.center[i] - patches.center[e], axis=1) - r[i] - r[e]
+        near = gap < NEAR_RATIO * 2 * r[i]
+        parts.append((i[near], e[near]))
+    i = np.concatenate([p[0] for p in parts])
+    e = np.concatenate([p[1] for p in parts])
     if not len(i):
         return mask
     pts, pmask = texel_points(patches, points)
@@ -851,6 +845,15 @@ def candidate_pairs(patches):
     """Pairs i < j that can exchange light (each in front of the other's plane): the rays worth casting."""
     blocks = list(candidate_pair_blocks(patches))
     return (np.concatenate([b[0] for b in blocks]), np.concatenate([b[1] for b in blocks]))
+
+
+def near_candidate_pairs(patches, ratio=NEAR_RATIO):
+    """:func:`near_pairs` of the :func:`candidate_pairs`, one block at a time: memory bounded by a block and
+    the near pairs, never the O(N²) candidate list."""
+    parts = [near_pairs(patches, i, j, ratio) for i, j in candidate_pair_blocks(patches)]
+    if not parts:
+        return np.zeros(0, int), np.zeros(0, int)
+    return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
 
 def ray_triangle_hits(origins, targets, tris, eps=1e-7):

@@ -12,6 +12,7 @@ import bpy
 import numpy as np
 
 from ..core import charts, exr
+from ..core.budget import memory_budget
 from ..core import radiosity as core
 from ..core.errors import ILError, InputError, warn
 from ..core.fileio import check_output_dir, write_json
@@ -393,7 +394,7 @@ def refine_near_emitters(patches, max_edge, memory=None, timings=None):
             if not mask.any():
                 break
         n_next = len(patches) + 3 * int(mask.sum())
-        mem = core.available_memory() if memory is None else memory
+        mem = memory_budget() if memory is None else memory
         c = core.solve_cost(n_next)
         if (mem is not None and c.bytes > mem) or c.seconds > core.MAX_SECONDS:
             warn(f"subdivision near emitters stopped after {level} levels: {n_next} patches would need "
@@ -431,9 +432,10 @@ def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, th
         t["visibility"] = t.get("visibility", 0) + time.perf_counter() - tv
         tf = time.perf_counter()
         F = core.form_factors(patches, V)
+        del V
         t["form_factors"] = t.get("form_factors", 0) + time.perf_counter() - tf
         tn = time.perf_counter()
-        near = core.near_pairs(patches, *core.candidate_pairs(patches))
+        near = core.near_candidate_pairs(patches)
         visible = visible_bvh(patches, bvh=bvh)
         F[near], evals = core.near_field_form_factors(patches, *near, visible=visible)
         t["near_field"] = t.get("near_field", 0) + time.perf_counter() - tn
@@ -446,17 +448,17 @@ def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, th
         if not mask.any():
             break
         n_next = len(patches) + 3 * int(mask.sum())
-        mem = core.available_memory() if memory is None else memory
+        mem = memory_budget() if memory is None else memory
         c = core.solve_cost(n_next)
         if (mem is not None and c.bytes + core.BYTES_PER_PAIR * len(patches) ** 2 > mem) \
                 or c.seconds > core.MAX_SECONDS:
             warn(f"adaptive refinement stopped after {round_} rounds: {n_next} patches would need "
                  f"{core.human_bytes(c.bytes)} and about {core.human_seconds(c.seconds)}")
             break
-        del V, F
+        del F
         patches, _ = core.split(patches, mask)
     t["total"] = time.perf_counter() - t0
-    return {"patches": patches, "F": F, "V": V, "solution": sol, "H": H, "timings": t, "cost": cost,
+    return {"patches": patches, "F": F, "solution": sol, "H": H, "timings": t, "cost": cost,
             "near": near, "near_evals": evals, "visible": visible}
 
 
@@ -686,8 +688,7 @@ def estimate(scene, max_edge):
         meshes, _ = meshes_from_scene(scene)
     base = scene_patches(meshes)
     cost = core.solve_cost(core.planned_patches(base, max_edge))
-    mem = core.available_memory()
-    best = core.smallest_edge_that_fits(base, mem if mem is not None else float("inf"))
+    best = core.smallest_edge_that_fits(base, memory_budget())
     return cost, best
 
 
@@ -722,7 +723,6 @@ def run(out, scene=None, cornell=False, solver="jacobi", max_edge=0.25, adaptive
         _finite("the radiosity solution", sol.B)
         p.step("all solvers for the convergence chart")
         sols = convergence(F, patches, tol)
-        del r["V"]
         front = ~patches.back
         pf, Hf = patches.take(front), H[front]
         os.makedirs(out, exist_ok=True)
