@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from addon.core import envmap as E
-from addon.core import exr
+from addon.core.io import exr
 from addon.core.errors import InputError
 from addon.lab import envmap as L
 from addon.lab import render, scene as S

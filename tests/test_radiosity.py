@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from addon import compat
-from addon.core import exr
+from addon.core.io import exr
 from addon.core import radiosity as R
 from addon.core.errors import InputError
 from addon.lab import radiosity as L

@@ -131,7 +131,7 @@ def test_imported_cornell_box_against_cycles_and_against_bake_py(tmp_path):
       (95 % of the squared error lies within 5 mm of the light's outline, where the field changes over ~1 mm
       and patches stop at max-edge / 32 = 3 mm): √(4.3² + 7² + 14.7²) ≈ 17 %. Allowed: 20 %."""
     from addon.bake import BakeOptions, bake_lightmaps
-    from addon.core import exr
+    from addon.core.io import exr
     sc = import_cornell(str(tmp_path / "obj"))
     sc.world = L._black_world()
     r = L.run(str(tmp_path / "rad"), scene=sc, max_edge=0.1, samples=32)

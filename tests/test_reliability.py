@@ -14,7 +14,8 @@ import pytest
 from mathutils import Vector
 
 from addon.core import envmap as core_env
-from addon.core import exr, imageio
+from addon.core.io import png
+from addon.core.io import exr
 from addon.lab import ssao as ssao_lab
 from addon.lab import ssao_scenes
 from addon.lab.scene import remove_scene
@@ -92,7 +93,7 @@ def test_shadows_on_a_file_made_with_blenders_operators(script, user_blend, tmp_
     assert 0.02 < ref["shadowed_fraction"] < 0.9
     assert rep["methods"]["shadowmap"]["error"] < 0.05                                    # same occluders as Cycles
     assert "Suzanne" in rep["methods"]["volume_zfail"]["params"]["skipped_open_meshes"]   # open: documented
-    mask = imageio.decode_png((out / "raytraced_mask.png").read_bytes())
+    mask = png.decode_png((out / "raytraced_mask.png").read_bytes())
     assert mask.shape == (48, 64) and {0, 255} <= set(np.unique(mask))
 
 
@@ -178,7 +179,8 @@ def test_costs_that_do_not_fit_are_refused_before_any_work(script, tmp_path, nam
 
 
 def test_the_named_largest_value_fits_and_the_next_does_not(monkeypatch):
-    from addon.core import budget, shadow_map, ssao
+    from addon.core import budget, ssao
+    from addon.core.shadow import depth_map
     from addon.core.errors import InputError
     monkeypatch.setattr(budget, "memory_budget", lambda: 8 << 30)
     with pytest.raises(InputError, match="needs about 25 GiB of memory") as e:
@@ -187,7 +189,7 @@ def test_the_named_largest_value_fits_and_the_next_does_not(monkeypatch):
     assert best == int(math.sqrt((8 << 30) / ssao.BYTES_PER_PIXEL))
     ssao.check_cost(best, best, 1, 1)
     with pytest.raises(InputError, match=f"the largest shadow-map size that fits is "):
-        shadow_map.check_cost(128, 128, 16384, faces=6)
+        depth_map.check_cost(128, 128, 16384, faces=6)
     cost = lambda n: (n * 1000, 0.0)  # noqa: E731
     assert budget.largest(cost, 1, 10 ** 9, memory=123456) == 123
     assert budget.largest(cost, 200, 10 ** 9, memory=123456) is None

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from addon import compat
-from addon.core import exr, ssao as core
+from addon.core import ssao as core
+from addon.core.io import exr
 from addon.core.errors import ILError, InputError
 from addon.lab import ssao as lab
 from addon.lab import ssao_scenes

@@ -94,7 +94,7 @@ def write_hdr(path, rgb):
     rgb = np.asarray(rgb)
     h, w = rgb.shape[:2]
     head = f"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y {h} +X {w}\n".encode()
-    from .fileio import write_bytes
+    from .io.files import write_bytes
     write_bytes(path, head + float_to_rgbe(rgb).tobytes())
 
 
@@ -138,7 +138,7 @@ def read_latlong(path):
     if ext in (".hdr", ".pic", ".rgbe"):
         env = read_hdr(path)
     elif ext == ".exr":
-        from .exr import read_exr
+        from .io.exr import read_exr
         try:
             ch, _ = read_exr(path)
         except ILError:

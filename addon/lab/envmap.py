@@ -12,9 +12,10 @@ import numpy as np
 
 from .. import compat
 from ..core import envmap as core
-from ..core import exr, imageio
+from ..core.io import png as io_png
+from ..core.io import exr
 from ..core.errors import ILError, InputError
-from ..core.fileio import write_json
+from ..core.io.files import write_json
 from ..nodes import groups
 from ..nodes.builder import Graph
 from . import scene as sc
@@ -47,7 +48,7 @@ def image_pixels(image):
     px = px.reshape(h, w, image.channels)
     rgb = px[..., :3] if image.channels >= 3 else np.repeat(px[..., :1], 3, axis=-1)
     if not image.is_float and space == "sRGB":
-        rgb = imageio.srgb_decode(rgb)
+        rgb = io_png.srgb_decode(rgb)
     return np.flipud(rgb).astype(np.float32)
 
 

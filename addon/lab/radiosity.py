@@ -11,10 +11,11 @@ import time
 import bpy
 import numpy as np
 
-from ..core import charts, exr
+from ..core import charts
+from ..core.io import exr
 from ..core import radiosity as core
 from ..core.errors import ILError, InputError, warn
-from ..core.fileio import check_output_dir, write_json
+from ..core.io.files import check_output_dir, write_json
 from .. import interrupt
 from ..progress import Progress
 from . import scene as scn

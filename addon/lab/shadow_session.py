@@ -15,7 +15,8 @@ from mathutils import Vector
 
 from .. import compat
 from ..core import camera as cam
-from ..core import shadow_map, shadow_metrics
+from ..core.shadow import metrics
+from ..core.shadow import depth_map
 from ..core.errors import ILError, InputError
 from . import render, scene as sc
 
@@ -84,8 +85,8 @@ class Session:
             raise InputError(f"no light named '{light_name}' in scene '{scene.name}'")
         if scene.camera is None:
             raise InputError(f"scene '{scene.name}' has no camera")
-        if resolution < 8 or resolution > shadow_map.MAX_RESOLUTION:
-            raise InputError(f"resolution must be between 8 and {shadow_map.MAX_RESOLUTION}, got {resolution}")
+        if resolution < 8 or resolution > depth_map.MAX_RESOLUTION:
+            raise InputError(f"resolution must be between 8 and {depth_map.MAX_RESOLUTION}, got {resolution}")
         if samples < 1:
             raise InputError(f"samples must be positive, got {samples}")
         self.user_scene = scene
@@ -196,10 +197,10 @@ class Session:
         self.world_to_view, self.proj, _, _ = render.camera_matrices(self.tmp, self.user_scene.camera)
         self.origins, self.dirs = cam.pixel_rays(self.world_to_view, self.proj, self.width, self.height)
         self.near = self.user_scene.camera.data.clip_start
-        unshadowed = shadow_metrics.unshadowed_diffuse(
+        unshadowed = metrics.unshadowed_diffuse(
             self.normal, self.to_light, self.light.irradiance_normal(self.position))
         direct = _pass(p, compat.DIFFUSE_DIRECT_PASS)
-        self.reference = self.reach & shadow_metrics.lit_from_pass(direct, unshadowed, self.receiver)
+        self.reference = self.reach & metrics.lit_from_pass(direct, unshadowed, self.receiver)
         return time.perf_counter() - t
 
     def _light_camera(self, name, location, rotation, ortho_scale=None, angle=None, near=1e-3, far=1e4):
@@ -260,7 +261,7 @@ class Session:
             for c in cams:
                 p = self._render(compat.CYCLES, c, size, size, {"use_pass_z"})
                 w2v, proj, _, _ = render.camera_matrices(tmp, c)
-                maps.append(shadow_map.DepthMap(p["Depth"], w2v, proj))
+                maps.append(depth_map.DepthMap(p["Depth"], w2v, proj))
         finally:
             for c in cams:
                 data = c.data
@@ -343,7 +344,7 @@ class Session:
         if engine == "workbench" and self.reference[self.receiver].any() and not np.any(on[self.receiver] > 0):
             raise ILError("Workbench returned a black image with shadows on where the reference is lit "
                           "(no stencil buffer in this GL context?)")
-        lit = self.reach & (off > 0) & (on >= shadow_metrics.LIT_FRACTION * off)
+        lit = self.reach & (off > 0) & (on >= metrics.LIT_FRACTION * off)
         return lit, time.perf_counter() - t
 
 

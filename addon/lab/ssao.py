@@ -24,9 +24,11 @@ import bpy
 import numpy as np
 
 from .. import compat
-from ..core import choices, exr, imageio, ssao, ssao_figures
+from ..core import choices, ssao, ssao_figures
+from ..core.io import png
+from ..core.io import exr
 from ..core.errors import ILError, InputError
-from ..core.fileio import atomic_path, write_json
+from ..core.io.files import atomic_path, write_json
 from ..progress import Progress
 from . import render, scene as sc, ssao_scenes
 
@@ -321,10 +323,10 @@ def write_ao(path, k_a, mask, method, samples, radius):
 
 
 def _write_images(out, name, k_a, reference, mask):
-    imageio.write_png(os.path.join(out, f"{name}_ao.png"), imageio.to_uint8(ssao_figures.ao_grey(k_a, mask)))
+    png.write_png(os.path.join(out, f"{name}_ao.png"), png.to_uint8(ssao_figures.ao_grey(k_a, mask)))
     if reference is not None:
-        imageio.write_png(os.path.join(out, f"{name}_error.png"),
-                          imageio.to_uint8(ssao_figures.error_rgb(k_a, reference, mask)))
+        png.write_png(os.path.join(out, f"{name}_error.png"),
+                          png.to_uint8(ssao_figures.error_rgb(k_a, reference, mask)))
 
 
 # ---------------------------------------------------------------- the comparison

@@ -9,7 +9,7 @@ import os
 import numpy as np
 
 from ..core import charts, ssao, ssao_figures
-from ..core.fileio import write_json
+from ..core.io.files import write_json
 from ..progress import Progress
 from . import ssao as lab
 from . import scene as sc, ssao_scenes

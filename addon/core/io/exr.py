@@ -6,8 +6,8 @@ with ``np.flipud`` before writing.
 """
 import numpy as np
 
-from .errors import ILError
-from .fileio import atomic_path
+from ..errors import ILError
+from .files import atomic_path
 
 
 def _openexr():
