@@ -179,15 +179,16 @@ def test_costs_that_do_not_fit_are_refused_before_any_work(script, tmp_path, nam
 
 
 def test_the_named_largest_value_fits_and_the_next_does_not(monkeypatch):
-    from addon.core import budget, ssao
+    from addon.core import budget
+    from addon.core.ssao import limits
     from addon.core.shadow import depth_map
     from addon.core.errors import InputError
     monkeypatch.setattr(budget, "memory_budget", lambda: 8 << 30)
     with pytest.raises(InputError, match="needs about 25 GiB of memory") as e:
-        ssao.check_cost(8192, 8192, 1, 1)
+        limits.check_cost(8192, 8192, 1, 1)
     best = int(str(e.value).rsplit(" ", 1)[1])
-    assert best == int(math.sqrt((8 << 30) / ssao.BYTES_PER_PIXEL))
-    ssao.check_cost(best, best, 1, 1)
+    assert best == int(math.sqrt((8 << 30) / limits.BYTES_PER_PIXEL))
+    limits.check_cost(best, best, 1, 1)
     with pytest.raises(InputError, match=f"the largest shadow-map size that fits is "):
         depth_map.check_cost(128, 128, 16384, faces=6)
     cost = lambda n: (n * 1000, 0.0)  # noqa: E731

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from addon import compat
-from addon.core import ssao as core
+from addon.core.ssao import limits
 from addon.core.io import exr
 from addon.core.errors import ILError, InputError
 from addon.lab import ssao as lab
@@ -142,7 +142,7 @@ def test_operators_build_scene_and_run_comparison(tmp_path):
 
 
 def test_every_builtin_scene_renders_a_gbuffer():
-    for name in core.SCENES:
+    for name in limits.SCENES:
         scene = ssao_scenes.build_scene(name, 24, 1.0)
         gb, world, _ = lab.render_gbuffer(scene)
         assert gb.mask.any() and np.isfinite(gb.position).all() and np.isfinite(gb.normal).all()

@@ -7,6 +7,9 @@ project writes are laid out.
 """
 import numpy as np
 
+#: Depth written for sky pixels (as Cycles' Depth pass does); the labs take "no surface" as depth >= half this.
+SKY_DEPTH = 1.0e10
+
 
 def transform(m, points):
     """Apply a 4x4 affine matrix to (..., 3) points."""

@@ -20,8 +20,6 @@ from ..core.shadow import depth_map
 from ..core.errors import ILError, InputError
 from . import render, scene as sc
 
-#: Sky pixels carry a huge depth in Cycles' Depth pass.
-SKY_DEPTH = 1e8
 #: Object types Cycles renders as a surface that Blender evaluates to a mesh (triangulated for the
 #: planar and volume methods); other renderable types are listed as skipped.
 SURFACE_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
@@ -188,7 +186,7 @@ class Session:
         p = self._render(compat.CYCLES, self.user_scene.camera, self.width, self.height,
                          {"use_pass_z", "use_pass_position", "use_pass_normal", "use_pass_diffuse_direct"})
         self.depth = np.asarray(p["Depth"], np.float64)
-        self.receiver = np.isfinite(self.depth) & (self.depth < SKY_DEPTH)
+        self.receiver = np.isfinite(self.depth) & (self.depth < 0.5 * cam.SKY_DEPTH)
         self.position = np.asarray(p["Position"][..., :3], np.float64)
         n = np.asarray(p["Normal"][..., :3], np.float64)
         self.normal = n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12)

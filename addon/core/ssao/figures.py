@@ -5,7 +5,7 @@ imported lazily as core.charts does) only for the labelled grid.
 """
 import numpy as np
 
-from .io.files import atomic_path
+from ..io.files import atomic_path
 
 #: Signed error shown at full colour: |k - k_ref| >= ERROR_LIMIT is saturated.
 ERROR_LIMIT = 0.5
