@@ -7,6 +7,8 @@ top-left pixel, x right, y down; ``proj`` is OpenGL clip space (Blender's calc_m
 """
 import numpy as np
 
+from ..camera import ndc_to_pixels
+
 #: Upper bound on (triangle, pixel) pairs examined at once (memory ~ 100 bytes each).
 CHUNK = 2_000_000
 
@@ -22,8 +24,7 @@ def clip_to_pixels(clip, width, height):
     """Clip coordinates -> pixel x, y (row 0 at the top) and NDC z; valid where w > 0."""
     with np.errstate(divide="ignore", invalid="ignore"):
         ndc = clip[..., :3] / clip[..., 3:4]
-    x = (ndc[..., 0] + 1.0) * 0.5 * width - 0.5
-    y = (1.0 - ndc[..., 1]) * 0.5 * height - 0.5
+    x, y = ndc_to_pixels(ndc[..., 0], ndc[..., 1], width, height)
     return x, y, ndc[..., 2]
 
 

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..camera import SKY_DEPTH
+from ..camera import SKY_DEPTH, ndc_to_pixels
 
 
 @dataclass
@@ -94,7 +94,8 @@ def view_to_pixels(points, proj, width, height):
     safe = np.where(w > 1e-6, w, np.float32(1.0))
     ndc_x = (p[0, 0] * px + p[0, 1] * py + p[0, 2] * pz + p[0, 3]) / safe
     ndc_y = (p[1, 0] * px + p[1, 1] * py + p[1, 2] * pz + p[1, 3]) / safe
-    return (ndc_x + 1.0) * (0.5 * width) - 0.5, (1.0 - ndc_y) * (0.5 * height) - 0.5, w
+    x, y = ndc_to_pixels(ndc_x, ndc_y, width, height)
+    return x, y, w
 
 
 def pixels_per_metre(gb, depth):
