@@ -1,7 +1,6 @@
 """Closed forms used as test oracles and reference values: no approximation in them.
 
 SSAO: the disk areas behind the open fraction of a corner (REFERENCE.md §3 with an AO distance R).
-Environment maps: the linear sky (radiance a + b z) with its irradiance and Phong-prefiltered values.
 """
 import numpy as np
 

@@ -3,5 +3,4 @@
 files  atomic writes, JSON, checked output folders
 exr    OpenEXR read and write (float channels)
 png    PNG encode and decode, sRGB and tone mapping for previews
-hdr    Radiance .hdr (RGBE) read and write
 """
