@@ -1,8 +1,13 @@
 """Closed forms used as test oracles and reference values: no approximation in them.
 
 SSAO: the disk areas behind the open fraction of a corner (REFERENCE.md §3 with an AO distance R).
+Radiosity: the built-in Cornell-box-like room, the reference scene of the tests and of the lab's
+"Build Cornell box" button.
 """
 import numpy as np
+
+from .radiosity.patches import patches_from_meshes
+from .radiosity.subdivision import subdivide_to_size
 
 
 def disk_segment(c):
@@ -32,3 +37,57 @@ def corner_k_a(a, b):
     through the point) and 1/4 (the corner).
     """
     return 1.0 - (disk_segment(a) + disk_segment(b) - disk_quadrant(a, b)) / np.pi
+
+
+def cornell_box(light_radiance=15.0, size=2.0):
+    """A closed Cornell-box-like room (x, y in [−s/2, s/2], z in [0, s]) with a square ceiling light and two
+    rotated boxes, as ``patches_from_meshes`` input. Walls face inward, boxes outward; white 0.7, red, green."""
+    h = size / 2
+    white, red, green = (0.7, 0.7, 0.7), (0.65, 0.08, 0.06), (0.12, 0.55, 0.1)
+    L = 0.25 * size / 2
+    meshes = []
+
+    def quad(name, verts, rho, emission=(0.0, 0.0, 0.0)):
+        meshes.append({"name": name, "vertices": np.array(verts, float), "faces": [(0, 1, 2, 3)],
+                       "rho": rho, "emission": emission})
+
+    s = size
+    quad("Floor", [(-h, -h, 0), (h, -h, 0), (h, h, 0), (-h, h, 0)], white)
+    quad("Back", [(-h, h, 0), (h, h, 0), (h, h, s), (-h, h, s)], white)
+    quad("Front", [(-h, -h, 0), (-h, -h, s), (h, -h, s), (h, -h, 0)], white)
+    quad("Left", [(-h, -h, 0), (-h, h, 0), (-h, h, s), (-h, -h, s)], red)
+    quad("Right", [(h, -h, 0), (h, -h, s), (h, h, s), (h, h, 0)], green)
+    # ceiling: a 3x3 grid around the light, facing down
+    xs = [-h, -L, L, h]
+    verts, faces = [], []
+    for j in range(4):
+        for i in range(4):
+            verts.append((xs[i], xs[j], s))
+    for j in range(3):
+        for i in range(3):
+            if i == 1 and j == 1:
+                continue
+            a = j * 4 + i
+            faces.append((a, a + 4, a + 5, a + 1))
+    meshes.append({"name": "Ceiling", "vertices": np.array(verts), "faces": faces, "rho": white,
+                   "emission": (0.0, 0.0, 0.0)})
+    quad("Light", [(-L, -L, s), (-L, L, s), (L, L, s), (L, -L, s)], (0.0, 0.0, 0.0),
+         (light_radiance,) * 3)
+    meshes.append(_box("ShortBox", (0.3 * s / 2, -0.25 * s / 2), 0.3 * s, 0.3 * s, np.radians(-17), white))
+    meshes.append(_box("TallBox", (-0.3 * s / 2, 0.3 * s / 2), 0.3 * s, 0.6 * s, np.radians(17), white))
+    return meshes
+
+
+def _box(name, xy, side, height, angle, rho):
+    c, s = np.cos(angle), np.sin(angle)
+    e = side / 2
+    base = [(-e, -e), (e, -e), (e, e), (-e, e)]
+    pts = [(xy[0] + c * x - s * y, xy[1] + s * x + c * y) for x, y in base]
+    verts = [(x, y, 0.0) for x, y in pts] + [(x, y, height) for x, y in pts]
+    faces = [(4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]
+    return {"name": name, "vertices": np.array(verts), "faces": faces, "rho": rho, "emission": (0.0, 0.0, 0.0)}
+
+
+def cornell_patches(max_edge=0.25, light_radiance=15.0):
+    """The built-in scene split into patches no longer than ``max_edge``."""
+    return subdivide_to_size(patches_from_meshes(cornell_box(light_radiance)), max_edge)

@@ -269,7 +269,7 @@ def sweeps(out_dir, quick=False):
     """
     from ..core import charts as ch
     from . import radiosity as lrad
-    from ..core import radiosity as rcore
+    from ..core import analytic
     os.makedirs(out_dir, exist_ok=True)
     tables, figs, pngs = {}, {}, []
 
@@ -309,7 +309,7 @@ def sweeps(out_dir, quick=False):
 
     # radiosity: cost against patches (visibility by BVH rays, form factors, solve)
     rows, last = [], None
-    meshes = rcore.cornell_box()
+    meshes = analytic.cornell_box()
     for edge in ((0.5, 0.25) if quick else (0.5, 0.25, 0.125)):
         r = lrad.solve_scene(meshes, edge, "gauss_seidel", 1e-6)
         t = r["timings"]

@@ -7,7 +7,10 @@ also written here, independently of the project's own quadrature helpers.
 import numpy as np
 import pytest
 
-from addon.core import brdf, envmap, radiosity as R
+from addon.core import brdf, envmap
+from addon.core.radiosity import form_factors
+from addon.core.radiosity import patches as rad_patches
+from addon.core.radiosity import subdivision
 
 N = np.array([0.0, 0.0, 1.0])
 ONE = np.ones(3)
@@ -28,9 +31,9 @@ def _square_to_square(other, n):
     """F from the unit square z = 0 to ``other``, both split into n x n patches: sum_i A_i sum_j F_ij / A."""
     meshes = [{"name": "a", "vertices": np.array(SQUARE_Z0, float), "faces": [(0, 1, 2, 3)]},
               {"name": "b", "vertices": np.array(other, float), "faces": [(0, 1, 2, 3)]}]
-    p = R.subdivide_to_size(R.patches_from_meshes(meshes), 1.0 / n + 1e-9)
+    p = subdivision.subdivide_to_size(rad_patches.patches_from_meshes(meshes), 1.0 / n + 1e-9)
     assert len(p) == 2 * n * n
-    F = R.form_factors(p)
+    F = form_factors.form_factors(p)
     a, b = p.owner == 0, p.owner == 1
     return float(np.sum(p.area[a, None] * F[np.ix_(a, b)]) / np.sum(p.area[a]))
 
@@ -58,7 +61,7 @@ def test_differential_element_to_coaxial_disk_converges_to_R2_over_R2_plus_h2():
             centre = np.array([0.0, 0.0, h])
             # the disk as a fan of k triangle patches (a repeated last corner), wound to face the element
             tris = np.stack([np.broadcast_to(centre, (k, 3)), rim[1:], rim[:-1], rim[:-1]], axis=1)
-            F = R.point_polygon_form_factors(np.zeros((1, 3)), N[None], tris).sum()
+            F = form_factors.point_polygon_form_factors(np.zeros((1, 3)), N[None], tris).sum()
             errors.append(abs(F - howell))
         assert all(e2 < e1 / 10 for e1, e2 in zip(errors, errors[1:])), errors  # inscribed polygon: O(1/k^2)
         assert errors[-1] < 1e-5
