@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from mathutils import Vector
 
-from addon.core import envmap as core_env
+from addon.core.io import hdr as io_hdr
 from addon.core.io import png
 from addon.core.io import exr
 from addon.lab import ssao as ssao_lab
@@ -133,7 +133,7 @@ def test_envmap_of_a_world_with_an_environment_texture(script, tmp_path):
     """A uniform environment L in an image: E(n) = π L strength for every normal (REFERENCE.md §1)."""
     radiance = np.array([0.5, 0.25, 0.125])
     hdr = tmp_path / "sky.hdr"
-    core_env.write_hdr(hdr, np.broadcast_to(radiance, (16, 32, 3)))
+    io_hdr.write_hdr(hdr, np.broadcast_to(radiance, (16, 32, 3)))
     world = bpy.data.worlds.new("Sky")
     bpy.context.scene.world = world
     if hasattr(world, "use_nodes"):

@@ -3,9 +3,11 @@
 SSAO: the disk areas behind the open fraction of a corner (REFERENCE.md §3 with an AO distance R).
 Radiosity: the built-in Cornell-box-like room, the reference scene of the tests and of the lab's
 "Build Cornell box" button.
+Environment maps: the linear sky L(l) = a + b (l·z), its irradiance and its Phong-prefiltered map.
 """
 import numpy as np
 
+from .envmap.latlong import latlong_directions
 from .radiosity.patches import patches_from_meshes
 from .radiosity.subdivision import subdivide_to_size
 
@@ -91,3 +93,21 @@ def _box(name, xy, side, height, angle, rho):
 def cornell_patches(max_edge=0.25, light_radiance=15.0):
     """The built-in scene split into patches no longer than ``max_edge``."""
     return subdivide_to_size(patches_from_meshes(cornell_box(light_radiance)), max_edge)
+
+
+def linear_sky(h, w, a, b):
+    """L(l) = a + b (l·z) (REFERENCE.md §3) as a lat-long map (h, w, 3); a and b scalars or RGB."""
+    z = latlong_directions(h, w)[..., 2:3]
+    return (np.asarray(a, np.float64) + np.asarray(b, np.float64) * z) * np.ones(3)
+
+
+def linear_sky_irradiance(normals, a, b):
+    """Closed form of the linear sky: E(n) = πa + (2π/3) b (n·z) for every n."""
+    nz = np.asarray(normals, np.float64)[..., 2:3]
+    return (np.pi * np.asarray(a, np.float64) + 2 * np.pi / 3 * np.asarray(b, np.float64) * nz) * np.ones(3)
+
+
+def linear_sky_prefiltered(r, a, b, n):
+    """Closed form of the Phong-prefiltered linear sky: G(r) = a + b ((n+1)/(n+2)) (r·z)."""
+    rz = np.asarray(r, np.float64)[..., 2:3]
+    return (np.asarray(a, np.float64) + np.asarray(b, np.float64) * (n + 1) / (n + 2) * rz) * np.ones(3)

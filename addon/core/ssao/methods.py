@@ -122,7 +122,7 @@ def _horizon_search(gb, radius, samples, seed, slices=None, steps=None):
     screen direction (cos ψ, sin ψ), steps at (j + u')/N of the projected radius
     on both sides; the sample's view position S gives H = S - p, kept when
     0 < |H| <= r (AO distance) and on screen and not sky.
-    Sample positions are sub-pixel (:func:`position_at`), so H lies in the slice
+    Sample positions are sub-pixel (:func:`core.ssao.gbuffer.position_at`), so H lies in the slice
     plane. Yields: chunk slice, |n_p|, γ, and for each side cos(H, v) (nan when
     invalid) and |H|.
     """
