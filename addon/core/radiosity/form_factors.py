@@ -57,13 +57,34 @@ def lambert_polygon(rel, normal):
     return np.abs(term.sum(axis=-1)) / (2 * np.pi)
 
 
-def point_polygon_form_factors(points, normals, polys, chunk_elems=4_000_000):
-    """F(dA_p -> polygon j) for every point (P, 3) with normal (P, 3) and polygon (Q, k, 3): (P, Q).
+def polygon_form_factors(rel, normals, polygon_normals):
+    """F(dA_p -> polygon) of points to polygons given by their corners relative to the point: ``rel``
+    (..., k, 3), the points' ``normals`` and the polygons' ``polygon_normals`` broadcasting to (..., 3) -> (...).
 
-    Only the front side of polygon j emits (the point must lie in front of j's
-    plane); polygons crossing the point's tangent plane are clipped to its
-    hemisphere; coplanar and behind polygons give 0.
+    The rules of every point form factor here: only the front side of a polygon emits (the point must
+    lie in front of its plane); polygons crossing the point's tangent plane are clipped to its
+    hemisphere (:func:`clip_to_hemisphere`); coplanar and behind polygons give 0.
     """
+    shape = rel.shape[:-2]
+    n = np.broadcast_to(normals, shape + (3,))
+    pn = np.broadcast_to(polygon_normals, shape + (3,))
+    d = rel[..., 0] * n[..., None, 0] + rel[..., 1] * n[..., None, 1] + rel[..., 2] * n[..., None, 2]
+    facing = -(rel[..., 0, 0] * pn[..., 0] + rel[..., 0, 1] * pn[..., 1] + rel[..., 0, 2] * pn[..., 2]) > 1e-9
+    front = (d > 1e-9).any(axis=-1) & facing
+    simple = front & (d >= -1e-9).all(axis=-1)
+    out = np.zeros(shape)
+    if simple.any():
+        out[simple] = lambert_polygon(rel[simple], n[simple])
+    clip = front & ~simple
+    if clip.any():
+        clipped, _ = clip_to_hemisphere(rel[clip], np.zeros((int(clip.sum()), 3)), n[clip])
+        out[clip] = lambert_polygon(clipped, n[clip])
+    return out
+
+
+def point_polygon_form_factors(points, normals, polys, chunk_elems=4_000_000):
+    """F(dA_p -> polygon j) for every point (P, 3) with normal (P, 3) and polygon (Q, k, 3): (P, Q),
+    by the rules of :func:`polygon_form_factors`."""
     points, normals, polys = (np.asarray(a, np.float64) for a in (points, normals, polys))
     P, Q, k = len(points), len(polys), polys.shape[1]
     _, pn = polygon_area_normal(polys)
@@ -72,18 +93,7 @@ def point_polygon_form_factors(points, normals, polys, chunk_elems=4_000_000):
     for s in range(0, P, step):
         p, n = points[s:s + step], normals[s:s + step]
         r = polys[None] - p[:, None, None, :]                          # (p, Q, k, 3)
-        d = r[..., 0] * n[:, None, None, 0] + r[..., 1] * n[:, None, None, 1] + r[..., 2] * n[:, None, None, 2]
-        facing = -(r[..., 0, 0] * pn[None, :, 0] + r[..., 0, 1] * pn[None, :, 1] + r[..., 0, 2] * pn[None, :, 2]) > 1e-9
-        front = (d > 1e-9).any(axis=-1) & facing
-        simple = front & (d >= -1e-9).all(axis=-1)
-        block = np.zeros(front.shape)
-        block[simple] = lambert_polygon(r[simple], np.broadcast_to(n[:, None, :], front.shape + (3,))[simple])
-        clip = front & ~simple
-        if clip.any():
-            pi, qi = np.nonzero(clip)
-            rel, _ = clip_to_hemisphere(polys[qi], p[pi], n[pi])
-            block[pi, qi] = lambert_polygon(rel, n[pi])
-        out[s:s + step] = block
+        out[s:s + step] = polygon_form_factors(r, n[:, None, :], pn[None])
     return out
 
 
@@ -172,23 +182,11 @@ def near_pairs(patches, i, j, ratio=NEAR_RATIO):
 
 
 def pointwise_form_factors(points, normals, polys):
-    """F(dA_m -> polygon m) for matching rows: points (M, 3), normals (M, 3), polygons (M, k, 3) -> (M,).
-    The same rules as :func:`point_polygon_form_factors` (front side only, clipped to the hemisphere)."""
+    """F(dA_m -> polygon m) for matching rows: points (M, 3), normals (M, 3), polygons (M, k, 3) -> (M,),
+    by the rules of :func:`polygon_form_factors`."""
     points, normals, polys = (np.asarray(a, np.float64) for a in (points, normals, polys))
     _, pn = polygon_area_normal(polys)
-    r = polys - points[:, None, :]
-    d = np.einsum("mkc,mc->mk", r, normals)
-    facing = -np.einsum("mc,mc->m", r[:, 0], pn) > 1e-9
-    front = (d > 1e-9).any(axis=-1) & facing
-    simple = front & (d >= -1e-9).all(axis=-1)
-    out = np.zeros(len(points))
-    if simple.any():
-        out[simple] = lambert_polygon(r[simple], normals[simple])
-    clip = front & ~simple
-    if clip.any():
-        rel, _ = clip_to_hemisphere(polys[clip], points[clip], normals[clip])
-        out[clip] = lambert_polygon(rel, normals[clip])
-    return out
+    return polygon_form_factors(polys - points[:, None, :], normals, pn)
 
 
 def near_field_form_factors(patches, recv, src, visible=None, tol=NEAR_TOL, start=NEAR_START, depth=NEAR_DEPTH,

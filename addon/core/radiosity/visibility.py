@@ -1,5 +1,8 @@
-"""Visibility between patches by brute-force numpy rays (small scenes, tests); Blender's BVHTree does the same for big ones."""
+"""Visibility between patches by brute-force numpy rays (core.geometry.ray_triangle_hits; small scenes, tests);
+Blender's BVHTree does the same for big ones (lab.radiosity)."""
 import numpy as np
+
+from ..geometry import ray_triangle_hits
 
 
 def visible_numpy(patches, offset=1e-6):
@@ -35,33 +38,6 @@ def candidate_pairs(patches):
     """Pairs i < j that can exchange light (each in front of the other's plane): the rays worth casting."""
     blocks = list(candidate_pair_blocks(patches))
     return (np.concatenate([b[0] for b in blocks]), np.concatenate([b[1] for b in blocks]))
-
-
-def ray_triangle_hits(origins, targets, tris, eps=1e-7):
-    """Möller-Trumbore: does the open segment origin->target hit any triangle (T, 3, 3)? (S,) bool.
-
-    A brute-force numpy occlusion test for small scenes and tests; Blender's
-    BVHTree does the same for big ones.
-    """
-    o = np.asarray(origins, np.float64)
-    dvec = np.asarray(targets, np.float64) - o
-    tris = np.asarray(tris, np.float64)
-    e1, e2 = tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
-    hit = np.zeros(len(o), bool)
-    for s in range(0, len(o), 2048):
-        D, O = dvec[s:s + 2048, None, :], o[s:s + 2048, None, :]
-        pv = np.cross(D, e2[None])
-        det = np.einsum("stk,tk->st", pv, e1)
-        ok = np.abs(det) > 1e-14
-        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-        tv = O - tris[None, :, 0]
-        u = np.einsum("stk,stk->st", tv, pv) * inv
-        qv = np.cross(tv, e1[None])
-        v = np.einsum("stk,sk->st", qv, dvec[s:s + 2048]) * inv
-        t = np.einsum("stk,tk->st", qv, e2) * inv
-        h = ok & (u >= -eps) & (v >= -eps) & (u + v <= 1 + eps) & (t > 1e-6) & (t < 1 - 1e-6)
-        hit[s:s + 2048] = h.any(axis=1)
-    return hit
 
 
 def patch_triangles(patches):

@@ -15,6 +15,7 @@ treated as in front of it (t = τ counts as behind), so lit faces never shadow t
 """
 import numpy as np
 
+from ..geometry import ray_triangle
 from ..shadow import raster
 from ..errors import InputError
 
@@ -138,7 +139,7 @@ def stencil(volume, origins, dirs, tau, world_to_view, proj, width, height, near
         if len(pix) == 0:
             continue
         v = volume[tri]
-        t = raster.ray_triangle(o[pix], d[pix], v[:, 0], v[:, 1], v[:, 2])
+        t = ray_triangle(o[pix], d[pix], v[:, 0], v[:, 1], v[:, 2])
         hit = np.isfinite(t) & (t > 0)
         sign = np.where(np.einsum("ij,ij->i", d[pix], normals[tri]) < 0, 1, -1)
         if mode == "zpass":
