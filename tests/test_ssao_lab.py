@@ -24,7 +24,7 @@ def test_reference_matches_closed_forms_on_plane_and_corner(tmp_path):
 
     scene = ssao_scenes.build_scene("corner", 64, 1.0)
     gb, world, ref = lab.frame(scene, 1.0, n, 64, cache_dir=str(tmp_path))
-    # REFERENCE.md §3 with AO distance R (core.ssao.corner_k_a, checked by Monte Carlo in tests/core)
+    # REFERENCE.md §3 with AO distance R (core.analytic.corner_k_a, checked by Monte Carlo in tests/core/ssao)
     closed = ssao_scenes.corner_closed_form(np.nan_to_num(world, nan=1e9), 1.0)
     ok = np.isfinite(closed) & gb.mask
     occluded = ok & (closed < 0.97)

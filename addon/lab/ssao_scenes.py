@@ -161,7 +161,7 @@ REGIONS = {"plane": ("open plane", _open_plane, None),
 def corner_closed_form(world, radius):
     """k_A of the corner scene's floor and wall pixels where REFERENCE.md §3 has a closed form; NaN elsewhere.
 
-    core.ssao.corner_k_a of the distances to the two other room planes, valid where the box and
+    core.analytic.corner_k_a of the distances to the two other room planes, valid where the box and
     the room's open edges are more than R away (the planes count as infinite there).
     """
     x, y, z = world[..., 0], world[..., 1], world[..., 2]

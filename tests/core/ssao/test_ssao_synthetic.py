@@ -1,6 +1,6 @@
 """Analytic G-buffers for the SSAO core tests: rays cast in numpy against planes (no bpy).
 
-The closed form of the corner (REFERENCE.md §3 with an AO distance R) is core.ssao.corner_k_a;
+The closed form of the corner (REFERENCE.md §3 with an AO distance R) is core.analytic.corner_k_a;
 its disk segment and quadrant are checked here against Monte Carlo on the disk and against the
 limits REFERENCE.md §3 states.
 """

@@ -12,7 +12,7 @@ from addon.core.shadow import planar as shadow_planar
 from addon.core.shadow import raster
 from addon.core.errors import InputError
 
-from test_ssao_synthetic import look_at, perspective
+from tests.core.ssao.test_ssao_synthetic import look_at, perspective
 
 
 def _look_down(eye, width=48, height=48, fov=math.radians(60), ortho=None):

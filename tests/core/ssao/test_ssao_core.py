@@ -8,7 +8,7 @@ from addon.core.ssao import methods as ssao_methods
 from addon.core.ssao import metrics as ssao_metrics
 from addon.core.errors import InputError
 
-from test_ssao_synthetic import corner, corner_k_a, floor_only
+from tests.core.ssao.test_ssao_synthetic import corner, corner_k_a, floor_only
 
 
 @pytest.fixture(scope="module")
