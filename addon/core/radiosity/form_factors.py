@@ -189,6 +189,18 @@ def pointwise_form_factors(points, normals, polys):
     return polygon_form_factors(polys - points[:, None, :], normals, pn)
 
 
+def seen_form_factors(patches, points, normals, src, visible=None):
+    """F(dA_m -> patch src_m) V(x_m, src_m) for matching rows: points (M, 3), normals (M, 3), source patch
+    indices (M,) -> (M,). ``visible(points, normals, src)`` (see :func:`near_field_form_factors`) is asked
+    only where the form factor is not 0; None: all visible."""
+    v = pointwise_form_factors(points, normals, patches.corners[src])
+    if visible is not None:
+        hit = v > 0
+        if hit.any():
+            v[hit] = v[hit] * visible(points[hit], normals[hit], src[hit])
+    return v
+
+
 def near_field_form_factors(patches, recv, src, visible=None, tol=NEAR_TOL, start=NEAR_START, depth=NEAR_DEPTH,
                             budget=None):
     """Patch-average form factors of the pairs (recv, src):
@@ -230,11 +242,7 @@ def _adaptive_chunk(patches, recv, src, visible, tol, start, depth, budget):
     def f(pair, s, t, h):
         i, j = recv[pair], src[pair]
         x, jac = bilinear(patches.corners[i], s, t)
-        v = pointwise_form_factors(x, patches.normal[i], patches.corners[j])
-        if visible is not None:
-            hit = v > 0
-            if hit.any():
-                v[hit] = v[hit] * visible(x[hit], patches.normal[i][hit], j[hit])
+        v = seen_form_factors(patches, x, patches.normal[i], j, visible)
         return v * jac * h * h / patches.area[i], x
 
     g = (np.arange(start) + 0.5) / start
@@ -301,11 +309,7 @@ def point_irradiance(patches, F, B, recv, src, points, mask, visible=None):
         ok = mask[rr, tt]
         rr, tt, jj = rr[ok], tt[ok], np.repeat(j, m)[ok]
         x = points[rr, tt]
-        v = pointwise_form_factors(x, patches.normal[rr], patches.corners[jj])
-        if visible is not None:
-            hit = v > 0
-            if hit.any():
-                v[hit] = v[hit] * visible(x[hit], patches.normal[rr][hit], jj[hit])
+        v = seen_form_factors(patches, x, patches.normal[rr], jj, visible)
         np.add.at(H, (rr, tt), v[:, None] * B[jj])
     H[~mask] = np.nan
     return H

@@ -3,7 +3,7 @@ import numpy as np
 
 from ..errors import InputError
 from .atlas import texel_points
-from .form_factors import NEAR_RATIO, pointwise_form_factors
+from .form_factors import NEAR_RATIO, seen_form_factors
 from .patches import Patches, bounding_radius, longest_edge, vertex_keys
 
 
@@ -134,11 +134,7 @@ def emitter_refine_mask(patches, visible=None, threshold=EMITTER_SPREAD, min_edg
     rr, tt = np.repeat(i, m), np.tile(np.arange(m), len(i))
     ee = np.repeat(e, m)
     x = pts[rr, tt]
-    v = pointwise_form_factors(x, patches.normal[rr], patches.corners[ee])
-    if visible is not None:
-        hit = v > 0
-        if hit.any():
-            v[hit] = v[hit] * visible(x[hit], patches.normal[rr][hit], ee[hit])
+    v = seen_form_factors(patches, x, patches.normal[rr], ee, visible)
     E = np.zeros((n, m))
     np.add.at(E, (rr, tt), v * lum[ee])
     E = np.where(pmask, E, np.nan)
