@@ -24,7 +24,7 @@ if ROOT not in sys.path:
 
 from addon import interrupt  # noqa: E402  (no bpy)
 from addon.core.errors import ILError, ILWarning, InputError  # noqa: E402
-from addon.core.fileio import check_output_dir  # noqa: E402
+from addon.core.io.files import check_output_dir  # noqa: E402
 
 INTERRUPTED = 130
 

@@ -17,7 +17,7 @@ import _cli  # noqa: E402
 
 
 def main(args):
-    from addon.core import shadow_map
+    from addon.core.shadow import depth_map as shadow_map
     from addon.lab import shadow_scenes, shadows
     from addon.lab.shadow_session import Session
     from addon.lab.scene import remove_scene

@@ -14,13 +14,15 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import _cli  # noqa: E402
 
-from addon.core import ssao as core_ssao  # noqa: E402  (numpy only)
+from addon.core.ssao import limits as core_ssao
 
 
 def main(args):
-    from addon.core import ssao
+    from addon.core.ssao import limits as ssao
+    from addon.core.ssao import methods
+    from addon.core.ssao import metrics
     ssao.check_cost(args.resolution, args.resolution, args.samples, args.reference_samples,
-                    len(ssao.METHODS) * 2 * args.repeats)          # each method with and without blur, repeated
+                    len(methods.METHODS) * 2 * args.repeats)          # each method with and without blur, repeated
     from addon.lab import ssao as lab
     from addon.lab import ssao_scenes
     from addon.lab.scene import remove_scene
@@ -28,13 +30,13 @@ def main(args):
     cache = os.path.abspath(os.path.join(args.out, "cache"))
     gb, _, ref = lab.frame(scene, 1.0, args.reference_samples, args.resolution, cache)
     rows = []
-    for m in ssao.METHODS:
+    for m in methods.METHODS:
         for blur in (False, True):
             best, k = float("inf"), None
             for _ in range(args.repeats):
-                k, sec, _ = ssao.run_method(m, gb, 1.0, args.samples, blur=blur)
+                k, sec, _ = methods.run_method(m, gb, 1.0, args.samples, blur=blur)
                 best = min(best, sec)
-            rows.append((m + (" + blur" if blur else ""), best, ssao.error_metrics(k, ref["k"], gb.mask)["rmse"]))
+            rows.append((m + (" + blur" if blur else ""), best, metrics.error_metrics(k, ref["k"], gb.mask)["rmse"]))
     for m in ("workbench",) + (() if args.no_eevee else ("eevee",)):
         if m == "eevee":
             lab.blender_method(scene, "eevee", 1.0, 1, 32)           # compile shaders first
@@ -43,13 +45,13 @@ def main(args):
             for _ in range(args.repeats):
                 k, sec, _ = lab.blender_method(scene, m, 1.0, spp, args.resolution)
                 best = min(best, sec)
-            rows.append((f"{m} ({spp} spp)", best, ssao.error_metrics(k, ref["k"], gb.mask)["rmse"]))
+            rows.append((f"{m} ({spp} spp)", best, metrics.error_metrics(k, ref["k"], gb.mask)["rmse"]))
     remove_scene(scene)
     print(f"SSAO on the corner scene, {gb.width}x{gb.height} ({int(gb.mask.sum())} geometry pixels), "
           f"{args.samples} samples per pixel, radius = AO distance = 1 m")
     print(f"reference: Cycles AO pass, {ref['samples']} samples, {ref['seconds']:.1f} s"
           f"{' (cached)' if ref['cached'] else ''}, noise "
-          f"{ssao.reference_noise(ref['k'], ref['samples'], gb.mask):.4f} rms")
+          f"{metrics.reference_noise(ref['k'], ref['samples'], gb.mask):.4f} rms")
     print(f"{'method':<22}{'seconds':>10}{'RMSE':>10}")
     for name, sec, rmse in rows:
         print(f"{name:<22}{sec:>10.3f}{rmse:>10.4f}")

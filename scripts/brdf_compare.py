@@ -16,7 +16,7 @@ import _cli  # noqa: E402
 
 
 def main(args):
-    from addon.core.fileio import write_json
+    from addon.core.io.files import write_json
     from addon.lab import shading_bench
     out = os.path.abspath(args.out)
     result = shading_bench.sweeps(out, quick=args.quick)

@@ -11,7 +11,7 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import _cli  # noqa: E402
 
-from addon.core.shadow_map import MAX_RESOLUTION, MAX_SIZE  # noqa: E402  (numpy only)
+from addon.core.shadow.depth_map import MAX_RESOLUTION, MAX_SIZE  # noqa: E402  (numpy only)
 
 
 def main(args):

@@ -16,7 +16,8 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import _cli  # noqa: E402
 
-from addon.core import ssao as core_ssao  # noqa: E402  (numpy only)
+from addon.core.ssao import limits
+from addon.core.ssao import methods as ssao_methods
 from addon.core.choices import parse_choices  # noqa: E402
 from addon.core.errors import InputError  # noqa: E402
 
@@ -24,14 +25,14 @@ from addon.core.errors import InputError  # noqa: E402
 def _validate(args):
     """Every bad-input check that needs no Blender (fast exit 2): numbers are checked by the parser,
     the cost of a built-in scene's square frame here."""
-    methods = parse_choices(args.methods, core_ssao.ALL_METHODS, "SSAO method")
+    methods = parse_choices(args.methods, ssao_methods.ALL_METHODS, "SSAO method")
     if args.scene is not None:
-        core_ssao.check_scene(args.scene)
+        limits.check_scene(args.scene)
     if args.scene is not None and args.blend:
         raise InputError("give either FILE.blend or --scene, not both")
     if not args.blend and not args.sweeps:
-        core_ssao.check_cost(args.resolution, args.resolution, args.samples, args.reference_samples,
-                             sum(m in core_ssao.METHODS for m in methods))
+        limits.check_cost(args.resolution, args.resolution, args.samples, args.reference_samples,
+                             sum(m in ssao_methods.METHODS for m in methods))
     return methods
 
 
@@ -72,19 +73,19 @@ class _Resolution(_cli.argparse.Action):
 def build_parser():
     p = _cli.parser("ssao.py", "Compare screen-space AO methods with Cycles' ray-traced AO.")
     p.add_argument("--scene", choices=None, metavar="NAME",
-                   help=f"a built-in scene: {', '.join(core_ssao.SCENES)} (default corner without FILE.blend)")
+                   help=f"a built-in scene: {', '.join(limits.SCENES)} (default corner without FILE.blend)")
     p.add_argument("--methods", default="crytek,hemisphere,hbao,gtao",
-                   help=f"comma-separated, from {','.join(core_ssao.ALL_METHODS)} (default: the numpy ones)")
+                   help=f"comma-separated, from {','.join(ssao_methods.ALL_METHODS)} (default: the numpy ones)")
     p.add_argument("--out", default="out/ssao", help="output folder (default out/ssao)")
-    p.add_argument("--resolution", type=_cli.number(int, 8, core_ssao.MAX_RESOLUTION), default=128,
-                   action=_Resolution, help=f"frame width in pixels, 8..{core_ssao.MAX_RESOLUTION} (default 128; a "
+    p.add_argument("--resolution", type=_cli.number(int, 8, limits.MAX_RESOLUTION), default=128,
+                   action=_Resolution, help=f"frame width in pixels, 8..{limits.MAX_RESOLUTION} (default 128; a "
                                             ".blend keeps its own unless given; memory and time are checked first)")
-    p.add_argument("--samples", type=_cli.number(int, 1, core_ssao.MAX_SAMPLES), default=16,
-                   help=f"depth-buffer samples per pixel, 1..{core_ssao.MAX_SAMPLES} (default 16)")
+    p.add_argument("--samples", type=_cli.number(int, 1, limits.MAX_SAMPLES), default=16,
+                   help=f"depth-buffer samples per pixel, 1..{limits.MAX_SAMPLES} (default 16)")
     p.add_argument("--radius", type=_cli.number(float, above=0), default=1.0,
                    help="SSAO radius in metres = the reference's AO distance (default 1.0)")
-    p.add_argument("--reference-samples", type=_cli.number(int, 1, core_ssao.MAX_REFERENCE_SAMPLES), default=1024,
-                   help=f"Cycles AO samples per pixel of the reference, 1..{core_ssao.MAX_REFERENCE_SAMPLES} "
+    p.add_argument("--reference-samples", type=_cli.number(int, 1, limits.MAX_REFERENCE_SAMPLES), default=1024,
+                   help=f"Cycles AO samples per pixel of the reference, 1..{limits.MAX_REFERENCE_SAMPLES} "
                         "(default 1024: noise <= 0.016)")
     p.add_argument("--blur", action="store_true", help="depth-aware blur after each numpy method")
     p.add_argument("--seed", type=_cli.number(int, 0, 2 ** 32 - 1), default=0, help="random seed of the numpy methods")

@@ -7,7 +7,8 @@ import pytest
 
 from addon import compat
 from addon.bake import BakeOptions, bake_lightmaps
-from addon.core import exr, lightmap as lm
+from addon.core import lightmap as lm
+from addon.core.io import exr
 from addon.lab import scene as sc
 
 

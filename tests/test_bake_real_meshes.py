@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from addon.bake import BakeOptions, bake_lightmaps
-from addon.core import exr
+from addon.core.io import exr
 from addon.core.errors import ILError, ILWarning
 from addon.lab import scene as sc
 

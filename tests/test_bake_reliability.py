@@ -16,7 +16,7 @@ import pytest
 
 from addon.bake import BakeOptions, bake_lightmaps, cost
 from addon.bake import uv as uvmod
-from addon.core import exr
+from addon.core.io import exr
 from addon.core.errors import ILError, ILWarning, InputError
 from addon.lab import scene as sc
 from tests.conftest import ROOT

@@ -8,7 +8,7 @@ import pytest
 
 from addon import compat
 from addon.bake import BakeOptions, bake_lightmaps
-from addon.core import exr
+from addon.core.io import exr
 from addon.core.errors import InputError
 from addon.lab import scene as sc
 

@@ -6,8 +6,10 @@ import bpy
 import numpy as np
 import pytest
 
-from addon.core import envmap as E
-from addon.core import exr
+from addon.core import analytic
+from addon.core.envmap import irradiance
+from addon.core.envmap import latlong
+from addon.core.io import exr
 from addon.core.errors import InputError
 from addon.lab import envmap as L
 from addon.lab import render, scene as S
@@ -31,7 +33,7 @@ def test_equirectangular_convention_matches_cycles(tmp_path):
     next(n for n in w.node_tree.nodes if n.bl_idname == "ShaderNodeTexEnvironment").interpolation = "Closest"
     render.cycles_cpu(sc, 1)
     for col, row in [(17, 15), (48, 20), (30, 3), (2, 12), (60, 27)]:   # pixel centres, away from edges
-        d = E.latlong_uv_to_direction((col + 0.5) / W, 1 - (row + 0.5) / H)
+        d = latlong.latlong_uv_to_direction((col + 0.5) / W, 1 - (row + 0.5) / H)
         S.camera(sc, "cam", (0, 0, 0), target=tuple(d), lens=300)
         got = render.render_layers(sc)["Combined"][1, 1, :2]
         assert got[0] == pytest.approx((col + 0.5) / W, abs=1e-4), (col, row)
@@ -61,9 +63,9 @@ def test_8bit_srgb_environment_reads_as_cycles_renders_it(tmp_path):
 
 
 def _asymmetric_env(h=32, w=64):
-    d = E.latlong_directions(h, w)
+    d = latlong.latlong_directions(h, w)
     lobe = np.exp(8 * (d @ (np.array([0.6, 0.5, 0.62]) / np.linalg.norm([0.6, 0.5, 0.62])) - 1))
-    return E.linear_sky(h, w, 0.4, 0.3) + 3.0 * lobe[..., None] * np.array([1.0, 0.7, 0.4])
+    return analytic.linear_sky(h, w, 0.4, 0.3) + 3.0 * lobe[..., None] * np.array([1.0, 0.7, 0.4])
 
 
 def test_cycles_bake_of_a_sphere_matches_the_map(tmp_path):
@@ -75,10 +77,10 @@ def test_cycles_bake_of_a_sphere_matches_the_map(tmp_path):
     N = 64
     E_cycles, normals, _ = L.cycles_sphere_irradiance(sc, sphere, samples=N)
     emap, _, _ = L.compute(env, "brute", 64)
-    ours = E.sample_latlong(emap, normals)
+    ours = latlong.sample_latlong(emap, normals)
     # per-vertex Monte Carlo bound from the cosine-sampled variance of L: sigma_E = pi * sigma_cos(L) / sqrt(N)
-    ew = env * E.latlong_row_solid_angles(32, 64)[:, None, None]
-    dirs = E.latlong_directions(32, 64).reshape(-1, 3)
+    ew = env * latlong.latlong_row_solid_angles(32, 64)[:, None, None]
+    dirs = latlong.latlong_directions(32, 64).reshape(-1, 3)
     cos = np.maximum(normals @ dirs.T, 0) / np.pi
     m1 = cos @ ew.reshape(-1, 3)
     m2 = cos @ (env * ew).reshape(-1, 3)
@@ -87,14 +89,14 @@ def test_cycles_bake_of_a_sphere_matches_the_map(tmp_path):
     # the mean over all vertices is far tighter; a mirrored convention (u -> 1 - u) fails it
     se = np.sqrt(np.sum(sigma ** 2)) / sigma.size
     assert abs(np.mean(E_cycles - ours)) < 5 * se + 0.005 * np.mean(ours)
-    mirrored = E.sample_latlong(emap[:, ::-1], normals)
+    mirrored = latlong.sample_latlong(emap[:, ::-1], normals)
     assert np.sqrt(np.mean((E_cycles - mirrored) ** 2)) > 4 * np.sqrt(np.mean((E_cycles - ours) ** 2))
 
 
 def test_node_group_gives_ambient_term(tmp_path):
     """EMIT bake of the node group's emission at a sphere's vertices = c_diff k_A E(n)/pi."""
     env = _asymmetric_env()
-    emap = E.irradiance_map_brute(env, 64)
+    emap = irradiance.irradiance_map_brute(env, 64)
     path = tmp_path / "irr.exr"
     exr.write_exr(path, {c: emap[..., k].astype(np.float32) for k, c in enumerate("RGB")})
     image = L.load_irradiance_image(str(path))
@@ -121,7 +123,7 @@ def test_node_group_gives_ambient_term(tmp_path):
     got = got.reshape(-1, 4)[:, :3]
     nrm = np.empty(len(me.vertices) * 3, np.float32)
     me.vertices.foreach_get("normal", nrm)
-    want = np.array([0.5, 0.25, 1.0]) * 0.6 * E.sample_latlong(emap, nrm.reshape(-1, 3)) / np.pi
+    want = np.array([0.5, 0.25, 1.0]) * 0.6 * latlong.sample_latlong(emap, nrm.reshape(-1, 3)) / np.pi
     ring = np.abs(nrm.reshape(-1, 3)[:, 2]) < 0.99   # the poles' lat-long lookup is a fan of directions
     assert ring.sum() == len(ring) - 2
     assert np.allclose(got[ring], want[ring], rtol=0.01, atol=1e-4)
@@ -129,13 +131,13 @@ def test_node_group_gives_ambient_term(tmp_path):
 
 @pytest.mark.both_versions
 def test_script_with_env_file_writes_exr_and_report(script, tmp_path):
-    env = E.linear_sky(64, 128, 1.0, 0.6)
+    env = analytic.linear_sky(64, 128, 1.0, 0.6)
     _, path = _env_image(tmp_path, env, "sky.exr")
     proc = script("envmap.py", "--env", path, "--out", tmp_path / "o", "--width", "32")
     assert proc.returncode == 0, proc.stderr
     ch, hdr = exr.read_exr(tmp_path / "o" / "irradiance_latlong.exr")
     got = np.stack([ch[c] for c in "RGB"], axis=-1)
-    want = E.linear_sky_irradiance(E.latlong_directions(16, 32), 1.0, 0.6)
+    want = analytic.linear_sky_irradiance(latlong.latlong_directions(16, 32), 1.0, 0.6)
     assert got.shape == (16, 32, 3) and np.allclose(got, want, rtol=0.01)
     rep = json.loads((tmp_path / "o" / "envmap_report.json").read_text())
     assert rep["method"] == "sh9" and len(rep["sh9"]) == 9 and rep["seconds"] >= 0
@@ -144,7 +146,7 @@ def test_script_with_env_file_writes_exr_and_report(script, tmp_path):
 
 
 def test_script_reads_the_world_of_a_blend(script, tmp_path):
-    env = E.linear_sky(32, 64, 0.5, 0.25)
+    env = analytic.linear_sky(32, 64, 0.5, 0.25)
     img, _ = _env_image(tmp_path, env, "w.exr")
     sc = bpy.context.scene
     L.set_world_environment(sc, img, strength=2.0)
@@ -153,7 +155,7 @@ def test_script_reads_the_world_of_a_blend(script, tmp_path):
     proc = script("envmap.py", blend, "--out", tmp_path / "o", "--method", "brute", "--width", "16")
     assert proc.returncode == 0, proc.stderr
     ch, _ = exr.read_exr(tmp_path / "o" / "irradiance_latlong.exr")
-    want = E.linear_sky_irradiance(E.latlong_directions(8, 16), 1.0, 0.5)   # strength 2 doubles a and b
+    want = analytic.linear_sky_irradiance(latlong.latlong_directions(8, 16), 1.0, 0.5)   # strength 2 doubles a and b
     assert np.allclose(np.stack([ch[c] for c in "RGB"], -1), want, rtol=0.02)
 
 

@@ -6,8 +6,14 @@ import numpy as np
 import pytest
 
 from addon import compat
-from addon.core import exr
-from addon.core import radiosity as R
+from addon.core.io import exr
+from addon.core import analytic
+from addon.core.radiosity import atlas as rad_atlas
+from addon.core.radiosity import form_factors
+from addon.core.radiosity import patches as rad_patches
+from addon.core.radiosity import solvers
+from addon.core.radiosity import subdivision
+from addon.core.radiosity import visibility as rad_visibility
 from addon.core.errors import InputError
 from addon.lab import radiosity as L
 from addon.lab import scene as S
@@ -15,9 +21,9 @@ from addon.lab import scene as S
 
 @pytest.mark.both_versions
 def test_bvh_visibility_equals_numpy_rays():
-    p = R.cornell_patches(max_edge=0.6)
+    p = analytic.cornell_patches(max_edge=0.6)
     V = L.visibility_bvh(p)
-    Vn = R.visibility_numpy(p)
+    Vn = rad_visibility.visibility_numpy(p)
     assert np.array_equal(V, V.T)
     assert np.mean(V != Vn) < 0.002       # rays grazing shared edges may differ
     assert 0 < V.sum() < len(p) ** 2
@@ -45,8 +51,8 @@ def test_cornell_run_against_cycles_and_outputs(tmp_path):
     front = r["patches"].take(r["front"])
     floor = front.owner == front.names.index("Floor")
     img = np.stack([ch[c] for c in "RGB"], -1)
-    atlas = R.make_atlas(int(floor.sum()))
-    assert np.allclose(R.atlas_means(atlas, img, front.is_tri[floor]), H[floor], rtol=1e-5)
+    atlas = rad_atlas.make_atlas(int(floor.sum()))
+    assert np.allclose(rad_atlas.atlas_means(atlas, img, front.is_tri[floor]), H[floor], rtol=1e-5)
     obj = bpy.data.objects["Floor radiosity"]
     col = obj.data.color_attributes[L.ATTRIBUTE]
     c = np.empty(len(col.data) * 4, np.float32)
@@ -80,13 +86,13 @@ def test_closed_emissive_box_in_blender_gives_e_over_one_minus_rho():
     box.data.materials.append(mat)
     meshes, used = L.meshes_from_scene(sc)
     assert [o.name for o in used] == ["Room"]
-    patches = R.subdivide_to_size(R.patches_from_meshes(meshes), 0.5)
+    patches = subdivision.subdivide_to_size(rad_patches.patches_from_meshes(meshes), 0.5)
     # the cube's faces point outward: turn them inward to make a closed room
     assert patches.normal[0] @ patches.center[0] > 0
-    patches = R.Patches(patches.corners[:, ::-1], patches.rho, patches.emission, patches.owner,
+    patches = rad_patches.Patches(patches.corners[:, ::-1], patches.rho, patches.emission, patches.owner,
                         patches.is_tri, patches.source, patches.names)
-    F = R.form_factors(patches, L.visibility_bvh(patches))
-    B = R.solve_jacobi(F, patches.rho, patches.emission, tol=1e-9).B
+    F = form_factors.form_factors(patches, L.visibility_bvh(patches))
+    B = solvers.solve_jacobi(F, patches.rho, patches.emission, tol=1e-9).B
     assert np.allclose(B, np.pi * 2.0 / (1 - 0.5), rtol=1e-3)
 
 
@@ -146,7 +152,7 @@ def test_triangle_patches_compare_on_the_texels_cycles_bakes(tmp_path):
     H, Hc, a = r["H_front"][tri], r["cycles"][tri], p.area[tri, None]
     assert abs((H * a).sum() / (Hc * a).sum() - 1) < 0.06, ((H * a).sum(), (Hc * a).sum())
     ch, _ = exr.read_exr(tmp_path / "cycles_bake" / f"{floor.name} radiosity_irradiance.exr")
-    atlas = R.make_atlas(int((p.owner == p.names.index(floor.name)).sum()))
+    atlas = rad_atlas.make_atlas(int((p.owner == p.names.index(floor.name)).sum()))
     x0, y0 = atlas.origin(np.arange(atlas.count))
     yy, xx = np.mgrid[0:atlas.cell, 0:atlas.cell]
     for k in range(atlas.count):

@@ -11,7 +11,11 @@ import bpy
 import numpy as np
 import pytest
 
-from addon.core import radiosity as R
+from addon.core import analytic
+from addon.core.radiosity import cost as rad_cost
+from addon.core.radiosity import form_factors
+from addon.core.radiosity import patches as rad_patches
+from addon.core.radiosity import subdivision as rad_subdivision
 from addon.core.errors import ILWarning, InputError
 from addon.lab import radiosity as L
 
@@ -131,7 +135,7 @@ def test_imported_cornell_box_against_cycles_and_against_bake_py(tmp_path):
       (95 % of the squared error lies within 5 mm of the light's outline, where the field changes over ~1 mm
       and patches stop at max-edge / 32 = 3 mm): √(4.3² + 7² + 14.7²) ≈ 17 %. Allowed: 20 %."""
     from addon.bake import BakeOptions, bake_lightmaps
-    from addon.core import exr
+    from addon.core.io import exr
     sc = import_cornell(str(tmp_path / "obj"))
     sc.world = L._black_world()
     r = L.run(str(tmp_path / "rad"), scene=sc, max_edge=0.1, samples=32)
@@ -189,7 +193,7 @@ def test_light_facing_the_ceiling_still_lights_the_room(tmp_path):
     assert floor.sum() > 4 and sol[0][1][floor].mean() > 0.1
     order = [np.lexsort(c.T) for c, _ in sol]
     # the near-field cubature lays its cells from the first corner, which the winding changes: equal within
-    # its tolerance (R.NEAR_TOL in F; measured 4e-3 relative on the worst patch, 5e-5 of the largest value),
+    # its tolerance (form_factors.NEAR_TOL in F; measured 4e-3 relative on the worst patch, 5e-5 of the largest value),
     # not to rounding
     a, b = sol[0][1][order[0]], sol[1][1][order[1]]
     assert np.allclose(a, b, rtol=1e-2, atol=1e-4 * b.max())
@@ -251,7 +255,7 @@ def test_modifiers_mirrored_linked_duplicates_and_skipped_objects():
     assert len([x for x in w if issubclass(x.category, ILWarning)]) == 1
     by = {o.name: m for o, m in zip(used, meshes)}
     assert len(by[floor.name]["faces"]) == 4 and len(by[dup.name]["faces"]) == 4
-    p = R.patches_from_meshes([by[floor.name], by[dup.name], by["Lamp"]])
+    p = rad_patches.patches_from_meshes([by[floor.name], by[dup.name], by["Lamp"]])
     assert np.allclose(p.normal[p.owner == 0], [0, 0, 1], atol=1e-6)
     assert np.allclose(p.normal[p.owner == 1], [0, 0, -1], atol=1e-6)   # z mirror: the normals Blender shows
     assert np.allclose(p.normal[p.owner == 2], [0, 0, -1], atol=1e-6)
@@ -272,18 +276,18 @@ def test_cost_refused_up_front_with_the_largest_size_that_fits(script, tmp_path)
         assert f"--max-edge {edge} gives ~" in line and "the smallest edge that fits in" in line
         assert not out.exists() and not out.parent.exists()
     # the estimate is the count subdivision makes, and the largest that fits does fit
-    base = R.patches_from_meshes(R.cornell_box())
+    base = rad_patches.patches_from_meshes(analytic.cornell_box())
     for e in (0.6, 0.25, 0.1):
-        assert R.estimate_patches(base, e) == pytest.approx(len(R.subdivide_to_size(base, e)), rel=0.03)
+        assert rad_subdivision.estimate_patches(base, e) == pytest.approx(len(rad_subdivision.subdivide_to_size(base, e)), rel=0.03)
     # the check counts the subdivision near emitters too (planned_patches: the count plus its budget)
-    assert R.planned_patches(base, 0.25) == R.estimate_patches(base, 0.25) + \
-        max(R.REFINE_MIN, R.REFINE_SHARE * R.estimate_patches(base, 0.25))
-    best = R.smallest_edge_that_fits(base, 2e9)
-    assert R.solve_cost(R.planned_patches(base, best)).bytes <= 2e9
-    over = R.solve_cost(R.planned_patches(base, best * 0.9))
-    assert over.bytes > 2e9 or over.seconds > R.MAX_SECONDS
+    assert rad_subdivision.planned_patches(base, 0.25) == rad_subdivision.estimate_patches(base, 0.25) + \
+        max(rad_subdivision.REFINE_MIN, rad_subdivision.REFINE_SHARE * rad_subdivision.estimate_patches(base, 0.25))
+    best = rad_cost.smallest_edge_that_fits(base, 2e9)
+    assert rad_cost.solve_cost(rad_subdivision.planned_patches(base, best)).bytes <= 2e9
+    over = rad_cost.solve_cost(rad_subdivision.planned_patches(base, best * 0.9))
+    assert over.bytes > 2e9 or over.seconds > rad_cost.MAX_SECONDS
     with pytest.raises(InputError, match="smallest edge that fits in 2 GB"):
-        R.check_cost(base, best / 4, memory=2e9)
+        rad_cost.check_cost(base, best / 4, memory=2e9)
 
 
 def test_ctrl_c_during_the_solve_stops_with_130(tmp_path):

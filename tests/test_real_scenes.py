@@ -17,7 +17,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from addon.core import exr
+from addon.core.io import exr
 from tests.support.corpus import SUN_ROTATION, SUN_STRENGTH
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -279,7 +279,7 @@ SHADING_DRIVER = textwrap.dedent("""
     import bpy
     import addon
     from addon import compat
-    from addon.core import exr
+    from addon.core.io import exr
     addon.register()
     model, out = sys.argv[1], sys.argv[2]
     for stem, path in json.loads(sys.argv[3]).items():

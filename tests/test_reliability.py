@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 from mathutils import Vector
 
-from addon.core import envmap as core_env
-from addon.core import exr, imageio
+from addon.core.io import hdr as io_hdr
+from addon.core.io import png
+from addon.core.io import exr
 from addon.lab import ssao as ssao_lab
 from addon.lab import ssao_scenes
 from addon.lab.scene import remove_scene
@@ -92,7 +93,7 @@ def test_shadows_on_a_file_made_with_blenders_operators(script, user_blend, tmp_
     assert 0.02 < ref["shadowed_fraction"] < 0.9
     assert rep["methods"]["shadowmap"]["error"] < 0.05                                    # same occluders as Cycles
     assert "Suzanne" in rep["methods"]["volume_zfail"]["params"]["skipped_open_meshes"]   # open: documented
-    mask = imageio.decode_png((out / "raytraced_mask.png").read_bytes())
+    mask = png.decode_png((out / "raytraced_mask.png").read_bytes())
     assert mask.shape == (48, 64) and {0, 255} <= set(np.unique(mask))
 
 
@@ -132,7 +133,7 @@ def test_envmap_of_a_world_with_an_environment_texture(script, tmp_path):
     """A uniform environment L in an image: E(n) = π L strength for every normal (REFERENCE.md §1)."""
     radiance = np.array([0.5, 0.25, 0.125])
     hdr = tmp_path / "sky.hdr"
-    core_env.write_hdr(hdr, np.broadcast_to(radiance, (16, 32, 3)))
+    io_hdr.write_hdr(hdr, np.broadcast_to(radiance, (16, 32, 3)))
     world = bpy.data.worlds.new("Sky")
     bpy.context.scene.world = world
     if hasattr(world, "use_nodes"):
@@ -178,16 +179,18 @@ def test_costs_that_do_not_fit_are_refused_before_any_work(script, tmp_path, nam
 
 
 def test_the_named_largest_value_fits_and_the_next_does_not(monkeypatch):
-    from addon.core import budget, shadow_map, ssao
+    from addon.core import budget
+    from addon.core.ssao import limits
+    from addon.core.shadow import depth_map
     from addon.core.errors import InputError
     monkeypatch.setattr(budget, "memory_budget", lambda: 8 << 30)
     with pytest.raises(InputError, match="needs about 25 GiB of memory") as e:
-        ssao.check_cost(8192, 8192, 1, 1)
+        limits.check_cost(8192, 8192, 1, 1)
     best = int(str(e.value).rsplit(" ", 1)[1])
-    assert best == int(math.sqrt((8 << 30) / ssao.BYTES_PER_PIXEL))
-    ssao.check_cost(best, best, 1, 1)
+    assert best == int(math.sqrt((8 << 30) / limits.BYTES_PER_PIXEL))
+    limits.check_cost(best, best, 1, 1)
     with pytest.raises(InputError, match=f"the largest shadow-map size that fits is "):
-        shadow_map.check_cost(128, 128, 16384, faces=6)
+        depth_map.check_cost(128, 128, 16384, faces=6)
     cost = lambda n: (n * 1000, 0.0)  # noqa: E731
     assert budget.largest(cost, 1, 10 ** 9, memory=123456) == 123
     assert budget.largest(cost, 200, 10 ** 9, memory=123456) is None

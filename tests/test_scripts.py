@@ -4,7 +4,8 @@ import json
 import numpy as np
 import pytest
 
-from addon.core import exr, imageio
+from addon.core.io import png as io_png
+from addon.core.io import exr
 
 pytestmark = pytest.mark.both_versions
 
@@ -56,7 +57,7 @@ def test_demo_writes_render_exr_png_and_report(script, tmp_path):
     assert rgb.shape == (120, 160, 3)
     assert np.all(np.isfinite(rgb)) and rgb.mean() > 0.01
     assert header["il:units"] == "W/(m^2 sr)"
-    png = imageio.decode_png((tmp_path / "demo_render.png").read_bytes())
+    png = io_png.decode_png((tmp_path / "demo_render.png").read_bytes())
     assert png.shape == (120, 160, 3)
     report = json.loads((tmp_path / "demo_report.json").read_text())
     assert report["steps"]["render"]["samples"] == 8

@@ -6,7 +6,8 @@ import bpy
 import numpy as np
 import pytest
 
-from addon.core import imageio, shadow_metrics
+from addon.core.io import png
+from addon.core.shadow import metrics
 from addon.core.errors import InputError
 from addon.lab import shadow_scenes, shadows
 from addon.lab.shadow_session import Session
@@ -20,20 +21,20 @@ def _session(name, light="sun", res=RES):
 
 
 def _score(s, mask):
-    return shadow_metrics.confusion(mask, s.reference, s.receiver)
+    return metrics.confusion(mask, s.reference, s.receiver)
 
 
 def _assert_on_the_reference_grid(out, method, margin=0.005):
     """The method's mask PNG agrees with the reference's better than the same mask moved by one pixel
     in any of the four directions does (a mask off by one pixel either way fails this)."""
-    ref = imageio.decode_png((out / "raytraced_mask.png").read_bytes()) > 127
-    mask = imageio.decode_png((out / f"{method}_mask.png").read_bytes()) > 127
+    ref = png.decode_png((out / "raytraced_mask.png").read_bytes()) > 127
+    mask = png.decode_png((out / f"{method}_mask.png").read_bytes()) > 127
     assert mask.shape == ref.shape
     everywhere = np.ones_like(ref)
-    aligned = shadow_metrics.confusion(mask, ref, everywhere)["error"]
+    aligned = metrics.confusion(mask, ref, everywhere)["error"]
     for axis in (0, 1):
         for step in (1, -1):
-            moved = shadow_metrics.confusion(np.roll(mask, step, axis=axis), ref, everywhere)["error"]
+            moved = metrics.confusion(np.roll(mask, step, axis=axis), ref, everywhere)["error"]
             assert moved > aligned + margin, (method, axis, step, moved, aligned)
 
 
@@ -47,7 +48,7 @@ def test_sphere_scene_volumes_and_planar_match_the_reference_and_masks_are_pixel
     assert m["volume_zpass"]["error"] <= 0.005                   # camera outside every volume
     assert m["planar"]["error"] <= 0.005
     assert m["raytraced"]["error"] == 0.0
-    assert imageio.decode_png((tmp_path / "raytraced_mask.png").read_bytes()).shape == (RES, RES)
+    assert png.decode_png((tmp_path / "raytraced_mask.png").read_bytes()).shape == (RES, RES)
     for method in ("planar", "volume_zfail", "volume_zpass"):
         _assert_on_the_reference_grid(tmp_path, method)
     assert m["volume_zfail"]["params"]["skipped_open_meshes"] == ["Floor"]    # the documented fallback
@@ -194,6 +195,6 @@ def test_script_writes_masks_and_report(script, tmp_path):
     report = json.loads((tmp_path / "shadows_report.json").read_text())
     assert report["methods"]["shadowmap"]["params"]["pcf"] == 3
     for m in ("raytraced", "shadowmap", "volume_zfail"):
-        img = imageio.decode_png((tmp_path / f"{m}_mask.png").read_bytes())
+        img = png.decode_png((tmp_path / f"{m}_mask.png").read_bytes())
         assert img.shape == (48, 48) and set(np.unique(img)) <= {0, 255}
         assert (tmp_path / f"{m}_error.png").exists()

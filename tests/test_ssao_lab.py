@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from addon import compat
-from addon.core import exr, ssao as core
+from addon.core.ssao import limits
+from addon.core.io import exr
 from addon.core.errors import ILError, InputError
 from addon.lab import ssao as lab
 from addon.lab import ssao_scenes
@@ -23,7 +24,7 @@ def test_reference_matches_closed_forms_on_plane_and_corner(tmp_path):
 
     scene = ssao_scenes.build_scene("corner", 64, 1.0)
     gb, world, ref = lab.frame(scene, 1.0, n, 64, cache_dir=str(tmp_path))
-    # REFERENCE.md §3 with AO distance R (core.ssao.corner_k_a, checked by Monte Carlo in tests/core)
+    # REFERENCE.md §3 with AO distance R (core.analytic.corner_k_a, checked by Monte Carlo in tests/core/ssao)
     closed = ssao_scenes.corner_closed_form(np.nan_to_num(world, nan=1e9), 1.0)
     ok = np.isfinite(closed) & gb.mask
     occluded = ok & (closed < 0.97)
@@ -141,7 +142,7 @@ def test_operators_build_scene_and_run_comparison(tmp_path):
 
 
 def test_every_builtin_scene_renders_a_gbuffer():
-    for name in core.SCENES:
+    for name in limits.SCENES:
         scene = ssao_scenes.build_scene(name, 24, 1.0)
         gb, world, _ = lab.render_gbuffer(scene)
         assert gb.mask.any() and np.isfinite(gb.position).all() and np.isfinite(gb.normal).all()

@@ -6,7 +6,7 @@ import os
 import numpy as np
 import pytest
 
-from addon.core import exr
+from addon.core.io import exr
 from addon.core.errors import InputError
 
 

@@ -21,7 +21,7 @@ import pytest
 
 from addon import compat
 from addon import progress as progress_mod
-from addon.core import exr
+from addon.core.io import exr
 from addon.lab import demo
 
 UI_FUNCS = bpy.types.UILayout.bl_rna.functions

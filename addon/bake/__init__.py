@@ -10,7 +10,7 @@ Public API (used by the operator, scripts/bake.py, the demo and other labs)::
 Files: ``<out>/<object>_ao.exr`` (channels Y = k_A, A = covered) and
 ``<out>/<object>_irradiance.exr`` (R, G, B = E in W/m², A), each with a PNG preview,
 and ``<out>/bake_report.json`` (see DESIGN.md). Read a map back with
-``addon.core.exr.read_exr`` (row 0 = top = v 1).
+``addon.core.io.exr.read_exr`` (row 0 = top = v 1).
 """
 from .options import MAPS, BakeOptions  # noqa: F401
 from .pipeline import REPORT, BakeResult, bake_lightmaps, output_files, summary, validate  # noqa: F401

@@ -12,7 +12,8 @@ import time
 import bpy
 import numpy as np
 
-from ..core import charts, exr
+from ..core import charts
+from ..core.io import exr
 from ..core import lightmap as lm
 from ..lab import demo
 from ..lab.scene import remove_scene, white_lambert

@@ -2,7 +2,7 @@
 import dataclasses
 
 from ..core.errors import InputError
-from ..core.fileio import check_output_dir as check_out_dir  # noqa: F401  (one home: core.fileio)
+from ..core.io.files import check_output_dir as check_out_dir  # noqa: F401  (one home: core.io.files)
 from ..core.lightmap import MAX_RESOLUTION
 
 MAPS = ("ao", "irradiance")

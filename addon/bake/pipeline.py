@@ -10,9 +10,11 @@ import bpy
 import numpy as np
 
 from .. import compat, interrupt
-from ..core import errors, exr, imageio, lightmap
+from ..core import errors, lightmap
+from ..core.io import png as io_png
+from ..core.io import exr
 from ..core.errors import ILError, InputError
-from ..core.fileio import write_json
+from ..core.io.files import write_json
 from ..progress import Progress
 from ..lab import scene as sc
 from . import cost, orientation, uv as uvmod
@@ -665,11 +667,11 @@ def _channels(kind, values, alpha):
 
 def _preview(kind, values, mask):
     if kind == "ao":
-        display = imageio.srgb_encode(values)
+        display = io_png.srgb_encode(values)
     else:
-        display = imageio.tonemap(values)
+        display = io_png.tonemap(values)
     display = np.where(mask[..., None] if display.ndim == 3 else mask, display, 0.0)
-    return imageio.to_uint8(display)
+    return io_png.to_uint8(display)
 
 
 def _entry(path, res, result, extra=None):
@@ -714,7 +716,7 @@ def _write(name, group, kind, result, out, options, layers, margin=None, overlap
         path = os.path.join(out, f"{name}_{kind}.exr")
         exr.write_exr(path, _channels(kind, np.flipud(values), np.flipud(alpha)), attrs)
         png = os.path.join(out, f"{name}_{kind}.png")
-        imageio.write_png(png, np.flipud(_preview(kind, values, grown)))
+        io_png.write_png(png, np.flipud(_preview(kind, values, grown)))
         res = (values.shape[1], values.shape[0])
         entries = {}
         for o in group:

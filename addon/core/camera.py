@@ -7,11 +7,22 @@ project writes are laid out.
 """
 import numpy as np
 
+#: Depth written for sky pixels (as Cycles' Depth pass does); the labs take "no surface" as depth >= half this.
+SKY_DEPTH = 1.0e10
+
 
 def transform(m, points):
     """Apply a 4x4 affine matrix to (..., 3) points."""
     p = np.asarray(points, dtype=np.float64)
     return p @ m[:3, :3].T + m[:3, 3]
+
+
+def ndc_to_pixels(ndc_x, ndc_y, width, height):
+    """Normalised device coordinates -> pixel x, y: x = (ndc_x + 1) W/2 - 1/2, y = (1 - ndc_y) H/2 - 1/2.
+
+    The one place of the pixel convention above (row 0 at the top, pixel centres at integers).
+    """
+    return (ndc_x + 1.0) * (0.5 * width) - 0.5, (1.0 - ndc_y) * (0.5 * height) - 0.5
 
 
 def world_to_pixels(points, world_to_view, proj, width, height):
@@ -20,8 +31,7 @@ def world_to_pixels(points, world_to_view, proj, width, height):
     h = np.concatenate([v, np.ones(v.shape[:-1] + (1,))], axis=-1) @ proj.T
     with np.errstate(divide="ignore", invalid="ignore"):
         ndc = h[..., :3] / h[..., 3:4]
-    x = (ndc[..., 0] + 1.0) * 0.5 * width - 0.5
-    y = (1.0 - ndc[..., 1]) * 0.5 * height - 0.5
+    x, y = ndc_to_pixels(ndc[..., 0], ndc[..., 1], width, height)
     return x, y, -v[..., 2]
 
 

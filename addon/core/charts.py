@@ -8,7 +8,7 @@ import io
 
 import numpy as np
 
-from .fileio import atomic_path, write_bytes
+from .io.files import atomic_path, write_bytes
 
 
 #: What a UI operator reports when it skipped its charts.

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..core import brdf, charts
 from ..core.errors import ILError
-from ..core.fileio import atomic_path, write_json
+from ..core.io.files import atomic_path, write_json
 from ..progress import Progress
 
 #: (key, title, module with ``sweeps``); modules are relative to the ``addon`` package.

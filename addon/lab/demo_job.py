@@ -5,9 +5,10 @@ import time
 import bpy
 import numpy as np
 
-from ..core import exr, imageio
+from ..core.io import png as imageio
+from ..core.io import exr
 from ..core.errors import InputError
-from ..core.fileio import write_json
+from ..core.io.files import write_json
 from ..progress import Progress
 from . import demo, render
 

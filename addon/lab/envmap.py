@@ -11,10 +11,14 @@ import bpy
 import numpy as np
 
 from .. import compat
-from ..core import envmap as core
-from ..core import exr, imageio
+from ..core import analytic
+from ..core.envmap import irradiance as env_irradiance
+from ..core.envmap import latlong
+from ..core.envmap import sh9 as env_sh9
+from ..core.io import png as io_png
+from ..core.io import exr
 from ..core.errors import ILError, InputError
-from ..core.fileio import write_json
+from ..core.io.files import write_json
 from ..nodes import groups
 from ..nodes.builder import Graph
 from . import scene as sc
@@ -47,7 +51,7 @@ def image_pixels(image):
     px = px.reshape(h, w, image.channels)
     rgb = px[..., :3] if image.channels >= 3 else np.repeat(px[..., :1], 3, axis=-1)
     if not image.is_float and space == "sRGB":
-        rgb = imageio.srgb_decode(rgb)
+        rgb = io_png.srgb_decode(rgb)
     return np.flipud(rgb).astype(np.float32)
 
 
@@ -81,14 +85,14 @@ def world_environment(scene):
     else:
         raise InputError("the Environment Texture must feed a Background node's Color directly")
     env = image_pixels(node.image) * strength
-    core.check_latlong(env, node.image.name)
+    latlong.check_latlong(env, node.image.name)
     return env, f"world '{world.name}' image '{node.image.name}' × {strength:g}"
 
 
 def compute(env, method="sh9", width=64):
     """(irradiance map (width/2, width, 3), sh9 (9, 3), seconds)."""
     t = time.perf_counter()
-    emap, coeffs = core.irradiance_map(env, method, width)
+    emap, coeffs = env_irradiance.irradiance_map(env, method, width)
     return emap, coeffs, time.perf_counter() - t
 
 
@@ -115,21 +119,21 @@ def run(out, scene=None, env_file=None, method="sh9", width=64):
     """
     if width < 4 or width % 2:
         raise InputError(f"width must be an even number >= 4, got {width}")
-    core.check_cost(width, "sh9")
+    env_irradiance.check_cost(width, "sh9")
     if env_file:
-        env, source = core.read_latlong(env_file), os.path.abspath(env_file)
+        env, source = latlong.read_latlong(env_file), os.path.abspath(env_file)
     else:
         env, source = world_environment(scene or bpy.context.scene)
-    core.check_radiance(env, source)
+    latlong.check_radiance(env, source)
     if method == "brute":
-        core.check_cost(width, method, core.brute_directions(env.shape))
+        env_irradiance.check_cost(width, method, env_irradiance.brute_directions(env.shape))
     bound = np.pi * float(np.max(env))                # E(n) <= π max L
     with np.errstate(over="ignore", invalid="ignore"):
-        emap, coeffs, seconds = compute(env, method, width) if bound <= core.FLOAT32_MAX else (None, None, 0.0)
+        emap, coeffs, seconds = compute(env, method, width) if bound <= exr.FLOAT32_MAX else (None, None, 0.0)
     if emap is None or not (np.isfinite(emap).all() and np.isfinite(coeffs).all()
-                            and np.max(emap) <= core.FLOAT32_MAX):
+                            and np.max(emap) <= exr.FLOAT32_MAX):
         raise InputError(f"{source}: the environment is too bright (radiance up to {np.max(env):.3g}): E(n) leaves "
-                         f"the EXR float range ({core.FLOAT32_MAX:.3g} W/m²); scale the radiance down")
+                         f"the EXR float range ({exr.FLOAT32_MAX:.3g} W/m²); scale the radiance down")
     path, report = write_outputs(out, emap, coeffs, method, seconds, source)
     return {"file": path, "report": report, "seconds": seconds, "map": emap, "sh9": coeffs, "source": source}
 
@@ -255,8 +259,8 @@ def cycles_sphere_irradiance(scene, sphere, samples=64, out=None):
 
 
 def _sharp_env(h, w, radius_deg=10.0, power=40.0):
-    d = core.latlong_directions(h, w)
-    env = core.linear_sky(h, w, 0.5, 0.2)
+    d = latlong.latlong_directions(h, w)
+    env = analytic.linear_sky(h, w, 0.5, 0.2)
     axis = np.array([0.5, 0.5, 0.7071]) / np.linalg.norm([0.5, 0.5, 0.7071])
     return env + power * (d @ axis > np.cos(np.radians(radius_deg)))[..., None] * np.array([1.0, 0.8, 0.6])
 
@@ -268,24 +272,23 @@ def sweeps(out_dir, quick=False):
     """
     from ..core import charts as ch
     from . import radiosity as lrad
-    from ..core import radiosity as rcore
     os.makedirs(out_dir, exist_ok=True)
     tables, figs, pngs = {}, {}, []
 
     # SH9 timing on a 1024x512 environment (best of 3), brute force for scale
     env = _sharp_env(512, 1024)
-    best = min(_timed(lambda: core.irradiance_map_sh9(env, 64))[1] for _ in range(3))
+    best = min(_timed(lambda: env_sh9.irradiance_map_sh9(env, 64))[1] for _ in range(3))
     figs["sh9_1024x512_seconds"] = best
-    n64 = core.latlong_directions(32, 64)
-    _, tb = _timed(lambda: core.irradiance_brute(env, n64, max_width=256))
+    n64 = latlong.latlong_directions(32, 64)
+    _, tb = _timed(lambda: env_irradiance.irradiance_brute(env, n64, max_width=256))
     figs["brute_1024x512_seconds"] = tb
 
     # accuracy of SH9 against brute force as the light gets sharper
     rows = []
     for r in ((5, 20, 60) if quick else (2, 5, 10, 20, 40, 60, 90)):
         e = _sharp_env(128, 256, r, 40.0)
-        ref = core.irradiance_brute(e, n64)
-        sh, ts = _timed(lambda: core.irradiance_map_sh9(e, 64))
+        ref = env_irradiance.irradiance_brute(e, n64)
+        sh, ts = _timed(lambda: env_sh9.irradiance_map_sh9(e, 64))
         rows.append({"light_radius_deg": r, "sh9_rel_rms": float(np.sqrt(np.mean((sh - ref) ** 2)) / np.mean(ref)),
                      "sh9_rel_max": float(np.max(np.abs(sh - ref)) / np.max(ref)), "sh9_seconds": ts})
     tables["envmap_sh9_accuracy"] = rows
@@ -296,9 +299,9 @@ def sweeps(out_dir, quick=False):
 
     # brute force: speed against accuracy as the environment is box-filtered
     rows = []
-    ref = core.irradiance_brute(env, n64, max_width=512)
+    ref = env_irradiance.irradiance_brute(env, n64, max_width=512)
     for mw in ((32, 64, 128) if quick else (16, 32, 64, 128, 256)):
-        e, t = _timed(lambda: core.irradiance_brute(env, n64, max_width=mw))
+        e, t = _timed(lambda: env_irradiance.irradiance_brute(env, n64, max_width=mw))
         rows.append({"max_width": mw, "seconds": t, "rel_rms": float(np.sqrt(np.mean((e - ref) ** 2)) / np.mean(ref))})
     tables["envmap_brute_speed"] = rows
     pngs.append(ch.scatter_chart(os.path.join(out_dir, "envmap_brute_speed.png"),
@@ -308,7 +311,7 @@ def sweeps(out_dir, quick=False):
 
     # radiosity: cost against patches (visibility by BVH rays, form factors, solve)
     rows, last = [], None
-    meshes = rcore.cornell_box()
+    meshes = analytic.cornell_box()
     for edge in ((0.5, 0.25) if quick else (0.5, 0.25, 0.125)):
         r = lrad.solve_scene(meshes, edge, "gauss_seidel", 1e-6)
         t = r["timings"]

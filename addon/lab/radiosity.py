@@ -1,5 +1,5 @@
 """Radiosity in Blender: patches from the scene, visibility rays, solution as vertex colours and light maps,
-and the Cycles irradiance bake of the same scene for comparison (seed 004; core in addon.core.radiosity).
+and the Cycles irradiance bake of the same scene for comparison (seed 004; core in addon.core.radiosity and the scene in addon.core.analytic).
 
 Units: B radiosity (exitance) and H irradiance in W/m²; an Emission shader's Strength is the emitted
 radiance L_e (E_i = π L_e). The comparison is the light-map pipeline's irradiance bake (addon.bake) of the
@@ -11,11 +11,19 @@ import time
 import bpy
 import numpy as np
 
-from ..core import charts, exr
+from ..core import charts
 from ..core.budget import memory_budget
-from ..core import radiosity as core
+from ..core.io import exr
+from ..core import analytic
+from ..core.radiosity import atlas as rad_atlas
+from ..core.radiosity import cost as rad_cost
+from ..core.radiosity import form_factors as rad_form_factors
+from ..core.radiosity import patches as rad_patches
+from ..core.radiosity import solvers as rad_solvers
+from ..core.radiosity import subdivision as rad_subdivision
+from ..core.radiosity import visibility as rad_visibility
 from ..core.errors import ILError, InputError, warn
-from ..core.fileio import check_output_dir, write_json
+from ..core.io.files import check_output_dir, write_json
 from .. import interrupt
 from ..progress import Progress
 from . import scene as scn
@@ -30,10 +38,10 @@ REPORT = "radiosity_report.json"
 
 
 def build_cornell_scene(name="IL Cornell", light_radiance=15.0):
-    """The built-in Cornell-box-like room (core.cornell_box) as a new Cycles scene with a black world."""
+    """The built-in Cornell-box-like room (analytic.cornell_box) as a new Cycles scene with a black world."""
     sc = scn.new_scene(name, (128, 128))
     scn.world(sc, 0.0)
-    for m in core.cornell_box(light_radiance):
+    for m in analytic.cornell_box(light_radiance):
         me = bpy.data.meshes.new(m["name"])
         me.from_pydata([tuple(v) for v in m["vertices"]], [], [tuple(f) for f in m["faces"]])
         me.update()
@@ -81,7 +89,7 @@ def material_rho_emission(mat, notes=None):
     link: Emission (Color × Strength; ρ 0), Diffuse BSDF (Color), Principled BSDF (ρ = Base Color × (1 −
     Transmission), L_e = Emission Color × Emission Strength), Add and Mix Shader (constant factor).
 
-    Both sides of a Cycles surface reflect and emit alike (see core.back_side_needed). Radiosity is diffuse
+    Both sides of a Cycles surface reflect and emit alike (see core.radiosity.patches.back_side_needed). Radiosity is diffuse
     only: what it approximates is added to ``notes`` {kind: {material names}} (see NOTES); what it cannot
     evaluate at all (a factor or colour driven by nodes other than an image texture, node groups, unknown
     shaders) raises InputError naming the material and the socket.
@@ -334,7 +342,7 @@ def visibility_bvh(patches, offset=1e-4, bvh=None):
     n = len(patches)
     bvh = bvh or _bvh(patches)
     V = np.zeros((n, n), bool)
-    for i, j in core.candidate_pair_blocks(patches):
+    for i, j in rad_visibility.candidate_pair_blocks(patches):
         if not len(i):
             continue
         interrupt.checkpoint()
@@ -346,7 +354,7 @@ def visibility_bvh(patches, offset=1e-4, bvh=None):
 
 
 def visible_bvh(patches, offset=1e-4, bvh=None):
-    """The ``visible(points, normals, src)`` callback of core.near_field_form_factors: 1 where the ray from
+    """The ``visible(points, normals, src)`` callback of core.radiosity.form_factors.near_field_form_factors: 1 where the ray from
     the point (lifted ``offset`` along its normal) to the source patch's centre is free."""
     bvh = bvh or _bvh(patches)
 
@@ -361,27 +369,27 @@ def visible_bvh(patches, offset=1e-4, bvh=None):
 
 
 def scene_patches(meshes):
-    """Unsplit patches of ``meshes`` with the back sides Cycles would light (core.back_side_needed);
+    """Unsplit patches of ``meshes`` with the back sides Cycles would light (core.radiosity.patches.back_side_needed);
     zero-area faces are dropped with a warning."""
-    base = core.patches_from_meshes(meshes, drop_degenerate=True)
+    base = rad_patches.patches_from_meshes(meshes, drop_degenerate=True)
     if base.dropped:
         warn(f"radiosity skipped {base.dropped} zero-area faces")
-    return core.with_back_sides(base, core.back_side_needed(base, core.open_meshes(meshes)))
+    return rad_patches.with_back_sides(base, rad_patches.back_side_needed(base, rad_patches.open_meshes(meshes)))
 
 
 def refine_near_emitters(patches, max_edge, memory=None, timings=None):
     """Split the patches whose direct light from a near emitter varies across them, and grade the patches
-    facing a bright bounce (core.emitter_refine_mask), edges not below max_edge / 2**EMITTER_LEVELS, adding at
-    most core.refine_budget patches (the share of the up-front estimate); past it the largest of the marked
+    facing a bright bounce (core.radiosity.subdivision.emitter_refine_mask), edges not below max_edge / 2**EMITTER_LEVELS, adding at
+    most core.radiosity.subdivision.refine_budget patches (the share of the up-front estimate); past it the largest of the marked
     patches are split first and the rest stay, with a warning; a split that would not fit the memory or the
     time limit is skipped with a warning."""
     t0 = time.perf_counter()
-    budget = int(core.refine_budget(patches, len(patches)))
+    budget = int(rad_subdivision.refine_budget(patches, len(patches)))
     limit = len(patches) + budget
-    for level in range(2 * core.EMITTER_LEVELS):       # edges >= min_edge bound it; grading lags a level
+    for level in range(2 * rad_subdivision.EMITTER_LEVELS):       # edges >= min_edge bound it; grading lags a level
         interrupt.checkpoint()
-        mask = core.emitter_refine_mask(patches, visible_bvh(patches),
-                                        min_edge=max_edge / 2 ** core.EMITTER_LEVELS * 1.0001)
+        mask = rad_subdivision.emitter_refine_mask(patches, visible_bvh(patches),
+                                        min_edge=max_edge / 2 ** rad_subdivision.EMITTER_LEVELS * 1.0001)
         if not mask.any():
             break
         room = int(limit - len(patches)) // 3
@@ -395,12 +403,12 @@ def refine_near_emitters(patches, max_edge, memory=None, timings=None):
                 break
         n_next = len(patches) + 3 * int(mask.sum())
         mem = memory_budget() if memory is None else memory
-        c = core.solve_cost(n_next)
-        if (mem is not None and c.bytes > mem) or c.seconds > core.MAX_SECONDS:
+        c = rad_cost.solve_cost(n_next)
+        if (mem is not None and c.bytes > mem) or c.seconds > rad_cost.MAX_SECONDS:
             warn(f"subdivision near emitters stopped after {level} levels: {n_next} patches would need "
-                 f"{core.human_bytes(c.bytes)} and about {core.human_seconds(c.seconds)}")
+                 f"{rad_cost.human_bytes(c.bytes)} and about {rad_cost.human_seconds(c.seconds)}")
             break
-        patches, _ = core.split(patches, mask)
+        patches, _ = rad_subdivision.split(patches, mask)
         if room <= mask.sum():
             break
     if timings is not None:
@@ -413,14 +421,14 @@ def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, th
     """Patches -> visibility -> form factors -> solution, with ``adaptive`` refinement rounds.
 
     ``meshes`` may also be the patches of :func:`scene_patches`. The cost is checked before anything big is
-    allocated (core.check_cost): a split that does not fit is refused, an adaptive round that would not fit
+    allocated (core.radiosity.cost.check_cost): a split that does not fit is refused, an adaptive round that would not fit
     is skipped with a warning. Returns a dict: patches, F, V, solution, H (irradiance), timings, cost.
     """
     t = {}
     t0 = time.perf_counter()
-    base = meshes if isinstance(meshes, core.Patches) else scene_patches(meshes)
-    cost = core.check_cost(base, max_edge, memory=memory)
-    patches = core.subdivide_to_size(base, max_edge)
+    base = meshes if isinstance(meshes, rad_patches.Patches) else scene_patches(meshes)
+    cost = rad_cost.check_cost(base, max_edge, memory=memory)
+    patches = rad_subdivision.subdivide_to_size(base, max_edge)
     patches = refine_near_emitters(patches, max_edge, memory, t)
     for round_ in range(adaptive + 1):
         if progress:
@@ -431,32 +439,32 @@ def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, th
         V = visibility_bvh(patches, bvh=bvh)
         t["visibility"] = t.get("visibility", 0) + time.perf_counter() - tv
         tf = time.perf_counter()
-        F = core.form_factors(patches, V)
+        F = rad_form_factors.form_factors(patches, V)
         del V
         t["form_factors"] = t.get("form_factors", 0) + time.perf_counter() - tf
         tn = time.perf_counter()
-        near = core.near_candidate_pairs(patches)
+        near = rad_visibility.near_candidate_pairs(patches)
         visible = visible_bvh(patches, bvh=bvh)
-        F[near], evals = core.near_field_form_factors(patches, *near, visible=visible)
+        F[near], evals = rad_form_factors.near_field_form_factors(patches, *near, visible=visible)
         t["near_field"] = t.get("near_field", 0) + time.perf_counter() - tn
-        sol = core.solve(F, patches.rho, patches.emission, patches.area, solver, tol)
+        sol = rad_solvers.solve(F, patches.rho, patches.emission, patches.area, solver, tol)
         t["solve"] = t.get("solve", 0) + sol.seconds
-        H = core.irradiance(F, sol.B)
+        H = rad_solvers.irradiance(F, sol.B)
         if round_ == adaptive:
             break
-        mask = core.refine_mask(patches, H, threshold, min_area=(max_edge / 16) ** 2)
+        mask = rad_subdivision.refine_mask(patches, H, threshold, min_area=(max_edge / 16) ** 2)
         if not mask.any():
             break
         n_next = len(patches) + 3 * int(mask.sum())
         mem = memory_budget() if memory is None else memory
-        c = core.solve_cost(n_next)
-        if (mem is not None and c.bytes + core.BYTES_PER_PAIR * len(patches) ** 2 > mem) \
-                or c.seconds > core.MAX_SECONDS:
+        c = rad_cost.solve_cost(n_next)
+        if (mem is not None and c.bytes + rad_cost.BYTES_PER_PAIR * len(patches) ** 2 > mem) \
+                or c.seconds > rad_cost.MAX_SECONDS:
             warn(f"adaptive refinement stopped after {round_} rounds: {n_next} patches would need "
-                 f"{core.human_bytes(c.bytes)} and about {core.human_seconds(c.seconds)}")
+                 f"{rad_cost.human_bytes(c.bytes)} and about {rad_cost.human_seconds(c.seconds)}")
             break
         del F
-        patches, _ = core.split(patches, mask)
+        patches, _ = rad_subdivision.split(patches, mask)
     t["total"] = time.perf_counter() - t0
     return {"patches": patches, "F": F, "solution": sol, "H": H, "timings": t, "cost": cost,
             "near": near, "near_evals": evals, "visible": visible}
@@ -464,7 +472,7 @@ def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, th
 
 def convergence(F, patches, tol=1e-6):
     """Every solver on the same system: {solver: Solution} (for the convergence chart)."""
-    return {s: core.solve(F, patches.rho, patches.emission, patches.area, s, tol) for s in core.SOLVERS}
+    return {s: rad_solvers.solve(F, patches.rho, patches.emission, patches.area, s, tol) for s in rad_solvers.SOLVERS}
 
 
 def convergence_chart(path, solutions, n):
@@ -504,7 +512,7 @@ def result_objects(scene, patches, H, meshes, cell=CELL, gutter=2, sources=None)
         coll = bpy.data.collections.new(COLLECTION)
     if coll.name not in scene.collection.children:
         scene.collection.children.link(coll)
-    corner_vals, pos, idx = core.vertex_average(patches, H)
+    corner_vals, pos, idx = rad_atlas.vertex_average(patches, H)
     out = {}
     for k, name in enumerate(patches.names):
         sel = np.flatnonzero(patches.owner == k)
@@ -516,8 +524,8 @@ def result_objects(scene, patches, H, meshes, cell=CELL, gutter=2, sources=None)
         me = bpy.data.meshes.new(f"{name} radiosity")
         me.from_pydata([tuple(p) for p in pos[verts_global]], [], faces)
         me.update()
-        atlas = core.make_atlas(len(sel), cell, gutter)
-        atlas_uvs = core.atlas_uvs(atlas, patches.is_tri[sel])
+        atlas = rad_atlas.make_atlas(len(sel), cell, gutter)
+        atlas_uvs = rad_atlas.atlas_uvs(atlas, patches.is_tri[sel])
         layer = me.uv_layers.new(name=UV)
         loop_uv = np.concatenate([atlas_uvs[i, :3] if patches.is_tri[p] else atlas_uvs[i]
                                   for i, p in enumerate(sel)])
@@ -554,7 +562,7 @@ def write_lightmaps(out, results, patches, H):
     """``<out>/<object>_radiosity.exr``: R, G, B = irradiance H in W/m² per patch cell, A = covered."""
     files = {}
     for name, (obj, sel, atlas) in results.items():
-        img = core.paint_atlas(atlas, H[sel], patches.is_tri[sel])
+        img = rad_atlas.paint_atlas(atlas, H[sel], patches.is_tri[sel])
         _finite(f"the light map of {name}", img)
         path = os.path.join(out, f"{bpy.path.clean_name(name)}_radiosity.exr")
         exr.write_exr(path, {"R": img[..., 0], "G": img[..., 1], "B": img[..., 2], "A": img[..., 3]},
@@ -606,10 +614,10 @@ def cycles_patch_irradiance(scene, results, patches, out, samples=64, bounces=32
     for obj, sel, atlas in results.values():
         ch, _ = exr.read_exr(report["objects"][obj.name]["irradiance"]["file"])      # row 0 = top
         img = np.stack([ch[c] for c in "RGB"], -1)
-        H[sel] = core.atlas_means(atlas, img, patches.is_tri[sel])
+        H[sel] = rad_atlas.atlas_means(atlas, img, patches.is_tri[sel])
         if texels is None:
             texels = np.full((len(patches), atlas.cell ** 2, 3), np.nan)
-        texels[sel] = core.atlas_texels(atlas, img, patches.is_tri[sel])
+        texels[sel] = rad_atlas.atlas_texels(atlas, img, patches.is_tri[sel])
     return H, texels, time.perf_counter() - t0
 
 
@@ -649,8 +657,8 @@ def compare_with_cycles(patches, F, B, near, visible, Hf, front, Hc, Hc_texels):
     """The three comparisons of COMPARISONS as a report dict {kind: {"rms", "relative_rms", "meaning"}}
     (relative = RMS / Cycles' mean over the same items), plus the arrays: radiosity at the texels
     (Nf, cell², 3) and their per-patch means (Nf, 3)."""
-    pts, mask = core.texel_points(patches, CELL)
-    Hx = core.point_irradiance(patches, F, B, near[0], near[1], pts, mask, visible)[front]
+    pts, mask = rad_atlas.texel_points(patches, CELL)
+    Hx = rad_form_factors.point_irradiance(patches, F, B, near[0], near[1], pts, mask, visible)[front]
     Hx_mean = np.nanmean(Hx, axis=1)
     out = {}
     for kind, (a, b) in {"patch": (Hx_mean, Hc), "texel": (Hx, Hc_texels), "lightmap": (Hf, Hc)}.items():
@@ -663,8 +671,8 @@ def compare_with_cycles(patches, F, B, near, visible, Hf, front, Hc, Hc_texels):
 
 def check_options(solver="jacobi", max_edge=0.25, adaptive=0, samples=64, tol=1e-5):
     """InputError for options out of range (the script's parser checks the same at parse time)."""
-    if solver not in core.SOLVERS:
-        raise InputError(f"unknown solver {solver!r}; choose from {', '.join(core.SOLVERS)}")
+    if solver not in rad_solvers.SOLVERS:
+        raise InputError(f"unknown solver {solver!r}; choose from {', '.join(rad_solvers.SOLVERS)}")
     if not (isinstance(max_edge, (int, float)) and np.isfinite(max_edge) and max_edge > 0):
         raise InputError(f"--max-edge must be a positive number, got {max_edge}")
     if not (isinstance(samples, int) and 1 <= samples <= MAX_SAMPLES):
@@ -687,8 +695,8 @@ def estimate(scene, max_edge):
         warnings.simplefilter("ignore")
         meshes, _ = meshes_from_scene(scene)
     base = scene_patches(meshes)
-    cost = core.solve_cost(core.planned_patches(base, max_edge))
-    best = core.smallest_edge_that_fits(base, memory_budget())
+    cost = rad_cost.solve_cost(rad_subdivision.planned_patches(base, max_edge))
+    best = rad_cost.smallest_edge_that_fits(base, memory_budget())
     return cost, best
 
 
@@ -716,7 +724,7 @@ def run(out, scene=None, cornell=False, solver="jacobi", max_edge=0.25, adaptive
                              "(an Emission shader or Principled emission), not lamps; give a mesh an emissive "
                              "material or build the Cornell box")
         base = scene_patches(meshes)
-        core.check_cost(base, max_edge, memory=memory)
+        rad_cost.check_cost(base, max_edge, memory=memory)
         p.step("patches, visibility, form factors, solve")
         r = solve_scene(base, max_edge, solver, tol, adaptive, memory=memory)
         patches, F, sol, H = r["patches"], r["F"], r["solution"], r["H"]

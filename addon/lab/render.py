@@ -6,7 +6,7 @@ import bpy
 import numpy as np
 
 from .. import compat, interrupt
-from ..core import exr
+from ..core.io import exr
 from ..core.errors import ILError
 
 

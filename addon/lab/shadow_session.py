@@ -15,12 +15,11 @@ from mathutils import Vector
 
 from .. import compat
 from ..core import camera as cam
-from ..core import shadow_map, shadow_metrics
+from ..core.shadow import metrics
+from ..core.shadow import depth_map
 from ..core.errors import ILError, InputError
 from . import render, scene as sc
 
-#: Sky pixels carry a huge depth in Cycles' Depth pass.
-SKY_DEPTH = 1e8
 #: Object types Cycles renders as a surface that Blender evaluates to a mesh (triangulated for the
 #: planar and volume methods); other renderable types are listed as skipped.
 SURFACE_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
@@ -84,8 +83,8 @@ class Session:
             raise InputError(f"no light named '{light_name}' in scene '{scene.name}'")
         if scene.camera is None:
             raise InputError(f"scene '{scene.name}' has no camera")
-        if resolution < 8 or resolution > shadow_map.MAX_RESOLUTION:
-            raise InputError(f"resolution must be between 8 and {shadow_map.MAX_RESOLUTION}, got {resolution}")
+        if resolution < 8 or resolution > depth_map.MAX_RESOLUTION:
+            raise InputError(f"resolution must be between 8 and {depth_map.MAX_RESOLUTION}, got {resolution}")
         if samples < 1:
             raise InputError(f"samples must be positive, got {samples}")
         self.user_scene = scene
@@ -187,7 +186,7 @@ class Session:
         p = self._render(compat.CYCLES, self.user_scene.camera, self.width, self.height,
                          {"use_pass_z", "use_pass_position", "use_pass_normal", "use_pass_diffuse_direct"})
         self.depth = np.asarray(p["Depth"], np.float64)
-        self.receiver = np.isfinite(self.depth) & (self.depth < SKY_DEPTH)
+        self.receiver = np.isfinite(self.depth) & (self.depth < 0.5 * cam.SKY_DEPTH)
         self.position = np.asarray(p["Position"][..., :3], np.float64)
         n = np.asarray(p["Normal"][..., :3], np.float64)
         self.normal = n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12)
@@ -196,10 +195,10 @@ class Session:
         self.world_to_view, self.proj, _, _ = render.camera_matrices(self.tmp, self.user_scene.camera)
         self.origins, self.dirs = cam.pixel_rays(self.world_to_view, self.proj, self.width, self.height)
         self.near = self.user_scene.camera.data.clip_start
-        unshadowed = shadow_metrics.unshadowed_diffuse(
+        unshadowed = metrics.unshadowed_diffuse(
             self.normal, self.to_light, self.light.irradiance_normal(self.position))
         direct = _pass(p, compat.DIFFUSE_DIRECT_PASS)
-        self.reference = self.reach & shadow_metrics.lit_from_pass(direct, unshadowed, self.receiver)
+        self.reference = self.reach & metrics.lit_from_pass(direct, unshadowed, self.receiver)
         return time.perf_counter() - t
 
     def _light_camera(self, name, location, rotation, ortho_scale=None, angle=None, near=1e-3, far=1e4):
@@ -260,7 +259,7 @@ class Session:
             for c in cams:
                 p = self._render(compat.CYCLES, c, size, size, {"use_pass_z"})
                 w2v, proj, _, _ = render.camera_matrices(tmp, c)
-                maps.append(shadow_map.DepthMap(p["Depth"], w2v, proj))
+                maps.append(depth_map.DepthMap(p["Depth"], w2v, proj))
         finally:
             for c in cams:
                 data = c.data
@@ -343,7 +342,7 @@ class Session:
         if engine == "workbench" and self.reference[self.receiver].any() and not np.any(on[self.receiver] > 0):
             raise ILError("Workbench returned a black image with shadows on where the reference is lit "
                           "(no stencil buffer in this GL context?)")
-        lit = self.reach & (off > 0) & (on >= shadow_metrics.LIT_FRACTION * off)
+        lit = self.reach & (off > 0) & (on >= metrics.LIT_FRACTION * off)
         return lit, time.perf_counter() - t
 
 

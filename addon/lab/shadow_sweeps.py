@@ -6,8 +6,9 @@ import contextlib
 import os
 import time
 
-from ..core import charts, shadow_metrics
-from ..core.fileio import write_json
+from ..core import charts
+from ..core.shadow import metrics as shadow_metrics
+from ..core.io.files import write_json
 from ..progress import Progress
 from . import scene as sc, shadow_scenes
 from .shadow_session import Session

@@ -3,7 +3,7 @@
     report = compare(scene, "Light", ["raytraced", "shadowmap", "volume_zfail"], out)
 
 writes ``<out>/<method>_mask.png`` (white lit, black shadow), ``<out>/<method>_error.png`` (greys
-agree, red false shadow, blue false light; see core.shadow_metrics.COLOURS) and
+agree, red false shadow, blue false light; see core.shadow.metrics.COLOURS) and
 ``<out>/shadows_report.json`` (DESIGN.md). :func:`sweeps` and :func:`demo_step` serve the bench
 and the demo job.
 """
@@ -13,9 +13,14 @@ import time
 
 import numpy as np
 
-from ..core import choices, imageio, shadow_map, shadow_metrics, shadow_planar, shadow_volume
+from ..core import choices
+from ..core.io import png
+from ..core.shadow import metrics
+from ..core.shadow import volume as shadow_volume
+from ..core.shadow import depth_map
+from ..core.shadow import planar as shadow_planar
 from ..core.errors import ILError, InputError, warn
-from ..core.fileio import write_json
+from ..core.io.files import write_json
 from ..progress import Progress
 from . import scene as sc, shadow_scenes
 from .shadow_session import Session
@@ -35,23 +40,23 @@ def parse_methods(methods):
 def check_params(params):
     """Merge with DEFAULTS and validate the numbers (finite, in range); return the merged dict."""
     p = dict(DEFAULTS, **{k: v for k, v in params.items() if v is not None})
-    shadow_map.check_pcf(p["pcf"])
+    depth_map.check_pcf(p["pcf"])
     for key in ("bias", "slope_bias", "offset"):
         if not (isinstance(p[key], (int, float)) and math.isfinite(p[key]) and p[key] >= 0):
             raise InputError(f"{key.replace('_', ' ')} must be a finite number >= 0, got {p[key]}")
-    if not 2 <= p["shadowmap_size"] <= shadow_map.MAX_SIZE:
-        raise InputError(f"shadow-map size must be between 2 and {shadow_map.MAX_SIZE}, got {p['shadowmap_size']}")
-    if not 8 <= p["resolution"] <= shadow_map.MAX_RESOLUTION:
-        raise InputError(f"resolution must be between 8 and {shadow_map.MAX_RESOLUTION}, got {p['resolution']}")
+    if not 2 <= p["shadowmap_size"] <= depth_map.MAX_SIZE:
+        raise InputError(f"shadow-map size must be between 2 and {depth_map.MAX_SIZE}, got {p['shadowmap_size']}")
+    if not 8 <= p["resolution"] <= depth_map.MAX_RESOLUTION:
+        raise InputError(f"resolution must be between 8 and {depth_map.MAX_RESOLUTION}, got {p['resolution']}")
     if not 1 <= p["samples"] <= 4096:
         raise InputError(f"samples must be between 1 and 4096, got {p['samples']}")
     return p
 
 
 def check_cost(session, methods, p):
-    """core.shadow_map.check_cost for the session's frame and, with "shadowmap", its maps."""
+    """core.shadow.depth_map.check_cost for the session's frame and, with "shadowmap", its maps."""
     faces = 6 if session.light.kind == "POINT" else 1
-    shadow_map.check_cost(session.width, session.height, p["shadowmap_size"] if "shadowmap" in methods else None,
+    depth_map.check_cost(session.width, session.height, p["shadowmap_size"] if "shadowmap" in methods else None,
                           faces)
 
 
@@ -79,7 +84,7 @@ def shadowmap_mask(s, maps, p):
     t = time.perf_counter()
     r = s.receiver
     lit = np.zeros(r.shape)
-    lit[r] = shadow_map.lit_fraction(maps, s.position[r], s.normal[r], s.to_light[r],
+    lit[r] = depth_map.lit_fraction(maps, s.position[r], s.normal[r], s.to_light[r],
                                      p["bias"], p["slope_bias"], p["pcf"])
     return s.reach & (lit >= 0.5), time.perf_counter() - t
 
@@ -114,7 +119,7 @@ def volume_inputs(s):
 
 def volume_mask(s, volume, mode):
     """Lit mask from the stencil count of ``volume`` along the camera rays: lit where count = 0
-    (and the light reaches the surface at all); ``mode`` "zpass" or "zfail" (core.shadow_volume)."""
+    (and the light reaches the surface at all); ``mode`` "zpass" or "zfail" (core.shadow.volume)."""
     tau = shadow_volume.surface_distance(s.position, s.origins, s.dirs)
     count = shadow_volume.stencil(volume, s.origins, s.dirs, tau, s.world_to_view, s.proj,
                                   s.width, s.height, s.near, s.receiver, mode)
@@ -181,20 +186,20 @@ def compare(scene, light, methods, out, **params):
         if s.skipped:
             warn(f"not triangulated for the planar and volume methods: {', '.join(s.skipped)} (Cycles still "
                  "renders them in the reference and the shadow map)")
-        images["raytraced_mask.png"] = shadow_metrics.mask_image(s.reference)
+        images["raytraced_mask.png"] = metrics.mask_image(s.reference)
         for m in methods:
             progress.step(m)
             mask, seconds, info = run_method(s, m, p)
-            entry = shadow_metrics.confusion(mask, s.reference, s.receiver)
+            entry = metrics.confusion(mask, s.reference, s.receiver)
             entry.update(seconds=seconds, params=info,
                          mask=os.path.join(out, f"{m}_mask.png"), error_image=os.path.join(out, f"{m}_error.png"))
-            images[f"{m}_mask.png"] = shadow_metrics.mask_image(mask)
-            images[f"{m}_error.png"] = shadow_metrics.error_image(mask, s.reference, s.receiver)
+            images[f"{m}_mask.png"] = metrics.mask_image(mask)
+            images[f"{m}_error.png"] = metrics.error_image(mask, s.reference, s.receiver)
             report["methods"][m] = entry
     report["report"] = os.path.join(out, "shadows_report.json")
     os.makedirs(out, exist_ok=True)
     for name, pixels in images.items():
-        imageio.write_png(os.path.join(out, name), pixels)
+        png.write_png(os.path.join(out, name), pixels)
     write_json(report["report"], report)
     return report
 
@@ -203,7 +208,7 @@ def compare_builtin(name, light_kind, methods, out, keep=False, **params):
     """Build the built-in scene ``name`` with a ``light_kind`` light, compare, remove it unless ``keep``."""
     methods = parse_methods(methods)
     p = check_params(params)
-    shadow_map.check_cost(p["resolution"], p["resolution"], p["shadowmap_size"] if "shadowmap" in methods else None,
+    depth_map.check_cost(p["resolution"], p["resolution"], p["shadowmap_size"] if "shadowmap" in methods else None,
                           6 if light_kind == "point" else 1)
     scene = shadow_scenes.build(name, light_kind, (p["resolution"], p["resolution"]))
     try:

@@ -24,9 +24,17 @@ import bpy
 import numpy as np
 
 from .. import compat
-from ..core import choices, exr, imageio, ssao, ssao_figures
+from ..core import choices
+from ..core.ssao import figures
+from ..core import camera as core_camera
+from ..core.ssao import gbuffer as ssao_gbuffer
+from ..core.ssao import limits as ssao_limits
+from ..core.ssao import methods as ssao_methods
+from ..core.ssao import metrics
+from ..core.io import png
+from ..core.io import exr
 from ..core.errors import ILError, InputError
-from ..core.fileio import atomic_path, write_json
+from ..core.io.files import atomic_path, write_json
 from ..progress import Progress
 from . import render, scene as sc, ssao_scenes
 
@@ -40,21 +48,21 @@ FILTER_WIDTH = 0.01
 
 def parse_methods(methods):
     """``"a,b"`` or a list -> validated list of SSAO methods, in the given order, no duplicates."""
-    return choices.parse_choices(methods, ssao.ALL_METHODS, "SSAO method")
+    return choices.parse_choices(methods, ssao_methods.ALL_METHODS, "SSAO method")
 
 
 def check_params(samples=16, radius=1.0, reference_samples=1024, resolution=None):
     """Raise InputError for sample counts, radius or resolution out of range (core.ssao's MAX_* limits)."""
-    if not (isinstance(samples, (int, np.integer)) and 0 < samples <= ssao.MAX_SAMPLES):
-        raise InputError(f"samples must be an integer in [1, {ssao.MAX_SAMPLES}], got {samples}")
+    if not (isinstance(samples, (int, np.integer)) and 0 < samples <= ssao_limits.MAX_SAMPLES):
+        raise InputError(f"samples must be an integer in [1, {ssao_limits.MAX_SAMPLES}], got {samples}")
     if not (np.isfinite(radius) and radius > 0):
         raise InputError(f"radius must be positive, got {radius}")
-    if not (isinstance(reference_samples, (int, np.integer)) and 0 < reference_samples <= ssao.MAX_REFERENCE_SAMPLES):
-        raise InputError(f"reference samples must be an integer in [1, {ssao.MAX_REFERENCE_SAMPLES}], "
+    if not (isinstance(reference_samples, (int, np.integer)) and 0 < reference_samples <= ssao_limits.MAX_REFERENCE_SAMPLES):
+        raise InputError(f"reference samples must be an integer in [1, {ssao_limits.MAX_REFERENCE_SAMPLES}], "
                          f"got {reference_samples}")
     if resolution is not None and not (isinstance(resolution, (int, np.integer))
-                                       and 8 <= resolution <= ssao.MAX_RESOLUTION):
-        raise InputError(f"resolution must be an integer in [8, {ssao.MAX_RESOLUTION}], got {resolution}")
+                                       and 8 <= resolution <= ssao_limits.MAX_RESOLUTION):
+        raise InputError(f"resolution must be an integer in [8, {ssao_limits.MAX_RESOLUTION}], got {resolution}")
 
 
 def frame_size(scene, resolution=None):
@@ -69,7 +77,7 @@ def frame_size(scene, resolution=None):
 def check_cost(scene, methods, samples, reference_samples, resolution=None):
     """core.ssao.check_cost for ``scene``'s frame: refused before anything is rendered."""
     w, h = frame_size(scene, resolution)
-    ssao.check_cost(w, h, samples, reference_samples, sum(m in ssao.METHODS for m in methods))
+    ssao_limits.check_cost(w, h, samples, reference_samples, sum(m in ssao_methods.METHODS for m in methods))
 
 
 # ---------------------------------------------------------------- scene state
@@ -164,8 +172,8 @@ def render_gbuffer(scene):
     _passes(scene, z=True, normal=True, position=True)
     w2v, proj, _, _ = render.camera_matrices(scene)
     p = render.render_layers(scene)
-    mask = (p["Combined"][..., 3] > 0.5) & (p["Depth"] < 0.5 * ssao.SKY_DEPTH)
-    gb = ssao.gbuffer_from_passes(p["Position"][..., :3], p["Normal"][..., :3], mask, w2v, proj)
+    mask = (p["Combined"][..., 3] > 0.5) & (p["Depth"] < 0.5 * core_camera.SKY_DEPTH)
+    gb = ssao_gbuffer.gbuffer_from_passes(p["Position"][..., :3], p["Normal"][..., :3], mask, w2v, proj)
     world = np.where(gb.mask[..., None], p["Position"][..., :3], np.nan)
     return gb, world, time.perf_counter() - t0
 
@@ -321,10 +329,10 @@ def write_ao(path, k_a, mask, method, samples, radius):
 
 
 def _write_images(out, name, k_a, reference, mask):
-    imageio.write_png(os.path.join(out, f"{name}_ao.png"), imageio.to_uint8(ssao_figures.ao_grey(k_a, mask)))
+    png.write_png(os.path.join(out, f"{name}_ao.png"), png.to_uint8(figures.ao_grey(k_a, mask)))
     if reference is not None:
-        imageio.write_png(os.path.join(out, f"{name}_error.png"),
-                          imageio.to_uint8(ssao_figures.error_rgb(k_a, reference, mask)))
+        png.write_png(os.path.join(out, f"{name}_error.png"),
+                          png.to_uint8(figures.error_rgb(k_a, reference, mask)))
 
 
 # ---------------------------------------------------------------- the comparison
@@ -333,8 +341,8 @@ def run_methods(gb, methods, samples, radius, blur=False, seed=0, scene=None, pa
     """Run ``methods`` on one frame -> {method: (k_A image, seconds, params)}. EEVEE/Workbench need ``scene``."""
     out = {}
     for m in methods:
-        if m in ssao.METHODS:
-            out[m] = ssao.run_method(m, gb, radius, samples, blur=blur, seed=seed, **(params or {}).get(m, {}))
+        if m in ssao_methods.METHODS:
+            out[m] = ssao_methods.run_method(m, gb, radius, samples, blur=blur, seed=seed, **(params or {}).get(m, {}))
         elif m == "eevee":
             out[m] = render_eevee(scene, radius, samples)
         else:
@@ -370,7 +378,7 @@ def compare(scene, methods, out=None, samples=16, radius=1.0, reference_samples=
         for m in methods:
             progress.step(m)
             results.update(run_methods(gb, [m], samples, radius, blur, seed, scene, method_params))
-    noise = ssao.reference_noise(ref["k"], ref["samples"], mask)
+    noise = metrics.reference_noise(ref["k"], ref["samples"], mask)
     report = {
         "scene": scene.get("il_ssao_scene", scene.name),
         "resolution": [gb.width, gb.height],
@@ -384,14 +392,14 @@ def compare(scene, methods, out=None, samples=16, radius=1.0, reference_samples=
         "methods": {},
     }
     for m, (k, seconds, params) in results.items():
-        e = ssao.error_metrics(k, ref["k"], mask)
+        e = metrics.error_metrics(k, ref["k"], mask)
         report["methods"][m] = {"rmse": e["rmse"], "bias": e["bias"], "mean": e["mean"], "seconds": seconds,
                                 "params": params}
     if report["scene"] == "corner":
         closed = ssao_scenes.corner_closed_form(world, radius)
         ok = np.isfinite(closed) & mask
         if ok.any():
-            report["reference"]["closed_form"] = ssao.error_metrics(ref["k"], closed, ok)
+            report["reference"]["closed_form"] = metrics.error_metrics(ref["k"], closed, ok)
     if out is not None:
         os.makedirs(out, exist_ok=True)
         write_ao(os.path.join(out, "reference_ao.exr"), ref["k"], mask, "reference", ref["samples"], radius)
@@ -426,7 +434,7 @@ def blender_method(scene, method, radius, samples, resolution=None):
 
 def run_builtin(name, methods, out=None, resolution=128, **kwargs):
     """Build the built-in scene ``name``, compare, remove the scene again; return the report."""
-    ssao.check_scene(name)
+    ssao_limits.check_scene(name)
     methods = parse_methods(methods)
     check_params(kwargs.get("samples", 16), kwargs.get("radius", 1.0), kwargs.get("reference_samples", 1024),
                  resolution)

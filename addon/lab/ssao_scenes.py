@@ -19,8 +19,10 @@ import bmesh
 import numpy as np
 
 from ..core.errors import InputError
-from ..core import ssao as ssao_core
-from ..core.ssao import SCENES
+from ..core import analytic
+from ..core.ssao import limits
+from ..core.ssao import metrics
+from ..core.ssao.limits import SCENES
 from . import scene as sc
 
 #: Geometry of the corner scene (metres): floor [0, ROOM]², walls x = 0 and y = 0 of height WALL.
@@ -85,7 +87,7 @@ assert tuple(_BUILDERS) == SCENES
 
 def build_scene(name, resolution=128, radius=1.0):
     """A new scene ``SSAO <name>`` (square ``resolution``), world AO distance = ``radius``."""
-    ssao_core.check_scene(name)
+    limits.check_scene(name)
     if radius <= 0:
         raise InputError(f"radius must be positive, got {radius}")
     scene = sc.new_scene(f"SSAO {name}", (int(resolution), int(resolution)))
@@ -116,7 +118,7 @@ def _edge_control(world, gb, radius):
 def _halo(world, gb, radius):
     """Wall pixels (y = 2, above the floor's reach) next to the ball's silhouette: true k_A = 1 there."""
     wall = (np.abs(world[..., 1] - 2.0) < 1e-3) & (world[..., 2] > radius + 0.05)
-    return wall & ssao_core.behind_silhouette(gb, jump=radius)
+    return wall & metrics.behind_silhouette(gb, jump=radius)
 
 
 def _behind_pole(world, radius, sign):
@@ -159,7 +161,7 @@ REGIONS = {"plane": ("open plane", _open_plane, None),
 def corner_closed_form(world, radius):
     """k_A of the corner scene's floor and wall pixels where REFERENCE.md §3 has a closed form; NaN elsewhere.
 
-    core.ssao.corner_k_a of the distances to the two other room planes, valid where the box and
+    core.analytic.corner_k_a of the distances to the two other room planes, valid where the box and
     the room's open edges are more than R away (the planes count as infinite there).
     """
     x, y, z = world[..., 0], world[..., 1], world[..., 2]
@@ -175,4 +177,4 @@ def corner_closed_form(world, radius):
                   + np.maximum(np.abs(z - bz) - half, 0) ** 2)
     far = ROOM - radius
     ok = (on_floor | on_wx | on_wy) & (gap > radius) & (x < far) & (y < far) & (z < WALL - radius)
-    return np.where(ok, ssao_core.corner_k_a(a, b), np.nan)
+    return np.where(ok, analytic.corner_k_a(a, b), np.nan)

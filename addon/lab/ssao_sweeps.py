@@ -8,8 +8,11 @@ import os
 
 import numpy as np
 
-from ..core import charts, ssao, ssao_figures
-from ..core.fileio import write_json
+from ..core import charts
+from ..core.ssao import figures as ssao_figures
+from ..core.ssao import methods as ssao
+from ..core.ssao import metrics
+from ..core.io.files import write_json
 from ..progress import Progress
 from . import ssao as lab
 from . import scene as sc, ssao_scenes
@@ -52,12 +55,12 @@ def sweeps(out_dir, quick=False, radius=1.0, samples=16):
                 for n in cfg["counts"]:
                     for blur in (False, True) if n == samples else (False,):
                         k, sec, _ = ssao.run_method(m, gb, radius, n, blur=blur)
-                        e = ssao.error_metrics(k, ref["k"], mask)
+                        e = metrics.error_metrics(k, ref["k"], mask)
                         rows.append({"method": m + (" + blur" if blur else ""), "samples": n, "rmse": e["rmse"],
                                      "bias": e["bias"], "seconds": sec})
             for m in cfg["blender"]:
                 k, sec, _ = lab.blender_method(scene, m, radius, samples, cfg["resolution"])
-                e = ssao.error_metrics(k, ref["k"], mask)
+                e = metrics.error_metrics(k, ref["k"], mask)
                 rows.append({"method": m, "samples": samples, "rmse": e["rmse"], "bias": e["bias"], "seconds": sec})
             tables["ssao_error_vs_seconds"] = rows
             points = {f"{r['method']} {r['samples']}": (r["seconds"], r["rmse"]) for r in rows}
@@ -79,7 +82,7 @@ def sweeps(out_dir, quick=False, radius=1.0, samples=16):
             for m in ssao.METHODS:
                 for r in cfg["radii"]:
                     k, sec, _ = ssao.run_method(m, gb, r * radius, samples)
-                    e = ssao.error_metrics(k, ref["k"], mask)
+                    e = metrics.error_metrics(k, ref["k"], mask)
                     rrows.append({"method": m, "radius_over_ao_distance": r, "rmse": e["rmse"], "bias": e["bias"],
                                   "seconds": sec})
             tables["ssao_radius"] = rrows
@@ -90,7 +93,7 @@ def sweeps(out_dir, quick=False, radius=1.0, samples=16):
                 f"SSAO radius against the reference's AO distance ({radius} m), {samples} samples",
                 "SSAO radius / AO distance (log)", "RMSE of k_A", logx=True))
             figures["reference"] = {"samples": ref["samples"], "seconds": ref["seconds"],
-                                    "noise_rms": ssao.reference_noise(ref["k"], ref["samples"], mask)}
+                                    "noise_rms": metrics.reference_noise(ref["k"], ref["samples"], mask)}
         finally:
             sc.remove_scene(scene)
 
@@ -113,9 +116,9 @@ def sweeps(out_dir, quick=False, radius=1.0, samples=16):
             err_cols = []
             for label_m, m, params in variants:
                 k, sec, _ = ssao.run_method(m, gb, radius, samples, **params)
-                e = ssao.error_metrics(k, ref["k"], gb.mask)
-                er = ssao.error_metrics(k, ref["k"], region)
-                ec = ssao.error_metrics(k, ref["k"], control if control is not None else np.zeros_like(region))
+                e = metrics.error_metrics(k, ref["k"], gb.mask)
+                er = metrics.error_metrics(k, ref["k"], region)
+                ec = metrics.error_metrics(k, ref["k"], control if control is not None else np.zeros_like(region))
                 frows.append({"scene": name, "failure": what, "region": label, "method": label_m,
                               "rmse": e["rmse"], "bias": e["bias"], "region_pixels": er["pixels"],
                               "region_rmse": er["rmse"], "region_bias": er["bias"],

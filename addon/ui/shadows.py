@@ -3,7 +3,7 @@ import bpy
 from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 
 from .. import compat
-from ..core import shadow_map
+from ..core.shadow import depth_map
 from . import common, polls
 
 _METHOD_ITEMS = [
@@ -28,9 +28,9 @@ class IL_PG_shadows(bpy.types.PropertyGroup):
     receiver: StringProperty(name="Receiver", description="Plane object for planar shadows (empty: Floor)")
     methods: EnumProperty(name="Methods", items=_METHOD_ITEMS, options={"ENUM_FLAG"},
                           default={"planar", "shadowmap", "volume_zpass", "volume_zfail"})
-    resolution: IntProperty(name="Resolution", default=128, min=8, max=shadow_map.MAX_RESOLUTION,
+    resolution: IntProperty(name="Resolution", default=128, min=8, max=depth_map.MAX_RESOLUTION,
                             description="Render width in pixels (memory is checked before rendering)")
-    shadowmap_size: IntProperty(name="Shadow Map Size", default=1024, min=2, max=shadow_map.MAX_SIZE,
+    shadowmap_size: IntProperty(name="Shadow Map Size", default=1024, min=2, max=depth_map.MAX_SIZE,
                                 description="N x N texels per map (memory is checked before rendering)")
     bias: FloatProperty(name="Bias", default=0.01, min=0.0, precision=4, unit="LENGTH")
     slope_bias: FloatProperty(name="Slope Bias", default=2.0, min=0.0, description="In texels x tan(theta)")

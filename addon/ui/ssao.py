@@ -5,7 +5,7 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 
 from .. import compat
-from ..core import ssao as core_ssao
+from ..core.ssao import limits
 from . import common, polls
 
 _SCENES = [("plane", "Plane", "One open plane: k_A = 1 (the sphere kernel reads 0.5)"),
@@ -29,15 +29,15 @@ class IL_PG_ssao(bpy.types.PropertyGroup):
     methods: EnumProperty(name="Methods", items=_METHODS, options={"ENUM_FLAG"},
                           default={"crytek", "hemisphere", "hbao", "gtao"},
                           description="Methods compared with the ray-traced reference")
-    resolution: IntProperty(name="Resolution", default=128, min=16, max=core_ssao.MAX_RESOLUTION,
+    resolution: IntProperty(name="Resolution", default=128, min=16, max=limits.MAX_RESOLUTION,
                             description="Frame width in pixels (height keeps the scene's aspect; memory and "
                                         "time are checked before rendering)")
-    samples: IntProperty(name="Samples", default=16, min=1, max=core_ssao.MAX_SAMPLES,
+    samples: IntProperty(name="Samples", default=16, min=1, max=limits.MAX_SAMPLES,
                          description="Samples per pixel")
     radius: FloatProperty(name="Radius", default=1.0, min=0.001, soft_max=10.0, unit="LENGTH",
                           description="SSAO radius = the reference's AO distance")
     reference_samples: IntProperty(name="Reference Samples", default=1024, min=1,
-                                   max=core_ssao.MAX_REFERENCE_SAMPLES,
+                                   max=limits.MAX_REFERENCE_SAMPLES,
                                    description="Cycles AO samples per pixel of the reference")
     blur: BoolProperty(name="Depth-Aware Blur", default=False, description="Blur the numpy methods' results")
     output_dir: StringProperty(name="Output", subtype="DIR_PATH", default="//ssao/",

@@ -7,7 +7,12 @@ also written here, independently of the project's own quadrature helpers.
 import numpy as np
 import pytest
 
-from addon.core import brdf, envmap, radiosity as R
+from addon.core import brdf
+from addon.core.envmap import irradiance
+from addon.core.envmap import sh9
+from addon.core.radiosity import form_factors
+from addon.core.radiosity import patches as rad_patches
+from addon.core.radiosity import subdivision
 
 N = np.array([0.0, 0.0, 1.0])
 ONE = np.ones(3)
@@ -28,9 +33,9 @@ def _square_to_square(other, n):
     """F from the unit square z = 0 to ``other``, both split into n x n patches: sum_i A_i sum_j F_ij / A."""
     meshes = [{"name": "a", "vertices": np.array(SQUARE_Z0, float), "faces": [(0, 1, 2, 3)]},
               {"name": "b", "vertices": np.array(other, float), "faces": [(0, 1, 2, 3)]}]
-    p = R.subdivide_to_size(R.patches_from_meshes(meshes), 1.0 / n + 1e-9)
+    p = subdivision.subdivide_to_size(rad_patches.patches_from_meshes(meshes), 1.0 / n + 1e-9)
     assert len(p) == 2 * n * n
-    F = R.form_factors(p)
+    F = form_factors.form_factors(p)
     a, b = p.owner == 0, p.owner == 1
     return float(np.sum(p.area[a, None] * F[np.ix_(a, b)]) / np.sum(p.area[a]))
 
@@ -58,7 +63,7 @@ def test_differential_element_to_coaxial_disk_converges_to_R2_over_R2_plus_h2():
             centre = np.array([0.0, 0.0, h])
             # the disk as a fan of k triangle patches (a repeated last corner), wound to face the element
             tris = np.stack([np.broadcast_to(centre, (k, 3)), rim[1:], rim[:-1], rim[:-1]], axis=1)
-            F = R.point_polygon_form_factors(np.zeros((1, 3)), N[None], tris).sum()
+            F = form_factors.point_polygon_form_factors(np.zeros((1, 3)), N[None], tris).sum()
             errors.append(abs(F - howell))
         assert all(e2 < e1 / 10 for e1, e2 in zip(errors, errors[1:])), errors  # inscribed polygon: O(1/k^2)
         assert errors[-1] < 1e-5
@@ -109,7 +114,7 @@ def _normals(k=200, seed=3):
 
 def test_grace_cathedral_coefficients_survive_synthesis_and_projection():
     env = _grace_latlong(128)
-    got = envmap.sh9_coefficients(env)
+    got = sh9.sh9_coefficients(env)
     np.testing.assert_allclose(got, GRACE_CATHEDRAL, rtol=0, atol=1e-3)
 
 
@@ -118,8 +123,8 @@ def test_grace_cathedral_irradiance_sh9_and_brute_force_match_the_papers_formula
     n = _normals()
     expect = (_Y(n) * A_L) @ GRACE_CATHEDRAL                     # eq. 7: E(n) = sum A_l L_lm Y_lm(n)
     assert np.ptp(expect) > 1.0                                  # a strongly directional probe
-    np.testing.assert_allclose(envmap.sh9_irradiance(envmap.sh9_coefficients(env), n), expect, rtol=0, atol=2e-3)
-    np.testing.assert_allclose(envmap.irradiance_brute(env, n), expect, rtol=0, atol=2e-3)
+    np.testing.assert_allclose(sh9.sh9_irradiance(sh9.sh9_coefficients(env), n), expect, rtol=0, atol=2e-3)
+    np.testing.assert_allclose(irradiance.irradiance_brute(env, n), expect, rtol=0, atol=2e-3)
 
 
 # -- microfacet distributions (Walter et al. 2007) and the white furnace ---------------------------

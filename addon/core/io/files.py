@@ -5,7 +5,7 @@ import math
 import os
 import tempfile
 
-from .errors import ILError, InputError
+from ..errors import ILError, InputError
 
 
 def check_output_dir(out):

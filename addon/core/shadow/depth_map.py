@@ -9,9 +9,9 @@ closer filtering (Reeves et al. 1987) averages the K×K nearest-texel comparison
 """
 import numpy as np
 
-from . import budget
-from .camera import world_to_pixels
-from .errors import InputError
+from .. import budget
+from ..camera import world_to_pixels
+from ..errors import InputError
 
 #: tan θ is clamped here (θ about 84°) so grazing receivers get a finite bias.
 MAX_TAN = 10.0

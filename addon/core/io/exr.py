@@ -6,8 +6,11 @@ with ``np.flipud`` before writing.
 """
 import numpy as np
 
-from .errors import ILError
-from .fileio import atomic_path
+from ..errors import ILError
+from .files import atomic_path
+
+#: Largest float32 (EXR "FLOAT" channels).
+FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 def _openexr():

@@ -1,14 +1,16 @@
 """Analytic G-buffers for the SSAO core tests: rays cast in numpy against planes (no bpy).
 
-The closed form of the corner (REFERENCE.md §3 with an AO distance R) is core.ssao.corner_k_a;
+The closed form of the corner (REFERENCE.md §3 with an AO distance R) is core.analytic.corner_k_a;
 its disk segment and quadrant are checked here against Monte Carlo on the disk and against the
 limits REFERENCE.md §3 states.
 """
 import numpy as np
 import pytest
 
-from addon.core import camera, ssao
-from addon.core.ssao import SKY_DEPTH, GBuffer
+from addon.core import camera
+from addon.core import analytic
+from addon.core.camera import SKY_DEPTH
+from addon.core.ssao.gbuffer import GBuffer
 
 
 def look_at(eye, target):
@@ -78,11 +80,11 @@ def corner_k_a(world, pid, radius):
     x, y, z = world[..., 0], world[..., 1], world[..., 2]
     a = np.choose(np.maximum(pid, 0), [x, y, x]) / radius
     b = np.choose(np.maximum(pid, 0), [y, z, z]) / radius
-    return np.where(pid >= 0, ssao.corner_k_a(a, b), 1.0)
+    return np.where(pid >= 0, analytic.corner_k_a(a, b), 1.0)
 
 
 # ------------------------------------------------------------------ the oracles themselves (core.ssao)
-segment, quadrant = ssao.disk_segment, ssao.disk_quadrant
+segment, quadrant = analytic.disk_segment, analytic.disk_quadrant
 
 
 def test_segment_and_quadrant_match_monte_carlo_on_the_disk():
@@ -105,4 +107,4 @@ def test_closed_forms_reduce_to_reference_section_3():
     # R -> infinity: a wall at any finite distance blocks half the hemisphere, as the long-wall form
     # F = (1 - d/sqrt(d^2 + H^2))/2 gives for H -> infinity
     assert abs(segment(1e-6) / np.pi - 0.5) < 1e-6
-    assert ssao.corner_k_a(0.0, 0.0) == pytest.approx(0.25) and ssao.corner_k_a(0.0, 1.0) == pytest.approx(0.5)
+    assert analytic.corner_k_a(0.0, 0.0) == pytest.approx(0.25) and analytic.corner_k_a(0.0, 1.0) == pytest.approx(0.5)

@@ -2,7 +2,13 @@
 import numpy as np
 import pytest
 
-from addon.core import radiosity as R
+from addon.core import analytic
+from addon.core.radiosity import atlas as rad_atlas
+from addon.core.radiosity import form_factors
+from addon.core.radiosity import patches as rad_patches
+from addon.core.radiosity import solvers as rad_solvers
+from addon.core.radiosity import subdivision as rad_subdivision
+from addon.core.radiosity import visibility
 from addon.core.errors import InputError
 
 H = 1.0
@@ -17,7 +23,7 @@ CUBE = [[(-H, -H, -H), (H, -H, -H), (H, H, -H), (-H, H, -H)],   # inward-facing 
 def cube(n, rho=0.5, le=1.0):
     meshes = [{"name": f"f{k}", "vertices": np.array(q), "faces": [(0, 1, 2, 3)], "rho": rho, "emission": le}
               for k, q in enumerate(CUBE)]
-    return R.subdivide_to_size(R.patches_from_meshes(meshes), 2 * H / n + 1e-9)
+    return rad_subdivision.subdivide_to_size(rad_patches.patches_from_meshes(meshes), 2 * H / n + 1e-9)
 
 
 def plates(n, c=1.0):
@@ -25,7 +31,7 @@ def plates(n, c=1.0):
           "rho": 0.5, "emission": 1.0},
          {"name": "b", "vertices": np.array([(0, 0, c), (0, 1, c), (1, 1, c), (1, 0, c)]), "faces": [(0, 1, 2, 3)],
           "rho": 0.5, "emission": 0.0}]
-    return R.subdivide_to_size(R.patches_from_meshes(m), 1.0 / n + 1e-9)
+    return rad_subdivision.subdivide_to_size(rad_patches.patches_from_meshes(m), 1.0 / n + 1e-9)
 
 
 def parallel_plates_exact(X, Y):
@@ -43,23 +49,23 @@ def test_point_to_polygon_matches_disk_and_corner_rectangle():
     X, Y = a / c, b / c
     exact = (X / np.sqrt(1 + X * X) * np.arctan(Y / np.sqrt(1 + X * X))
              + Y / np.sqrt(1 + Y * Y) * np.arctan(X / np.sqrt(1 + Y * Y))) / (2 * np.pi)
-    ff = R.point_polygon_form_factors(np.zeros((1, 3)), np.array([[0, 0, 1.0]]), poly)
+    ff = form_factors.point_polygon_form_factors(np.zeros((1, 3)), np.array([[0, 0, 1.0]]), poly)
     assert ff[0, 0] == pytest.approx(exact, rel=1e-12)
     # a polygon facing away emits nothing toward the point
-    assert R.point_polygon_form_factors(np.zeros((1, 3)), np.array([[0, 0, 1.0]]), poly[:, ::-1])[0, 0] == 0
+    assert form_factors.point_polygon_form_factors(np.zeros((1, 3)), np.array([[0, 0, 1.0]]), poly[:, ::-1])[0, 0] == 0
 
 
 def test_horizon_clipping_half_plane():
     """A huge wall through the point, standing on its tangent plane, clipped half below: F -> 1/2 (REFERENCE §3)."""
     L = 1e4
     wall = np.array([[[1e-3, -L, -L], [1e-3, -L, L], [1e-3, L, L], [1e-3, L, -L]]])   # facing -X, toward the point
-    ff = R.point_polygon_form_factors(np.zeros((1, 3)), np.array([[0, 0, 1.0]]), wall)
+    ff = form_factors.point_polygon_form_factors(np.zeros((1, 3)), np.array([[0, 0, 1.0]]), wall)
     assert ff[0, 0] == pytest.approx(0.5, abs=1e-3)
 
 
 def test_rows_of_a_closed_scene_sum_to_one():
     p = cube(4)
-    F = R.form_factors(p)
+    F = form_factors.form_factors(p)
     assert np.allclose(F.sum(axis=1), 1.0, atol=1e-12)
     assert np.all(np.diag(F) == 0) and np.all(F >= 0)
 
@@ -68,19 +74,19 @@ def test_reciprocity_improves_with_quadrature():
     p = cube(4)
     errs = []
     for q in (1, 3):
-        AF = p.area[:, None] * R.form_factors(p, quadrature=q)
+        AF = p.area[:, None] * form_factors.form_factors(p, quadrature=q)
         errs.append(np.max(np.abs(AF - AF.T)) / np.max(AF))
     assert errs[1] < 0.01 and errs[1] < errs[0] / 5
     # far-apart small patches: reciprocity already with one point
     pl = plates(2, c=20.0)
-    AF = pl.area[:, None] * R.form_factors(pl)
+    AF = pl.area[:, None] * form_factors.form_factors(pl)
     assert np.allclose(AF, AF.T, rtol=1e-3, atol=0)
 
 
 @pytest.mark.parametrize("n,tol", [(4, 0.012), (8, 0.003)])
 def test_parallel_plates_against_analytic(n, tol):
     p = plates(n)
-    F = R.form_factors(p)
+    F = form_factors.form_factors(p)
     a, b = p.owner == 0, p.owner == 1
     total = (p.area[a, None] * F[np.ix_(a, b)]).sum() / p.area[a].sum()
     assert total == pytest.approx(parallel_plates_exact(1.0, 1.0), rel=tol)
@@ -89,17 +95,17 @@ def test_parallel_plates_against_analytic(n, tol):
 
 def test_visibility_matrix_blocks_plates():
     p = plates(2)
-    blocker = R.patches_from_meshes([{"name": "blk", "vertices": np.array([(-1, -1, .5), (2, -1, .5), (2, 2, .5), (-1, 2, .5)]),
+    blocker = rad_patches.patches_from_meshes([{"name": "blk", "vertices": np.array([(-1, -1, .5), (2, -1, .5), (2, 2, .5), (-1, 2, .5)]),
                                       "faces": [(0, 1, 2, 3)], "rho": 0.5, "emission": 0.0}])
-    both = R.Patches(np.concatenate([p.corners, blocker.corners]), np.concatenate([p.rho, blocker.rho]),
+    both = rad_patches.Patches(np.concatenate([p.corners, blocker.corners]), np.concatenate([p.rho, blocker.rho]),
                      np.concatenate([p.emission, blocker.emission]), np.r_[p.owner, 2],
                      np.r_[p.is_tri, blocker.is_tri], np.r_[p.source, 0])
-    V = R.visibility_numpy(both)
+    V = visibility.visibility_numpy(both)
     a, b = np.flatnonzero(both.owner == 0), np.flatnonzero(both.owner == 1)
     assert np.all(V[np.ix_(a, b)] == 0)               # the blocker hides the plates from each other
     assert np.all(V[np.ix_(b, [len(both) - 1])] == 1)  # the upper plate sees the blocker's top side
     assert np.all(V[np.ix_(a, [len(both) - 1])] == 0)  # the lower plate is behind it
-    F = R.form_factors(both, V)
+    F = form_factors.form_factors(both, V)
     assert np.all(F[np.ix_(a, b)] == 0) and np.all(F[b, -1] > 0) and np.all(F[a, -1] == 0)
 
 
@@ -107,81 +113,81 @@ def test_visibility_matrix_blocks_plates():
 def test_closed_enclosure_b_equals_e_over_one_minus_rho(solver):
     rho, le = 0.6, 2.0
     p = cube(3, rho=rho, le=le)
-    F = R.form_factors(p)
-    sol = R.solve(F, p.rho, p.emission, p.area, solver, tol=1e-9)
+    F = form_factors.form_factors(p)
+    sol = rad_solvers.solve(F, p.rho, p.emission, p.area, solver, tol=1e-9)
     assert np.allclose(sol.B, np.pi * le / (1 - rho), rtol=1e-6)
-    assert np.allclose(R.irradiance(F, sol.B), np.pi * le / (1 - rho), rtol=1e-6)
+    assert np.allclose(rad_solvers.irradiance(F, sol.B), np.pi * le / (1 - rho), rtol=1e-6)
 
 
 def test_jacobi_k_iterations_are_k_bounces():
     rho, le, K = 0.6, 1.0, 3
     p = cube(2, rho=rho, le=le)
-    sol = R.solve_jacobi(R.form_factors(p), p.rho, p.emission, tol=0, max_iter=K)
+    sol = rad_solvers.solve_jacobi(form_factors.form_factors(p), p.rho, p.emission, tol=0, max_iter=K)
     assert np.allclose(sol.B, np.pi * le * (1 - rho ** (K + 1)) / (1 - rho), rtol=1e-9)
 
 
 def test_solvers_agree_on_cornell_and_slow_down_as_rho_grows():
-    p = R.cornell_patches(max_edge=0.6)
-    F = R.form_factors(p, R.visibility_numpy(p))
-    ref = R.solve_direct(F, p.rho, p.emission).B
-    for s in R.SOLVERS:
-        sol = R.solve(F, p.rho, p.emission, p.area, s, tol=1e-7)
+    p = analytic.cornell_patches(max_edge=0.6)
+    F = form_factors.form_factors(p, visibility.visibility_numpy(p))
+    ref = rad_solvers.solve_direct(F, p.rho, p.emission).B
+    for s in rad_solvers.SOLVERS:
+        sol = rad_solvers.solve(F, p.rho, p.emission, p.area, s, tol=1e-7)
         assert sol.converged
         assert np.allclose(sol.B, ref, rtol=1e-4, atol=1e-6 * ref.max()), s
         assert sol.residuals[-1] < 1e-7
-    iters = {s: [] for s in R.SOLVERS}
+    iters = {s: [] for s in rad_solvers.SOLVERS}
     for rho in (0.3, 0.7, 0.95):
         r = np.where(p.rho > 0, rho, 0.0)
-        for s in R.SOLVERS:
-            iters[s].append(R.solve(F, r, p.emission, p.area, s, tol=1e-6).iterations)
+        for s in rad_solvers.SOLVERS:
+            iters[s].append(rad_solvers.solve(F, r, p.emission, p.area, s, tol=1e-6).iterations)
     for s, it in iters.items():
         assert it[0] < it[1] < it[2], (s, it)
     assert all(g < j for g, j in zip(iters["gauss_seidel"], iters["jacobi"]))
 
 
 def test_adaptive_subdivision_refines_only_where_light_changes():
-    p = R.cornell_patches(max_edge=0.6)
-    F = R.form_factors(p, R.visibility_numpy(p))
-    B = R.solve_direct(F, p.rho, p.emission).B
-    mask = R.refine_mask(p, R.irradiance(F, B), threshold=0.3)
+    p = analytic.cornell_patches(max_edge=0.6)
+    F = form_factors.form_factors(p, visibility.visibility_numpy(p))
+    B = rad_solvers.solve_direct(F, p.rho, p.emission).B
+    mask = rad_subdivision.refine_mask(p, rad_solvers.irradiance(F, B), threshold=0.3)
     assert 0 < mask.sum() < len(p)
     # the patches next to the light change fastest; a uniform white wall far from it does not refine entirely
-    H = R.irradiance(F, B) @ [0.2126, 0.7152, 0.0722]
+    H = rad_solvers.irradiance(F, B) @ [0.2126, 0.7152, 0.0722]
     assert H[mask].std() > 0
-    new, parent = R.split(p, mask)
+    new, parent = rad_subdivision.split(p, mask)
     assert len(new) == len(p) + 3 * mask.sum()
     assert np.allclose(np.bincount(parent, weights=new.area, minlength=len(p)), p.area)
 
 
 def test_split_preserves_area_and_triangles():
     m = [{"name": "t", "vertices": np.array([(0, 0, 0), (2, 0, 0), (0, 1, 0)]), "faces": [(0, 1, 2)]}]
-    p = R.patches_from_meshes(m)
-    q = R.subdivide_to_size(p, 0.3)
+    p = rad_patches.patches_from_meshes(m)
+    q = rad_subdivision.subdivide_to_size(p, 0.3)
     assert q.is_tri.all() and q.area.sum() == pytest.approx(1.0)
-    assert R.longest_edge(q.corners).max() <= 0.3
+    assert rad_patches.longest_edge(q.corners).max() <= 0.3
 
 
 def test_atlas_round_trip_and_vertex_average():
-    p = R.cornell_patches(max_edge=1.0)
+    p = analytic.cornell_patches(max_edge=1.0)
     values = np.random.default_rng(0).random((len(p), 3))
-    atlas = R.make_atlas(len(p), cell=4, gutter=2)
-    img = R.paint_atlas(atlas, values, p.is_tri)
-    assert np.allclose(R.atlas_means(atlas, img[..., :3], p.is_tri), values, atol=1e-6)
-    uv = R.atlas_uvs(atlas, p.is_tri)
+    atlas = rad_atlas.make_atlas(len(p), cell=4, gutter=2)
+    img = rad_atlas.paint_atlas(atlas, values, p.is_tri)
+    assert np.allclose(rad_atlas.atlas_means(atlas, img[..., :3], p.is_tri), values, atol=1e-6)
+    uv = rad_atlas.atlas_uvs(atlas, p.is_tri)
     assert uv.min() >= 0 and uv.max() <= 1
-    corner, pos, idx = R.vertex_average(p, np.ones((len(p), 3)) * 2.0)
+    corner, pos, idx = rad_atlas.vertex_average(p, np.ones((len(p), 3)) * 2.0)
     assert np.allclose(corner, 2.0) and np.allclose(pos[idx], p.corners)
 
 
 def test_bad_inputs():
     with pytest.raises(InputError):
-        R.patches_from_meshes([])
+        rad_patches.patches_from_meshes([])
     with pytest.raises(InputError, match="rho"):
-        R.patches_from_meshes([{"vertices": np.eye(3), "faces": [(0, 1, 2)], "rho": 1.0}])
+        rad_patches.patches_from_meshes([{"vertices": np.eye(3), "faces": [(0, 1, 2)], "rho": 1.0}])
     with pytest.raises(InputError, match="emits"):
-        R.solve_jacobi(np.zeros((2, 2)), np.zeros((2, 3)), np.zeros((2, 3)))
+        rad_solvers.solve_jacobi(np.zeros((2, 2)), np.zeros((2, 3)), np.zeros((2, 3)))
     with pytest.raises(InputError, match="solver"):
-        R.solve(np.zeros((1, 1)), np.zeros((1, 3)), np.ones((1, 3)), np.ones(1), "magic")
+        rad_solvers.solve(np.zeros((1, 1)), np.zeros((1, 3)), np.ones((1, 3)), np.ones(1), "magic")
 
 
 def test_ceiling_over_a_lamp_edge_is_split_at_its_rim():
@@ -194,16 +200,16 @@ def test_ceiling_over_a_lamp_edge_is_split_at_its_rim():
     far = [(0.75, 0, 2.0), (0.75, 0.25, 2.0), (1.0, 0.25, 2.0), (1.0, 0, 2.0)]
     m = [{"name": n, "vertices": np.array(v), "faces": [(0, 1, 2, 3)], "rho": 0.7, "emission": e}
          for n, v, e in (("lamp", lamp, 10.0), ("over", over, 0.0), ("far", far, 0.0))]
-    p = R.patches_from_meshes(m)
-    pts, _ = R.texel_points(p, 4)
-    inner = R.pointwise_form_factors(pts[1], np.repeat(p.normal[1:2], 16, 0), np.repeat(p.corners[:1], 16, 0))
-    rim = R.pointwise_form_factors(R.rim_points(p)[1], np.repeat(p.normal[1:2], 8, 0),
+    p = rad_patches.patches_from_meshes(m)
+    pts, _ = rad_atlas.texel_points(p, 4)
+    inner = form_factors.pointwise_form_factors(pts[1], np.repeat(p.normal[1:2], 16, 0), np.repeat(p.corners[:1], 16, 0))
+    rim = form_factors.pointwise_form_factors(rad_subdivision.rim_points(p)[1], np.repeat(p.normal[1:2], 8, 0),
                                    np.repeat(p.corners[:1], 8, 0))
     def corner(a, b, h=0.02):       # point h above a corner of an a × b rectangle parallel to it
         A, B = np.hypot(a, h), np.hypot(b, h)
         return (a / A * np.arctan(b / A) + b / B * np.arctan(a / B)) / (2 * np.pi)
-    x = 0.25 - R.RIM_INSET * 0.125           # the corner rim point over the lamp's corner, pulled inside
+    x = 0.25 - rad_subdivision.RIM_INSET * 0.125           # the corner rim point over the lamp's corner, pulled inside
     exact = corner(0.25 + x, 0.25 + x) + 2 * corner(0.25 + x, 0.25 - x) + corner(0.25 - x, 0.25 - x)
     assert rim.min() == pytest.approx(exact, rel=1e-6) and exact < 0.35 and inner.min() > 0.85
-    mask = R.emitter_refine_mask(p)
+    mask = rad_subdivision.emitter_refine_mask(p)
     assert mask[1] and not mask[2]

@@ -1,11 +1,11 @@
 """Images of the SSAO lab: k_A previews, signed error maps and the side-by-side failure grid.
 
-Pure numpy for the pixel images (PNG through core.imageio); matplotlib (Agg,
+Pure numpy for the pixel images (PNG through core.io.png); matplotlib (Agg,
 imported lazily as core.charts does) only for the labelled grid.
 """
 import numpy as np
 
-from .fileio import atomic_path
+from ..io.files import atomic_path
 
 #: Signed error shown at full colour: |k - k_ref| >= ERROR_LIMIT is saturated.
 ERROR_LIMIT = 0.5

@@ -8,7 +8,7 @@ pixel grid. Only receiver pixels (geometry, not sky) are scored:
 """
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 #: Error image colours (8-bit sRGB): agreement in greys, the two failures in two hues, and the
 #: pixels that are not scored (sky: no receiver) in dark green so they never read as shadow.

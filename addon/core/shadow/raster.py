@@ -1,11 +1,13 @@
 """Screen-space helpers shared by the numpy shadow methods: clipping triangles at a plane,
 triangle bounding boxes on the pixel grid, candidate (triangle, pixel) pairs in bounded chunks,
-ray-triangle hits, and a depth-tested triangle rasteriser.
+and a depth-tested triangle rasteriser (ray-triangle hits are core.geometry.ray_triangle).
 
 Pixel conventions are those of :mod:`core.camera`: pixel (0, 0) is the centre of the
 top-left pixel, x right, y down; ``proj`` is OpenGL clip space (Blender's calc_matrix_camera).
 """
 import numpy as np
+
+from ..camera import ndc_to_pixels
 
 #: Upper bound on (triangle, pixel) pairs examined at once (memory ~ 100 bytes each).
 CHUNK = 2_000_000
@@ -22,8 +24,7 @@ def clip_to_pixels(clip, width, height):
     """Clip coordinates -> pixel x, y (row 0 at the top) and NDC z; valid where w > 0."""
     with np.errstate(divide="ignore", invalid="ignore"):
         ndc = clip[..., :3] / clip[..., 3:4]
-    x = (ndc[..., 0] + 1.0) * 0.5 * width - 0.5
-    y = (1.0 - ndc[..., 1]) * 0.5 * height - 0.5
+    x, y = ndc_to_pixels(ndc[..., 0], ndc[..., 1], width, height)
     return x, y, ndc[..., 2]
 
 
@@ -175,26 +176,6 @@ def span_candidates(tris, world_to_view, proj, width, height, near, chunk=CHUNK)
         px = np.repeat(lo, n) + np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
         yield t2, px, np.repeat(row, n)
         start = stop
-
-
-def ray_triangle(origins, dirs, v0, v1, v2, eps=1e-12):
-    """Möller-Trumbore (1997): distance t along unit rays o + t d to triangles (v0, v1, v2); NaN on a miss.
-
-    Inclusive edges (u >= 0, v >= 0, u + v <= 1); t may be negative (caller filters).
-    """
-    e1 = v1 - v0
-    e2 = v2 - v0
-    p = np.cross(dirs, e2)
-    det = np.einsum("ij,ij->i", e1, p)
-    ok = np.abs(det) > eps
-    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-    s = origins - v0
-    u = np.einsum("ij,ij->i", s, p) * inv
-    q = np.cross(s, e1)
-    v = np.einsum("ij,ij->i", dirs, q) * inv
-    t = np.einsum("ij,ij->i", e2, q) * inv
-    hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1)
-    return np.where(hit, t, np.nan)
 
 
 def rasterize_depth_tested(tris, world_to_view, proj, width, height, scene_depth, near=1e-4):

@@ -4,7 +4,7 @@ import zlib
 
 import numpy as np
 
-from .fileio import write_bytes
+from .files import write_bytes
 
 
 def _chunk(kind, data):

@@ -4,10 +4,15 @@ import math
 import numpy as np
 import pytest
 
-from addon.core import camera, shadow_map, shadow_metrics, shadow_planar, shadow_raster, shadow_volume
+from addon.core import camera
+from addon.core.shadow import metrics as shadow_metrics
+from addon.core.shadow import volume as shadow_volume
+from addon.core.shadow import depth_map
+from addon.core.shadow import planar as shadow_planar
+from addon.core.shadow import raster
 from addon.core.errors import InputError
 
-from test_ssao_synthetic import look_at, perspective
+from tests.core.ssao.test_ssao_synthetic import look_at, perspective
 
 
 def _look_down(eye, width=48, height=48, fov=math.radians(60), ortho=None):
@@ -89,8 +94,8 @@ def test_clipping_keeps_exactly_the_part_in_front_of_a_plane_with_its_winding():
             p = np.array(plane, float)
             if swap:
                 p[[0, 1]] = p[[1, 0]]
-            kept = shadow_raster.clip_triangles(tri, p)
-            rest = shadow_raster.clip_triangles(tri, -p)
+            kept = raster.clip_triangles(tri, p)
+            rest = raster.clip_triangles(tri, -p)
             assert abs(_area(kept).sum() - area) < 1e-12 and abs(_area(rest).sum() - (8 - area)) < 1e-12
             assert np.all(kept @ p[:3] + p[3] >= -1e-12)
             normals = np.cross(kept[:, 1] - kept[:, 0], kept[:, 2] - kept[:, 0])
@@ -173,7 +178,7 @@ def _plane_map(size, tilt):
     w2v, proj, _, _ = _look_down((0, 0, 10), ortho=4.0)
     o, d = camera.pixel_rays(w2v, proj, size, size)
     x = o[..., 0]
-    return shadow_map.DepthMap(10 - tilt * x, w2v, proj)
+    return depth_map.DepthMap(10 - tilt * x, w2v, proj)
 
 
 def test_shadow_map_acne_needs_slope_bias_and_constant_bias_cures_it():
@@ -184,26 +189,26 @@ def test_shadow_map_acne_needs_slope_bias_and_constant_bias_cures_it():
     p[:, 2] = tilt * p[:, 0]
     n = np.tile(np.array([-tilt, 0, 1]) / math.hypot(tilt, 1), (len(p), 1))
     up = np.tile([0.0, 0.0, 1.0], (len(p), 1))
-    no_bias = shadow_map.lit_fraction([m], p, n, up, 0.0, 0.0, 1)
+    no_bias = depth_map.lit_fraction([m], p, n, up, 0.0, 0.0, 1)
     # half the points sit below their texel centre's depth: acne on about 50 %
     assert 0.35 < np.mean(no_bias < 0.5) < 0.65
     # half a texel (4/64 m) times tan 45° is the worst depth error: slope bias 0.5 texel cures it
-    assert np.all(shadow_map.lit_fraction([m], p, n, up, 0.0, 0.51, 1) == 1.0)
-    assert np.all(shadow_map.lit_fraction([m], p, n, up, 0.5 * 4 / 64 * tilt + 1e-9, 0.0, 3) >= 0.5)
+    assert np.all(depth_map.lit_fraction([m], p, n, up, 0.0, 0.51, 1) == 1.0)
+    assert np.all(depth_map.lit_fraction([m], p, n, up, 0.5 * 4 / 64 * tilt + 1e-9, 0.0, 3) >= 0.5)
 
 
 def test_pcf_kernel_must_be_odd_and_positive():
     for k in (0, 2, -1, 1.5):
         with pytest.raises(InputError):
-            shadow_map.check_pcf(k)
-    assert shadow_map.check_pcf(5) == 5
+            depth_map.check_pcf(k)
+    assert depth_map.check_pcf(5) == 5
 
 
 def test_pcf_averages_the_neighbourhood():
     depth = np.full((9, 9), 5.0)
     depth[:, :4] = 1.0                                        # occluder over the left columns
     x = np.array([4.0, 3.0, 6.0])
-    frac = shadow_map.pcf_lookup(depth, x, np.full(3, 4.0), np.full(3, 4.0), 0.0, 3)
+    frac = depth_map.pcf_lookup(depth, x, np.full(3, 4.0), np.full(3, 4.0), 0.0, 3)
     np.testing.assert_allclose(frac, [2 / 3, 1 / 3, 1.0])
 
 

@@ -8,8 +8,8 @@ test. Right on the plane, wrong on any other receiver (the shadow hides under ra
 """
 import numpy as np
 
-from . import shadow_raster
-from .errors import InputError
+from ..shadow import raster
+from ..errors import InputError
 
 
 def plane_from_point_normal(point, normal):
@@ -56,10 +56,10 @@ def shadow_triangles(tris, plane, light_h, offset):
     """
     plane = oriented_toward_light(plane, light_h)
     light_h = np.asarray(light_h, np.float64)
-    tris = shadow_raster.clip_triangles(tris, plane)
+    tris = raster.clip_triangles(tris, plane)
     pl = plane @ light_h
     if light_h[3] != 0:
-        tris = shadow_raster.clip_triangles(tris, np.append(np.zeros(3), pl * (1 - 1e-6)) - light_h[3] * plane)
+        tris = raster.clip_triangles(tris, np.append(np.zeros(3), pl * (1 - 1e-6)) - light_h[3] * plane)
     flat = project(tris, projection_matrix(plane, light_h))
     return flat + offset * plane[:3]
 
@@ -67,4 +67,4 @@ def shadow_triangles(tris, plane, light_h, offset):
 def planar_shadow_mask(tris, plane, light_h, world_to_view, proj, width, height, scene_depth, offset=1e-3):
     """True where a projected shadow triangle is drawn (passes the depth test) on the camera's grid."""
     shadows = shadow_triangles(tris, plane, light_h, offset)
-    return shadow_raster.rasterize_depth_tested(shadows, world_to_view, proj, width, height, scene_depth)
+    return raster.rasterize_depth_tested(shadows, world_to_view, proj, width, height, scene_depth)

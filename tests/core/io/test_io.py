@@ -6,7 +6,9 @@ import zlib
 import numpy as np
 import pytest
 
-from addon.core import exr, fileio, imageio
+from addon.core.io import files as io_files
+from addon.core.io import png
+from addon.core.io import exr
 from addon.core.errors import ILError
 
 
@@ -35,14 +37,14 @@ def test_png_roundtrip_grey_and_rgb(tmp_path):
     grey = np.arange(12, dtype=np.uint8).reshape(3, 4) * 20
     rgb = np.random.default_rng(0).integers(0, 256, (4, 3, 3)).astype(np.uint8)
     for pixels in (grey, rgb):
-        imageio.write_png(tmp_path / "p.png", pixels)
+        png.write_png(tmp_path / "p.png", pixels)
         data = (tmp_path / "p.png").read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n"
-        np.testing.assert_array_equal(imageio.decode_png(data), pixels)
+        np.testing.assert_array_equal(png.decode_png(data), pixels)
 
 
 def test_png_crc_is_valid(tmp_path):
-    data = imageio.encode_png(np.zeros((2, 2), np.uint8))
+    data = png.encode_png(np.zeros((2, 2), np.uint8))
     n = int.from_bytes(data[8:12], "big")
     body = data[12:16 + n]
     assert int.from_bytes(data[16 + n:20 + n], "big") == zlib.crc32(body)
@@ -51,28 +53,28 @@ def test_png_crc_is_valid(tmp_path):
 def test_srgb_encode_matches_the_standard_at_known_points():
     x = np.array([0.0, 0.0031308, 0.18, 1.0])
     expected = np.array([0.0, 12.92 * 0.0031308, 1.055 * 0.18 ** (1 / 2.4) - 0.055, 1.0])
-    np.testing.assert_allclose(imageio.srgb_encode(x), expected, atol=1e-6)
+    np.testing.assert_allclose(png.srgb_encode(x), expected, atol=1e-6)
 
 
 def test_srgb_decode_inverts_encode():
     x = np.linspace(0.0, 1.0, 1001)
-    np.testing.assert_allclose(imageio.srgb_decode(imageio.srgb_encode(x)), x, atol=1e-12)
-    assert imageio.srgb_decode(np.array([128 / 255]))[0] == pytest.approx(0.21586, abs=1e-5)
+    np.testing.assert_allclose(png.srgb_decode(png.srgb_encode(x)), x, atol=1e-12)
+    assert png.srgb_decode(np.array([128 / 255]))[0] == pytest.approx(0.21586, abs=1e-5)
 
 
 def test_tonemap_is_finite_on_bad_values():
-    out = imageio.tonemap(np.array([np.nan, np.inf, -1.0, 0.5, 2.0]))
+    out = png.tonemap(np.array([np.nan, np.inf, -1.0, 0.5, 2.0]))
     assert np.all(np.isfinite(out)) and out.min() >= 0 and out.max() <= 1
 
 
 def test_failed_write_leaves_nothing(tmp_path):
     target = tmp_path / "r.json"
     with pytest.raises(ILError, match=r"r.json: non-finite number at x \(nan\)"):
-        fileio.write_json(target, {"x": float("nan")})
+        io_files.write_json(target, {"x": float("nan")})
     with pytest.raises(ILError, match=r"non-finite number at methods.gtao.rmse.1 \(inf\)"):
-        fileio.write_json(target, {"methods": {"gtao": {"rmse": [0.1, float("inf")]}}})
+        io_files.write_json(target, {"methods": {"gtao": {"rmse": [0.1, float("inf")]}}})
     assert not os.listdir(tmp_path)
-    fileio.write_json(target, {"x": 1})
+    io_files.write_json(target, {"x": 1})
     assert json.loads(target.read_text()) == {"x": 1}
 
 

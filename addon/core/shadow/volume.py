@@ -15,8 +15,9 @@ treated as in front of it (t = τ counts as behind), so lit faces never shadow t
 """
 import numpy as np
 
-from . import shadow_raster
-from .errors import InputError
+from ..geometry import ray_triangle
+from ..shadow import raster
+from ..errors import InputError
 
 
 def directed_edges(tris):
@@ -131,14 +132,14 @@ def stencil(volume, origins, dirs, tau, world_to_view, proj, width, height, near
     tau = np.asarray(tau, np.float64).reshape(-1)
     keep = np.ones(height * width, bool) if mask is None else np.asarray(mask, bool).reshape(-1)
     normals = np.cross(volume[:, 1] - volume[:, 0], volume[:, 2] - volume[:, 0])
-    for tri, px, py in shadow_raster.span_candidates(volume, world_to_view, proj, width, height, near):
+    for tri, px, py in raster.span_candidates(volume, world_to_view, proj, width, height, near):
         pix = py * width + px
         sel = keep[pix]
         tri, pix = tri[sel], pix[sel]
         if len(pix) == 0:
             continue
         v = volume[tri]
-        t = shadow_raster.ray_triangle(o[pix], d[pix], v[:, 0], v[:, 1], v[:, 2])
+        t = ray_triangle(o[pix], d[pix], v[:, 0], v[:, 1], v[:, 2])
         hit = np.isfinite(t) & (t > 0)
         sign = np.where(np.einsum("ij,ij->i", d[pix], normals[tri]) < 0, 1, -1)
         if mode == "zpass":

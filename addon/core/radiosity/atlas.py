@@ -1,0 +1,149 @@
+"""Outputs of a solve: per-vertex values and the light-map atlas (one square cell per patch)."""
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from .patches import bilinear, vertex_keys
+
+
+def texel_points(patches, cell):
+    """The surface points a ``cell``×``cell`` atlas cell bakes (texel centres, see :func:`atlas_uvs`):
+    (N, cell², 3) and a mask (N, cell²) of the texels Cycles bakes (a triangle's: strictly inside its half), row-major from the cell's top row.
+    Quads: the bilinear map of the cell; triangles: u, v barycentric over corners (0,0), (1,0), (1,1)."""
+    yy, xx = np.mgrid[0:cell, 0:cell]
+    u, v = ((xx + 0.5) / cell).ravel(), (1 - (yy + 0.5) / cell).ravel()
+    n = len(patches)
+    c = patches.corners
+    q, _ = bilinear(np.repeat(c, len(u), axis=0), np.tile(u, n), np.tile(v, n))
+    q = q.reshape(n, len(u), 3)
+    tri = ((1 - u)[None, :, None] * c[:, None, 0] + (u - v)[None, :, None] * c[:, None, 1]
+           + v[None, :, None] * c[:, None, 2])
+    pts = np.where(patches.is_tri[:, None, None], tri, q)
+    mask = np.where(patches.is_tri[:, None], (v < u)[None, :], True)
+    return pts, mask
+
+
+
+
+def vertex_average(patches, values):
+    """Area-weighted average of patch ``values`` at each welded corner position, per object.
+
+    Returns (corner values (N, 4, C), unique positions (V, 3), corner -> unique index (N, 4)).
+    """
+    values = np.asarray(values, np.float64)
+    keys = np.concatenate([vertex_keys(patches.corners.reshape(-1, 3)),
+                           np.repeat(patches.owner, 4)[:, None]], axis=1)
+    uniq, inv = np.unique(keys, axis=0, return_inverse=True)
+    inv = inv.reshape(-1)
+    w = np.repeat(patches.area, 4)
+    acc = np.zeros((len(uniq), values.shape[1]))
+    np.add.at(acc, inv, values.repeat(4, axis=0) * w[:, None])
+    den = np.zeros(len(uniq))
+    np.add.at(den, inv, w)
+    vv = acc / den[:, None]
+    pos = np.zeros((len(uniq), 3))
+    pos[inv] = patches.corners.reshape(-1, 3)
+    return vv[inv].reshape(len(patches), 4, -1), pos, inv.reshape(len(patches), 4)
+
+
+@dataclass
+class Atlas:
+    """One square cell of ``cell`` texels per patch, ``gutter`` texels apart, row-major from the top-left."""
+    count: int
+    cell: int
+    gutter: int
+    columns: int
+    rows: int
+
+    @property
+    def size(self):
+        """(width, height) in texels."""
+        pitch = self.cell + self.gutter
+        return self.columns * pitch, self.rows * pitch
+
+    def origin(self, k):
+        """Top-left texel (x, y) of cell k (row 0 = top)."""
+        pitch = self.cell + self.gutter
+        k = np.asarray(k)
+        return (k % self.columns) * pitch + self.gutter // 2, (k // self.columns) * pitch + self.gutter // 2
+
+
+def make_atlas(count, cell=4, gutter=2):
+    """A near-square atlas for ``count`` patches."""
+    if count <= 0:
+        raise InputError("an atlas needs at least one patch")
+    cols = int(np.ceil(np.sqrt(count)))
+    return Atlas(int(count), int(cell), int(gutter), cols, int(np.ceil(count / cols)))
+
+
+def atlas_uvs(atlas, is_tri):
+    """UV (N, 4, 2) of each patch's corners in its cell (v up, Blender's UV convention).
+
+    Corner order 0..3 maps to the cell's bottom-left, bottom-right, top-right,
+    top-left; a triangle uses the first three (its lower-right half).
+    """
+    w, h = atlas.size
+    x0, y0 = atlas.origin(np.arange(atlas.count))
+    x1, y1 = x0 + atlas.cell, y0 + atlas.cell
+    u0, u1 = x0 / w, x1 / w
+    v_top, v_bot = 1 - y0 / h, 1 - y1 / h
+    uv = np.stack([np.stack([u0, v_bot], -1), np.stack([u1, v_bot], -1),
+                   np.stack([u1, v_top], -1), np.stack([u0, v_top], -1)], axis=1)
+    uv[is_tri, 3] = uv[is_tri, 2]
+    return uv
+
+
+def _cell_masks(atlas, diagonal=True):
+    """Texel masks inside a cell (cell, cell): whole cell for quads, lower-right half for triangles, with the
+    texels centred on the diagonal when ``diagonal`` (painting) or without them (reading a bake: Cycles does
+    not bake a texel whose centre lies on a triangle's edge, it stays 0 with alpha 0); texel centres only, so a
+    bake's edge bleeding does not count."""
+    c = atlas.cell
+    yy, xx = np.mgrid[0:c, 0:c]
+    u, v = (xx + 0.5) / c, 1 - (yy + 0.5) / c
+    return np.ones((c, c), bool), (v <= u) if diagonal else (v < u)
+
+
+def paint_atlas(atlas, values, is_tri):
+    """Image (H, W, C) with every patch's cell filled with its value; A channel = coverage. Row 0 = top."""
+    values = np.asarray(values, np.float64)
+    w, h = atlas.size
+    img = np.zeros((h, w, values.shape[1] + 1), np.float32)
+    quad_m, tri_m = _cell_masks(atlas)
+    x0, y0 = atlas.origin(np.arange(atlas.count))
+    c = atlas.cell
+    for k in range(atlas.count):
+        m = tri_m if is_tri[k] else quad_m
+        block = img[y0[k]:y0[k] + c, x0[k]:x0[k] + c]
+        block[m, :-1] = values[k]
+        block[m, -1] = 1.0
+    return img
+
+
+def atlas_means(atlas, image, is_tri):
+    """Per-patch mean of an atlas image (H, W, C), row 0 = top, over the texels a bake covers (a triangle's
+    strictly inside its half): the inverse of :func:`paint_atlas`."""
+    image = np.asarray(image, np.float64)
+    quad_m, tri_m = _cell_masks(atlas, diagonal=False)
+    x0, y0 = atlas.origin(np.arange(atlas.count))
+    c = atlas.cell
+    out = np.empty((atlas.count, image.shape[2]))
+    for k in range(atlas.count):
+        m = tri_m if is_tri[k] else quad_m
+        out[k] = image[y0[k]:y0[k] + c, x0[k]:x0[k] + c][m].mean(axis=0)
+    return out
+
+
+def atlas_texels(atlas, image, is_tri):
+    """Every patch's texels of an atlas image (H, W, C), row 0 = top: (N, cell², C), row-major from the cell's
+    top row as :func:`texel_points` orders them, NaN outside a triangle's half."""
+    image = np.asarray(image, np.float64)
+    quad_m, tri_m = _cell_masks(atlas, diagonal=False)
+    x0, y0 = atlas.origin(np.arange(atlas.count))
+    c = atlas.cell
+    out = np.empty((atlas.count, c * c, image.shape[2]))
+    for k in range(atlas.count):
+        out[k] = image[y0[k]:y0[k] + c, x0[k]:x0[k] + c].reshape(c * c, -1)
+        out[k][~(tri_m if is_tri[k] else quad_m).ravel()] = np.nan
+    return out

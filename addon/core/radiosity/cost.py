@@ -1,0 +1,108 @@
+"""Cost of a solve: refuse what cannot finish before allocating anything (patch count, memory, seconds)."""
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..budget import memory_budget
+from ..errors import InputError
+from .form_factors import NEAR_EVALS_PER_PATCH, NEAR_PEAK_BYTES
+from .patches import longest_edge
+from .subdivision import MAX_LEVELS, planned_patches
+
+
+# Peak memory of a solve with N patches, per patch pair: measured with tracemalloc on the Cornell box at
+# N = 7104: form factors with the visibility matrix alive 21.3 B (F float64, V bool and their temporaries),
+# near pairs beside F 11.6 B (found block by block), a solve 8.0 B, the emitter split mask 8.8 B; plus bounded
+# chunks. Rounded up.
+BYTES_PER_PAIR = 24.0
+OVERHEAD_BYTES = 600e6                  # Blender, numpy and the chunked temporaries
+# Seconds per patch pair (visibility ray + form factor + the three solvers of the convergence chart),
+# measured on the 2-core reference machine (tests/test_radiosity.py states the run it comes from).
+SECONDS_PER_PAIR = 4e-6
+# The near field (:func:`core.radiosity.form_factors.near_field_form_factors`): at most NEAR_EVALS_PER_PATCH evaluations (point form
+# factor + a visibility ray) per patch, measured at this many seconds each on the same machine.
+SECONDS_PER_NEAR_EVAL = 4e-6
+MAX_SECONDS = 3600.0
+
+
+@dataclass
+class Cost:
+    """Estimated size of a solve: patches, peak bytes, seconds."""
+    patches: float
+    bytes: float
+    seconds: float
+
+
+def solve_cost(n):
+    """:class:`Cost` of solving ``n`` patches: N² form factors and visibility, plus the near field's bounded
+    work (NEAR_EVALS_PER_PATCH evaluations a patch, NEAR_PEAK_BYTES at most)."""
+    n = float(n)
+    return Cost(n, BYTES_PER_PAIR * n * n + OVERHEAD_BYTES + NEAR_PEAK_BYTES,
+                SECONDS_PER_PAIR * n * n + SECONDS_PER_NEAR_EVAL * NEAR_EVALS_PER_PATCH * n)
+
+
+def human_bytes(b):
+    """1.2 GB style (powers of 1000)."""
+    for unit in ("B", "kB", "MB", "GB", "TB", "PB", "EB"):
+        if b < 1000 or unit == "EB":
+            return f"{b:.3g} {unit}" if unit != "B" else f"{b:.0f} B"
+        b /= 1000
+
+
+def human_count(n):
+    """2.1M style."""
+    for unit, f in (("", 1), ("k", 1e3), ("M", 1e6), ("G", 1e9), ("T", 1e12)):
+        if n < 1000 * f or unit == "T":
+            return f"{n / f:.3g}{unit}"
+
+
+def human_seconds(s):
+    """'40 s', '12 min', '3.1 h', '9.5 days'."""
+    if s < 120:
+        return f"{s:.0f} s"
+    if s < 7200:
+        return f"{s / 60:.0f} min"
+    if s < 172800:
+        return f"{s / 3600:.1f} h"
+    return f"{s / 86400:.3g} days"
+
+
+def smallest_edge_that_fits(patches, memory, max_seconds=MAX_SECONDS):
+    """The smallest max_edge whose estimated solve fits in ``memory`` bytes and ``max_seconds`` (None when
+    even the unsplit faces do not fit)."""
+    def fits(e):
+        c = solve_cost(planned_patches(patches, e))
+        return c.bytes <= memory and c.seconds <= max_seconds
+    hi = float(longest_edge(patches.corners).max()) * 1.0000001
+    if not fits(hi):
+        return None
+    lo = hi / 2 ** MAX_LEVELS
+    if fits(lo):
+        return lo
+    for _ in range(60):
+        mid = np.sqrt(lo * hi)
+        lo, hi = (lo, mid) if fits(mid) else (mid, hi)
+    return hi
+
+
+def check_cost(patches, max_edge, memory=None, max_seconds=MAX_SECONDS, option="--max-edge"):
+    """Estimate the solve of ``patches`` split to ``max_edge`` (an upper bound: :func:`core.radiosity.subdivision.planned_patches`) and
+    refuse (InputError, one line naming the
+    limit and the smallest edge that fits) what needs more than ``memory`` bytes (default: the memory
+    a job may plan to use, core.budget) or more than ``max_seconds``. Returns the :class:`Cost`."""
+    memory = memory_budget() if memory is None else memory
+    cost = solve_cost(planned_patches(patches, max_edge))
+    over_mem = memory is not None and cost.bytes > memory
+    over_time = max_seconds is not None and cost.seconds > max_seconds
+    if not (over_mem or over_time):
+        return cost
+    mem = memory if memory is not None else float("inf")
+    secs = max_seconds if max_seconds is not None else float("inf")
+    best = smallest_edge_that_fits(patches, mem, secs)
+    limits = " and ".join(x for x in (f"{human_bytes(mem)} of usable memory" if memory is not None else "",
+                                      f"{human_seconds(secs)} (at {SECONDS_PER_PAIR * 1e6:g} µs a patch pair)"
+                                      if max_seconds is not None else "") if x)
+    hint = (f"the smallest edge that fits in {limits} is {best:.2g}" if best is not None
+            else f"even the unsplit faces do not fit in {limits}: simplify the scene")
+    need = f"needing {human_bytes(cost.bytes)}" + (f" and about {human_seconds(cost.seconds)}" if over_time else "")
+    raise InputError(f"{option} {max_edge:g} gives ~{human_count(cost.patches)} patches {need}; {hint}")

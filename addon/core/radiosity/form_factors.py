@@ -1,0 +1,315 @@
+"""Form factors (REFERENCE.md §3): point to polygon (Lambert), patch to patch, and the near field.
+
+F_ij, the fraction of the energy leaving patch i that arrives on patch j. The
+point form factor is exact (:func:`lambert_polygon`); the patch average uses
+quadrature, adaptive where the pair is near (a pair whose bounding spheres are
+closer than NEAR_RATIO times the receiver's diameter).
+"""
+import numpy as np
+
+from ..errors import InputError
+from .patches import bilinear, bounding_radius, polygon_area_normal
+
+
+def clip_to_hemisphere(poly, point, normal, eps=1e-9):
+    """Sutherland-Hodgman clip of polygons (..., k, 3) to the half-space n·(x - p) >= 0.
+
+    Returns (..., 2k, 3) corners relative to ``point`` (invalid slots repeat the
+    previous valid corner, so they form zero-length edges) and a mask of pairs
+    with anything left in front of the plane.
+    """
+    r = poly - point[..., None, :]
+    d = np.einsum("...mk,...k->...m", r, normal)
+    rb, db = np.roll(r, -1, axis=-2), np.roll(d, -1, axis=-1)
+    keep = d >= -eps
+    cross = ((d > eps) & (db < -eps)) | ((d < -eps) & (db > eps))
+    t = np.where(cross, d / np.where(cross, d - db, 1.0), 0.0)
+    inter = r + (rb - r) * t[..., None]
+    k = poly.shape[-2]
+    slots = np.stack([r, inter], axis=-2).reshape(r.shape[:-2] + (2 * k, 3))
+    valid = np.stack([keep, cross], axis=-1).reshape(d.shape[:-1] + (2 * k,))
+    idx = np.where(valid, np.arange(2 * k), -1)
+    idx = np.maximum.accumulate(idx, axis=-1)
+    last = idx[..., -1:]
+    idx = np.where(idx < 0, last, idx)
+    idx = np.maximum(idx, 0)
+    front = (d > eps).any(axis=-1)
+    return np.take_along_axis(slots, idx[..., None], axis=-2), front
+
+
+def lambert_polygon(rel, normal):
+    """Point-to-polygon form factor (Lambert; REFERENCE.md §3): |Σ γ_m n·(R_m × R_{m+1})/|R_m × R_{m+1}|| / 2π.
+
+    ``rel`` (..., k, 3): polygon corners relative to the point, all in front of it; ``normal`` (..., 3).
+    Written on component arrays: it is the hot loop of the form factors.
+    """
+    rel = np.asarray(rel, np.float64)
+    n = np.broadcast_to(normal, rel.shape[:-2] + (3,))
+    x, y, z = rel[..., 0], rel[..., 1], rel[..., 2]
+    inv = 1.0 / np.maximum(np.sqrt(x * x + y * y + z * z), 1e-300)
+    x, y, z = x * inv, y * inv, z * inv
+    x2, y2, z2 = np.roll(x, -1, -1), np.roll(y, -1, -1), np.roll(z, -1, -1)
+    cx, cy, cz = y * z2 - z * y2, z * x2 - x * z2, x * y2 - y * x2
+    s = np.sqrt(cx * cx + cy * cy + cz * cz)
+    gamma = np.arctan2(s, x * x2 + y * y2 + z * z2)
+    proj = cx * n[..., None, 0] + cy * n[..., None, 1] + cz * n[..., None, 2]
+    term = np.where(s > 1e-12, gamma * proj / np.maximum(s, 1e-300), 0.0)
+    return np.abs(term.sum(axis=-1)) / (2 * np.pi)
+
+
+def polygon_form_factors(rel, normals, polygon_normals):
+    """F(dA_p -> polygon) of points to polygons given by their corners relative to the point: ``rel``
+    (..., k, 3), the points' ``normals`` and the polygons' ``polygon_normals`` broadcasting to (..., 3) -> (...).
+
+    The rules of every point form factor here: only the front side of a polygon emits (the point must
+    lie in front of its plane); polygons crossing the point's tangent plane are clipped to its
+    hemisphere (:func:`clip_to_hemisphere`); coplanar and behind polygons give 0.
+    """
+    shape = rel.shape[:-2]
+    n = np.broadcast_to(normals, shape + (3,))
+    pn = np.broadcast_to(polygon_normals, shape + (3,))
+    d = rel[..., 0] * n[..., None, 0] + rel[..., 1] * n[..., None, 1] + rel[..., 2] * n[..., None, 2]
+    facing = -(rel[..., 0, 0] * pn[..., 0] + rel[..., 0, 1] * pn[..., 1] + rel[..., 0, 2] * pn[..., 2]) > 1e-9
+    front = (d > 1e-9).any(axis=-1) & facing
+    simple = front & (d >= -1e-9).all(axis=-1)
+    out = np.zeros(shape)
+    if simple.any():
+        out[simple] = lambert_polygon(rel[simple], n[simple])
+    clip = front & ~simple
+    if clip.any():
+        clipped, _ = clip_to_hemisphere(rel[clip], np.zeros((int(clip.sum()), 3)), n[clip])
+        out[clip] = lambert_polygon(clipped, n[clip])
+    return out
+
+
+def point_polygon_form_factors(points, normals, polys, chunk_elems=4_000_000):
+    """F(dA_p -> polygon j) for every point (P, 3) with normal (P, 3) and polygon (Q, k, 3): (P, Q),
+    by the rules of :func:`polygon_form_factors`."""
+    points, normals, polys = (np.asarray(a, np.float64) for a in (points, normals, polys))
+    P, Q, k = len(points), len(polys), polys.shape[1]
+    _, pn = polygon_area_normal(polys)
+    out = np.zeros((P, Q))
+    step = max(1, int(chunk_elems // (Q * k)))
+    for s in range(0, P, step):
+        p, n = points[s:s + step], normals[s:s + step]
+        r = polys[None] - p[:, None, None, :]                          # (p, Q, k, 3)
+        out[s:s + step] = polygon_form_factors(r, n[:, None, :], pn[None])
+    return out
+
+
+def quadrature_points(patches, q):
+    """q×q points per patch and their weights (N, q², 3), (N, q²) summing to 1 (area-weighted cells)."""
+    c = patches.corners
+    if q <= 1:
+        return patches.center[:, None, :], np.ones((len(c), 1))
+    g = (np.arange(q) + 0.5) / q
+    s, t = np.meshgrid(g, g, indexing="ij")
+    s, t = s.ravel(), t.ravel()
+    # quads: bilinear map of the unit square, weight = |Jacobian| at the cell centre
+    pq = (((1 - s) * (1 - t))[None, :, None] * c[:, 0, None] + (s * (1 - t))[None, :, None] * c[:, 1, None]
+          + (s * t)[None, :, None] * c[:, 2, None] + ((1 - s) * t)[None, :, None] * c[:, 3, None])
+    ds = ((1 - t)[None, :, None] * (c[:, 1, None] - c[:, 0, None]) + t[None, :, None] * (c[:, 2, None] - c[:, 3, None]))
+    dt = ((1 - s)[None, :, None] * (c[:, 3, None] - c[:, 0, None]) + s[None, :, None] * (c[:, 2, None] - c[:, 1, None]))
+    wq = np.linalg.norm(np.cross(ds, dt), axis=-1)
+    # triangles: centroids of the q² sub-triangles of a regular split (equal areas)
+    bary = []
+    for i in range(q):
+        for j in range(q - i):
+            bary.append(((i + 1 / 3) / q, (j + 1 / 3) / q))
+            if i + j < q - 1:
+                bary.append(((i + 2 / 3) / q, (j + 2 / 3) / q))
+    b = np.array(bary)
+    pt = (c[:, 0, None] + b[None, :, 0, None] * (c[:, 1, None] - c[:, 0, None])
+          + b[None, :, 1, None] * (c[:, 2, None] - c[:, 0, None]))
+    tri = patches.is_tri[:, None]
+    pts = np.where(tri[..., None], pt, pq)
+    w = np.where(tri, 1.0, wq)
+    return pts, w / w.sum(axis=1, keepdims=True)
+
+
+def form_factors(patches, visibility=None, quadrature=1):
+    """F_ij = Σ_q w_q F(dA_q -> P_j) · V_ij (seed 004's double integral with the inner one exact).
+
+    ``visibility`` (N, N) in [0, 1] or bool (1 = unoccluded; None = all visible) is
+    supplied by the caller (the bpy side casts the rays). ``quadrature`` q
+    integrates over patch i with q×q points: reciprocity A_i F_ij = A_j F_ji
+    improves as q grows. The diagonal is 0 (planar patches). Memory: the (N, N)
+    result plus bounded chunks.
+    """
+    n = len(patches)
+    if visibility is not None and np.shape(visibility) != (n, n):
+        raise InputError(f"visibility must be {n}x{n}, got {np.shape(visibility)}")
+    pts, w = quadrature_points(patches, quadrature)
+    m = pts.shape[1]
+    if m == 1:
+        F = point_polygon_form_factors(pts[:, 0], patches.normal, patches.corners)
+    else:
+        ff = point_polygon_form_factors(pts.reshape(-1, 3), np.repeat(patches.normal, m, axis=0), patches.corners)
+        F = (ff.reshape(n, m, n) * w[..., None]).sum(axis=1)
+        del ff
+    np.fill_diagonal(F, 0.0)
+    if visibility is not None:
+        V = np.asarray(visibility)
+        np.multiply(F, V, out=F, casting="unsafe")
+    return F
+
+
+
+# A pair (receiver i, source j) is near when the gap between their bounding spheres is below NEAR_RATIO
+# times i's diameter: there F(dA_x -> P_j) changes over patch i by more than its centre value can stand for
+# (the midpoint rule's relative error grows as (diameter / distance)²; for touching or overlapping patches,
+# e.g. a light 1 mm under a ceiling, the integrand is a step). Those pairs get the patch average by adaptive
+# cubature (:func:`near_field_form_factors`), within NEAR_EVALS_PER_PATCH evaluations per patch on average.
+NEAR_RATIO = 1.0
+NEAR_TOL = 2e-4            # absolute error in F allowed per cell before it is split in four
+NEAR_START = 2             # the first level: NEAR_START² cells per receiver
+NEAR_DEPTH = 6             # at most 6 halvings: cells down to 1/128 of the receiver's side
+NEAR_EVALS_PER_PATCH = 600
+NEAR_CHUNK = 5000          # pairs per chunk, at most NEAR_CHUNK_EVALS evaluations each: bounded memory
+NEAR_CHUNK_EVALS = 600_000
+NEAR_PEAK_BYTES = 400e6    # the arrays of one chunk's evaluations (about 600 B each)
+
+
+def near_pairs(patches, i, j, ratio=NEAR_RATIO):
+    """Ordered (receiver, source) index arrays, both ways round, of the pairs among (i, j) that are near:
+    bounding-sphere gap |c_i − c_j| − r_i − r_j below ``ratio`` × the receiver's diameter 2 r_i."""
+    i, j = np.asarray(i, int), np.asarray(j, int)
+    r = bounding_radius(patches)
+    gap = np.linalg.norm(patches.center[i] - patches.center[j], axis=1) - r[i] - r[j]
+    a = gap < ratio * 2 * r[i]
+    b = gap < ratio * 2 * r[j]
+    return np.concatenate([i[a], j[b]]), np.concatenate([j[a], i[b]])
+
+
+def pointwise_form_factors(points, normals, polys):
+    """F(dA_m -> polygon m) for matching rows: points (M, 3), normals (M, 3), polygons (M, k, 3) -> (M,),
+    by the rules of :func:`polygon_form_factors`."""
+    points, normals, polys = (np.asarray(a, np.float64) for a in (points, normals, polys))
+    _, pn = polygon_area_normal(polys)
+    return polygon_form_factors(polys - points[:, None, :], normals, pn)
+
+
+def seen_form_factors(patches, points, normals, src, visible=None):
+    """F(dA_m -> patch src_m) V(x_m, src_m) for matching rows: points (M, 3), normals (M, 3), source patch
+    indices (M,) -> (M,). ``visible(points, normals, src)`` (see :func:`near_field_form_factors`) is asked
+    only where the form factor is not 0; None: all visible."""
+    v = pointwise_form_factors(points, normals, patches.corners[src])
+    if visible is not None:
+        hit = v > 0
+        if hit.any():
+            v[hit] = v[hit] * visible(points[hit], normals[hit], src[hit])
+    return v
+
+
+def near_field_form_factors(patches, recv, src, visible=None, tol=NEAR_TOL, start=NEAR_START, depth=NEAR_DEPTH,
+                            budget=None):
+    """Patch-average form factors of the pairs (recv, src):
+
+        F_ij = (1 / A_i) ∫_{A_i} F(dA_x -> P_j) V(x, j) dA_x
+
+    with the inner integral exact (:func:`lambert_polygon`) and the outer one adaptive: the receiver's
+    parameter square starts as ``start``² cells; a cell whose four children's midpoint sum differs from its
+    own by more than ``tol`` is split, down to ``depth`` halvings (the children's sum is kept either way).
+    ``visible(points, normals, src) -> (M,)`` in [0, 1] is the visibility from each point to the source
+    (None: all visible). ``budget``: most evaluations (default NEAR_EVALS_PER_PATCH per patch of the scene);
+    the cells with the largest error are split first. Returns (F (P,), evaluations made).
+    """
+    recv, src = np.asarray(recv, int), np.asarray(src, int)
+    n_pairs = len(recv)
+    budget = NEAR_EVALS_PER_PATCH * len(patches) if budget is None else budget
+    out = np.zeros(n_pairs)
+    evals = 0
+    for s in range(0, n_pairs, NEAR_CHUNK):
+        sl = slice(s, min(s + NEAR_CHUNK, n_pairs))
+        share = min(int(budget * (sl.stop - sl.start) / max(n_pairs, 1)), NEAR_CHUNK_EVALS)
+        out[sl], e = _adaptive_chunk(patches, recv[sl], src[sl], visible, tol, start, depth, share)
+        evals += e
+    return out, evals
+
+
+def edge_distance(points, polys):
+    """Distance from each point (M, 3) to the nearest edge of its polygon (M, k, 3) (M,)."""
+    a, b = polys, np.roll(polys, -1, axis=1)
+    ab = b - a
+    ap = points[:, None, :] - a
+    t = np.clip(np.einsum("mkc,mkc->mk", ap, ab) / np.maximum(np.einsum("mkc,mkc->mk", ab, ab), 1e-300), 0, 1)
+    return np.linalg.norm(ap - t[..., None] * ab, axis=-1).min(axis=1)
+
+
+def _adaptive_chunk(patches, recv, src, visible, tol, start, depth, budget):
+    diam = 2 * bounding_radius(patches)
+
+    def f(pair, s, t, h):
+        i, j = recv[pair], src[pair]
+        x, jac = bilinear(patches.corners[i], s, t)
+        v = seen_form_factors(patches, x, patches.normal[i], j, visible)
+        return v * jac * h * h / patches.area[i], x
+
+    g = (np.arange(start) + 0.5) / start
+    gs, gt = (a.ravel() for a in np.meshgrid(g, g, indexing="ij"))
+    pair = np.repeat(np.arange(len(recv)), start * start)
+    s, t = np.tile(gs, len(recv)), np.tile(gt, len(recv))
+    h = np.full(len(pair), 1.0 / start)
+    val, x = f(pair, s, t, h)
+    evals = len(pair)
+    total = np.zeros(len(recv))
+    prio = np.full(len(pair), np.inf)
+    offs = np.array([(-1, -1), (1, -1), (1, 1), (-1, 1)]) / 4.0
+    for level in range(depth):
+        if not len(pair):
+            break
+        room = (budget - evals) // 4
+        if room < len(pair):                         # out of budget: split the most promising cells only
+            keep = np.argsort(-prio, kind="stable")[:max(room, 0)]
+            rest = np.ones(len(pair), bool)
+            rest[keep] = False
+            np.add.at(total, pair[rest], val[rest])
+            pair, s, t, h, val, x, prio = (a[keep] for a in (pair, s, t, h, val, x, prio))
+            if not len(pair):
+                break
+        cp = np.repeat(pair, 4)
+        cs = np.repeat(s, 4) + np.tile(offs[:, 0], len(pair)) * np.repeat(h, 4)
+        ct = np.repeat(t, 4) + np.tile(offs[:, 1], len(pair)) * np.repeat(h, 4)
+        ch = np.repeat(h / 2, 4)
+        cv, cx = f(cp, cs, ct, ch)
+        evals += len(cp)
+        est = cv.reshape(-1, 4).sum(axis=1)
+        err = np.abs(est - val)
+        # a step the children's centres straddle shows in err; one between them and the cell's border does not:
+        # cells closer to an edge of the source than their own size are split regardless (the step lies there)
+        near_edge = h * diam[recv[pair]] > edge_distance(x, patches.corners[src[pair]])
+        if level == depth - 1:
+            split = np.zeros(len(pair), bool)
+        else:
+            split = (err > tol) | near_edge
+        np.add.at(total, pair[~split], est[~split])
+        spread = np.ptp(cv.reshape(-1, 4), axis=1) * 4
+        prio = np.repeat(np.maximum(err, spread)[split] / 4, 4)
+        m = np.repeat(split, 4)
+        pair, s, t, h, val, x = cp[m], cs[m], ct[m], ch[m], cv[m], cx[m]
+    np.add.at(total, pair, val)
+    return total, evals
+
+
+def point_irradiance(patches, F, B, recv, src, points, mask, visible=None):
+    """Irradiance H(x) = Σ_j F(dA_x -> P_j) V(x, j) B_j at ``points`` (N, m, 3) of every patch (NaN where not
+    ``mask``): exact point form factors and per-point visibility for the near pairs (recv, src), the
+    patch's form factor F_ij for the others (whose variation over the patch is below the near criterion)."""
+    n, m = points.shape[:2]
+    saved = F[recv, src].copy()
+    F[recv, src] = 0.0
+    try:
+        H = np.repeat((F @ B)[:, None, :], m, axis=1)
+    finally:
+        F[recv, src] = saved
+    step = max(1, NEAR_CHUNK_EVALS // 4 // m)
+    for s in range(0, len(recv), step):
+        r, j = recv[s:s + step], src[s:s + step]
+        rr, tt = np.repeat(r, m), np.tile(np.arange(m), len(r))
+        ok = mask[rr, tt]
+        rr, tt, jj = rr[ok], tt[ok], np.repeat(j, m)[ok]
+        x = points[rr, tt]
+        v = seen_form_factors(patches, x, patches.normal[rr], jj, visible)
+        np.add.at(H, (rr, tt), v[:, None] * B[jj])
+    H[~mask] = np.nan
+    return H
