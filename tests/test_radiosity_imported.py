@@ -137,7 +137,7 @@ def test_imported_cornell_box_against_cycles_and_against_bake_py(tmp_path):
     from addon.bake import BakeOptions, bake_lightmaps
     from addon.core.io import exr
     sc = import_cornell(str(tmp_path / "obj"))
-    sc.world = L._black_world()
+    sc.world = L.scn.black_world()
     r = L.run(str(tmp_path / "rad"), scene=sc, max_edge=0.1, samples=32)
     rep = r["report"]
     H, Hc = r["H_front"], r["cycles"]

@@ -19,23 +19,9 @@ import numpy as np
 from mathutils import Vector
 
 from ..core import lightmap
+from ..lab import scene as sc
 
 FIX = "Mesh > Normals > Recalculate Outside in edit mode"
-
-
-def _evaluated(obj, depsgraph):
-    """(object-space vertex positions (V, 3), loop-triangle vertex indices (T, 3)) of the evaluated mesh."""
-    ev = obj.evaluated_get(depsgraph)
-    me = ev.to_mesh()
-    try:
-        me.calc_loop_triangles()
-        co = np.zeros(len(me.vertices) * 3, np.float64)
-        me.vertices.foreach_get("co", co)
-        tris = np.zeros(len(me.loop_triangles) * 3, np.int64)
-        me.loop_triangles.foreach_get("vertices", tris)
-    finally:
-        ev.to_mesh_clear()
-    return co.reshape(-1, 3), tris.reshape(-1, 3)
 
 
 def _world_box(obj):
@@ -83,7 +69,7 @@ def holds_something(scene, obj):
 def empty_inward_shells(scene, obj):
     """(fraction of the evaluated mesh's triangles in empty inward shells, number of such shells)."""
     vl = scene.view_layers[0]
-    co, tris = _evaluated(obj, vl.depsgraph)
+    co, tris = sc.evaluated_triangles(obj, vl.depsgraph)
     if not len(tris):
         return 0.0, 0
     labels, inward, _ = lightmap.inward_shells(co, tris)

@@ -356,19 +356,8 @@ def _setup_render(scene, options, state):
     if hasattr(cy, "use_animated_seed"):
         cy.use_animated_seed = False
     if scene.world is None:
-        scene.world = state.track(bpy.data.worlds, _black_world())
+        scene.world = state.track(bpy.data.worlds, sc.black_world())
     scene.world.light_settings.distance = float(options.ao_distance)
-
-
-def _black_world():
-    """A world that emits nothing, as Cycles renders a scene without a world. ``bpy.data.worlds.new`` gives
-    5.0 worlds a node tree whose Background is grey (0.05, strength 1), which ``world.color`` does not
-    change: the tree is emptied (no World Output: black). 4.5 worlds have no tree and use ``color``."""
-    w = bpy.data.worlds.new("IL temporary world")
-    w.color = (0.0, 0.0, 0.0)
-    if w.node_tree is not None:
-        w.node_tree.nodes.clear()
-    return w
 
 
 class TemporaryMaterials:

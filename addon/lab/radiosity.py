@@ -599,7 +599,7 @@ def cycles_patch_irradiance(scene, results, patches, out, samples=64, bounces=32
             o.hide_render = True
         for o in objs:
             o.hide_render = False
-        black = scene.world = _black_world()
+        black = scene.world = scn.black_world("IL radiosity black world")
         report = bake_lightmaps(objs, ["irradiance"], out, options, scene=scene)
     finally:
         for o in others:
@@ -619,18 +619,6 @@ def cycles_patch_irradiance(scene, results, patches, out, samples=64, bounces=32
             texels = np.full((len(patches), atlas.cell ** 2, 3), np.nan)
         texels[sel] = rad_atlas.atlas_texels(atlas, img, patches.is_tri[sel])
     return H, texels, time.perf_counter() - t0
-
-
-def _black_world():
-    """A temporary world that emits nothing (a new world's Background node is grey 0.05 in Blender 5)."""
-    w = bpy.data.worlds.new("IL radiosity black world")
-    w.color = (0.0, 0.0, 0.0)
-    if w.node_tree is not None:
-        for n in w.node_tree.nodes:
-            if n.bl_idname == "ShaderNodeBackground":
-                n.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-                n.inputs["Strength"].default_value = 0.0
-    return w
 
 
 def rms(a, b):

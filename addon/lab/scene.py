@@ -3,6 +3,7 @@ import math
 
 import bmesh
 import bpy
+import numpy as np
 from mathutils import Vector
 
 from .. import compat
@@ -164,3 +165,33 @@ def remove_scene(scene, materials=()):
     for m in materials:
         if m.users == 0:
             bpy.data.materials.remove(m)
+
+
+def evaluated_triangles(obj, depsgraph):
+    """(object-space vertices (V, 3) float64, loop-triangle vertex indices (T, 3)) of ``obj``'s evaluated mesh
+    (modifiers applied, what Cycles renders); empty arrays when it has no mesh."""
+    ev = obj.evaluated_get(depsgraph)
+    me = ev.to_mesh()
+    if me is None:
+        ev.to_mesh_clear()
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+    try:
+        me.calc_loop_triangles()
+        co = np.zeros(len(me.vertices) * 3, np.float64)
+        me.vertices.foreach_get("co", co)
+        tris = np.zeros(len(me.loop_triangles) * 3, np.int64)
+        me.loop_triangles.foreach_get("vertices", tris)
+    finally:
+        ev.to_mesh_clear()
+    return co.reshape(-1, 3), tris.reshape(-1, 3)
+
+
+def black_world(name="IL temporary world"):
+    """A world that emits nothing, as Cycles renders a scene without a world. ``bpy.data.worlds.new`` gives
+    5.0 worlds a node tree whose Background is grey (0.05, strength 1), which ``world.color`` does not
+    change: the tree is emptied (no World Output: black). 4.5 worlds have no tree and use ``color``."""
+    w = bpy.data.worlds.new(name)
+    w.color = (0.0, 0.0, 0.0)
+    if w.node_tree is not None:
+        w.node_tree.nodes.clear()
+    return w

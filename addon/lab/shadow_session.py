@@ -270,24 +270,12 @@ class Session:
     def triangles(self, obj):
         """World-space (V, 3) vertices and (T, 3) triangles of an object's evaluated mesh."""
         self.tmp.view_layers[0].update()
-        ev = obj.evaluated_get(self.tmp.view_layers[0].depsgraph)
-        me = ev.to_mesh()
-        if me is None:
-            ev.to_mesh_clear()
-            return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
-        try:
-            me.calc_loop_triangles()
-            v = np.empty(len(me.vertices) * 3, np.float64)
-            me.vertices.foreach_get("co", v)
-            t = np.empty(len(me.loop_triangles) * 3, np.int64)
-            me.loop_triangles.foreach_get("vertices", t)
-        finally:
-            ev.to_mesh_clear()
+        v, t = sc.evaluated_triangles(obj, self.tmp.view_layers[0].depsgraph)
         m = np.array(obj.matrix_world, np.float64)
-        v = v.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
+        v = v @ m[:3, :3].T + m[:3, 3]
         if np.linalg.det(m[:3, :3]) < 0:
-            t = t.reshape(-1, 3)[:, ::-1].reshape(-1)
-        return v, t.reshape(-1, 3)
+            t = t[:, ::-1]
+        return v, t
 
     def engine_mask(self, engine):
         """EEVEE or Workbench's own shadow: (lit mask, seconds) from two renders, shadows on and off.
