@@ -20,7 +20,7 @@ def main(args):
     from addon.core import shadow_map
     from addon.lab import shadow_scenes, shadows
     from addon.lab.shadow_session import Session
-    from addon.lab.scene import remove_scene
+    from addon.blender.scene import remove_scene
     rows = []
     res = args.resolution
     shadow_map.check_cost(res, res, args.map_size, 1)

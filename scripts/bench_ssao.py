@@ -23,7 +23,7 @@ def main(args):
                     len(ssao.METHODS) * 2 * args.repeats)          # each method with and without blur, repeated
     from addon.lab import ssao as lab
     from addon.lab import ssao_scenes
-    from addon.lab.scene import remove_scene
+    from addon.blender.scene import remove_scene
     scene = ssao_scenes.build_scene("corner", args.resolution, 1.0)
     cache = os.path.abspath(os.path.join(args.out, "cache"))
     gb, _, ref = lab.frame(scene, 1.0, args.reference_samples, args.resolution, cache)

@@ -8,7 +8,7 @@ import pytest
 from addon import compat
 from addon.bake import BakeOptions, bake_lightmaps
 from addon.core import exr, lightmap as lm
-from addon.lab import scene as sc
+from addon.blender import scene as sc
 
 
 def receiver(scene, size, name="R", location=(0, 0, 0), cuts=0):

@@ -10,7 +10,7 @@ from addon import compat
 from addon.bake import BakeOptions, bake_lightmaps
 from addon.core import exr
 from addon.core.errors import InputError
-from addon.lab import scene as sc
+from addon.blender import scene as sc
 
 
 def black_metal():

@@ -10,7 +10,8 @@ from addon.core import envmap as E
 from addon.core import exr
 from addon.core.errors import InputError
 from addon.lab import envmap as L
-from addon.lab import render, scene as S
+from addon.lab import render
+from addon.blender import scene as S
 
 
 def _env_image(tmp_path, env, name="env.exr"):

@@ -10,7 +10,7 @@ from addon.core import exr
 from addon.core import radiosity as R
 from addon.core.errors import InputError
 from addon.lab import radiosity as L
-from addon.lab import scene as S
+from addon.blender import scene as S
 
 
 @pytest.mark.both_versions

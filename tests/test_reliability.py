@@ -17,7 +17,7 @@ from addon.core import envmap as core_env
 from addon.core import exr, imageio
 from addon.lab import ssao as ssao_lab
 from addon.lab import ssao_scenes
-from addon.lab.scene import remove_scene
+from addon.blender.scene import remove_scene
 
 from conftest import ROOT
 

@@ -10,7 +10,7 @@ from addon.core import exr, ssao as core
 from addon.core.errors import ILError, InputError
 from addon.lab import ssao as lab
 from addon.lab import ssao_scenes
-from addon.lab.scene import remove_scene
+from addon.blender.scene import remove_scene
 
 
 @pytest.mark.both_versions

@@ -15,7 +15,8 @@ import numpy as np
 from ..core import charts, exr
 from ..core import lightmap as lm
 from ..lab import demo
-from ..lab.scene import remove_scene, white_lambert
+from ..blender.materials import white_lambert
+from ..blender.scene import remove_scene
 from .options import BakeOptions
 from .pipeline import bake_lightmaps
 

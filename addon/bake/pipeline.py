@@ -14,7 +14,7 @@ from ..core import errors, exr, imageio, lightmap
 from ..core.errors import ILError, InputError
 from ..core.fileio import write_json
 from ..progress import Progress
-from ..lab import scene as sc
+from ..blender import materials, scene as sc
 from . import cost, orientation, uv as uvmod
 from .options import BakeOptions, article, check_out_dir, validate_maps
 from .state import SavedState
@@ -406,7 +406,7 @@ class TemporaryMaterials:
         return nodes
 
     def _new(self, name):
-        return self.state.track(bpy.data.materials, sc.empty_material(name))
+        return self.state.track(bpy.data.materials, materials.empty_material(name))
 
     @staticmethod
     def _image_node(nt):
@@ -416,7 +416,7 @@ class TemporaryMaterials:
 
     def _ao(self):
         if self.ao is None:
-            mat = sc.white_lambert("IL bake AO", self._new("IL bake AO"))
+            mat = materials.white_lambert("IL bake AO", self._new("IL bake AO"))
             self.ao = (mat, self._image_node(mat.node_tree))
         return self.ao
 
@@ -454,7 +454,7 @@ class TemporaryMaterials:
         nt.links.new(path.outputs["Is Camera Ray"], mix.inputs["Fac"])
         if surface is not None:
             nt.links.new(surface, mix.inputs[1])
-        nt.links.new(sc.white_diffuse_node(nt).outputs["BSDF"], mix.inputs[2])
+        nt.links.new(materials.white_diffuse_node(nt).outputs["BSDF"], mix.inputs[2])
         nt.links.new(mix.outputs["Shader"], out.inputs["Surface"])
         self.copies[orig] = (mat, self._image_node(nt))
         return self.copies[orig]

@@ -1,7 +1,7 @@
 """The embedded demo scene: a floor, three objects for three shading models, a sun and a point light."""
 import bpy
 
-from . import scene as sc
+from ..blender import scene as sc
 
 DEMO_NAME = "IL Demo"
 ROLE = "il_demo_role"

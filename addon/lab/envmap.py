@@ -17,7 +17,7 @@ from ..core.errors import ILError, InputError
 from ..core.fileio import write_json
 from ..nodes import groups
 from ..nodes.builder import Graph
-from . import scene as sc
+from ..blender import materials, scene as sc
 
 GROUP = "IL Irradiance Env"
 IMAGE = "IL Irradiance"
@@ -190,7 +190,7 @@ def ensure_node_group(image):
 def irradiance_material(name, group, diffuse=(0.8, 0.8, 0.8), ao_image=None, uv_layer=""):
     """A material whose surface is the group's "Emission"; with ``ao_image`` the baked AO (its Y/R channel,
     read through UV layer ``uv_layer``) drives "AO" (k_A)."""
-    mat = sc.empty_material(name)
+    mat = materials.empty_material(name)
     nt = mat.node_tree
     g = nt.nodes.new("ShaderNodeGroup")
     g.node_tree = group

@@ -17,7 +17,7 @@ from ..core.errors import ILError, InputError, warn
 from ..core.fileio import check_output_dir, write_json
 from .. import interrupt
 from ..progress import Progress
-from . import scene as scn
+from ..blender import materials, scene as scn
 
 COLLECTION = "IL Radiosity"
 ATTRIBUTE = "IL Radiosity E"
@@ -43,7 +43,7 @@ def build_cornell_scene(name="IL Cornell", light_radiance=15.0):
 
 
 def _material(name, rho, emission):
-    mat = scn.empty_material(name)
+    mat = materials.empty_material(name)
     nt = mat.node_tree
     out = nt.nodes.new("ShaderNodeOutputMaterial")
     if max(emission) > 0:

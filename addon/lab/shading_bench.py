@@ -16,7 +16,8 @@ from ..core import brdf, charts
 from ..core.errors import InputError
 from ..nodes import groups, material
 from ..progress import Progress
-from . import demo, render, scene as sc
+from ..blender import materials, scene as sc
+from . import demo, render
 
 V_ORTHO = np.array([0.0, -1.0, 0.0])  # toward the viewer of the sweep camera (which looks along +Y)
 
@@ -48,7 +49,7 @@ def sphere_grid(name, count, size=96, segments=64, rings=32):
 
 def group_material(name, group_name, inputs, output="Emission"):
     """A material whose surface is the node group's ``output`` with constant ``inputs``."""
-    mat = sc.empty_material(name)
+    mat = materials.empty_material(name)
     nt = mat.node_tree
     node = nt.nodes.new("ShaderNodeGroup")
     node.node_tree = groups.ensure_group(group_name)
@@ -69,7 +70,7 @@ def set_inputs(node, inputs):
 
 def closure_material(name, kind, color=(1.0, 1.0, 1.0), roughness=0.0, distribution="GGX"):
     """A material with one of Blender's BSDFs: 'DIFFUSE', 'GLOSSY' or 'PRINCIPLED'."""
-    mat = sc.empty_material(name)
+    mat = materials.empty_material(name)
     nt = mat.node_tree
     node = nt.nodes.new({"DIFFUSE": "ShaderNodeBsdfDiffuse", "GLOSSY": "ShaderNodeBsdfGlossy",
                          "PRINCIPLED": "ShaderNodeBsdfPrincipled"}[kind])
@@ -211,7 +212,7 @@ def albedo_material(name, group_name, inputs, theta_v):
     """A material that feeds the group, at each point (x, y) of the unit square (Object coordinates of a
     [-1, 1]^2 plane in XZ), the light direction brdf.half_vector_map(x, y) in the plane's normal frame."""
     from ..nodes.builder import Graph
-    mat = sc.empty_material(name)
+    mat = materials.empty_material(name)
     g = Graph(mat.node_tree)
     e1, e2, nrm = _albedo_frame(theta_v)
     width = _albedo_width(inputs)

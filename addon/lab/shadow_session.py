@@ -17,7 +17,8 @@ from .. import compat
 from ..core import camera as cam
 from ..core import shadow_map, shadow_metrics
 from ..core.errors import ILError, InputError
-from . import render, scene as sc
+from ..blender import materials, scene as sc
+from . import render
 
 #: Sky pixels carry a huge depth in Cycles' Depth pass.
 SKY_DEPTH = 1e8
@@ -356,7 +357,7 @@ def _pass(passes, name):
 
 def _white_diffuse():
     """A white Lambertian material (Diffuse BSDF, colour 1, roughness 0) for the material override."""
-    return sc.white_lambert("IL Shadow Lab White")
+    return materials.white_lambert("IL Shadow Lab White")
 
 
 def compat_workbench_direction(direction):

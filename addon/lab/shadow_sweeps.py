@@ -9,7 +9,8 @@ import time
 from ..core import charts, shadow_metrics
 from ..core.fileio import write_json
 from ..progress import Progress
-from . import scene as sc, shadow_scenes
+from ..blender import scene as sc
+from . import shadow_scenes
 from .shadow_session import Session
 
 

@@ -17,7 +17,8 @@ from ..core import choices, imageio, shadow_map, shadow_metrics, shadow_planar, 
 from ..core.errors import ILError, InputError, warn
 from ..core.fileio import write_json
 from ..progress import Progress
-from . import scene as sc, shadow_scenes
+from ..blender import scene as sc
+from . import shadow_scenes
 from .shadow_session import Session
 
 METHODS = ("raytraced", "planar", "shadowmap", "volume_zpass", "volume_zfail", "eevee", "workbench")

@@ -28,7 +28,8 @@ from ..core import choices, exr, imageio, ssao, ssao_figures
 from ..core.errors import ILError, InputError
 from ..core.fileio import atomic_path, write_json
 from ..progress import Progress
-from . import render, scene as sc, ssao_scenes
+from ..blender import scene as sc
+from . import render, ssao_scenes
 
 #: Bumped when the reference render changes meaning (invalidates caches).
 REFERENCE_VERSION = 1

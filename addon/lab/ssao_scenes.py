@@ -21,7 +21,7 @@ import numpy as np
 from ..core.errors import InputError
 from ..core import ssao as ssao_core
 from ..core.ssao import SCENES
-from . import scene as sc
+from ..blender import scene as sc
 
 #: Geometry of the corner scene (metres): floor [0, ROOM]², walls x = 0 and y = 0 of height WALL.
 ROOM, WALL = 8.0, 3.0

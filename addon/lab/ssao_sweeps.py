@@ -12,7 +12,8 @@ from ..core import charts, ssao, ssao_figures
 from ..core.fileio import write_json
 from ..progress import Progress
 from . import ssao as lab
-from . import scene as sc, ssao_scenes
+from ..blender import scene as sc
+from . import ssao_scenes
 
 #: Per failure scene: the methods shown and the one whose failure the scene is about.
 FAILURES = (("plane", "crytek", "flat plane grey under the sphere kernel"),
