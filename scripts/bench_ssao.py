@@ -19,32 +19,10 @@ from addon.core import ssao as core_ssao  # noqa: E402  (numpy only)
 
 def main(args):
     from addon.core import ssao
-    ssao.check_cost(args.resolution, args.resolution, args.samples, args.reference_samples,
-                    len(ssao.METHODS) * 2 * args.repeats)          # each method with and without blur, repeated
-    from addon.lab import ssao as lab
-    from addon.lab import ssao_scenes
-    from addon.blender.scene import remove_scene
-    scene = ssao_scenes.build_scene("corner", args.resolution, 1.0)
-    cache = os.path.abspath(os.path.join(args.out, "cache"))
-    gb, _, ref = lab.frame(scene, 1.0, args.reference_samples, args.resolution, cache)
-    rows = []
-    for m in ssao.METHODS:
-        for blur in (False, True):
-            best, k = float("inf"), None
-            for _ in range(args.repeats):
-                k, sec, _ = ssao.run_method(m, gb, 1.0, args.samples, blur=blur)
-                best = min(best, sec)
-            rows.append((m + (" + blur" if blur else ""), best, ssao.error_metrics(k, ref["k"], gb.mask)["rmse"]))
-    for m in ("workbench",) + (() if args.no_eevee else ("eevee",)):
-        if m == "eevee":
-            lab.blender_method(scene, "eevee", 1.0, 1, 32)           # compile shaders first
-        for spp in sorted({1, args.samples}):
-            best, k = float("inf"), None
-            for _ in range(args.repeats):
-                k, sec, _ = lab.blender_method(scene, m, 1.0, spp, args.resolution)
-                best = min(best, sec)
-            rows.append((f"{m} ({spp} spp)", best, ssao.error_metrics(k, ref["k"], gb.mask)["rmse"]))
-    remove_scene(scene)
+    from addon.lab.bench import ssao as bench_ssao
+    result = bench_ssao.speed(args.out, resolution=args.resolution, samples=args.samples, repeats=args.repeats,
+                              reference_samples=args.reference_samples, eevee=not args.no_eevee)
+    rows, gb, ref = result["rows"], result["gbuffer"], result["reference"]
     print(f"SSAO on the corner scene, {gb.width}x{gb.height} ({int(gb.mask.sum())} geometry pixels), "
           f"{args.samples} samples per pixel, radius = AO distance = 1 m")
     print(f"reference: Cycles AO pass, {ref['samples']} samples, {ref['seconds']:.1f} s"

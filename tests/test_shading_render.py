@@ -5,7 +5,8 @@ import pytest
 
 from addon import compat
 from addon.core import brdf
-from addon.lab import render, shading_bench as sb
+from addon.lab import render
+from addon.lab.bench import shading as sb
 from addon.blender import scene as sc
 from addon.nodes import material
 
