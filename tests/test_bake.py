@@ -5,7 +5,7 @@ import bpy
 import numpy as np
 import pytest
 
-from addon import compat
+from addon.blender import compat
 from addon.bake import BakeOptions, bake_lightmaps
 from addon.core import exr, lightmap as lm
 from addon.blender import scene as sc

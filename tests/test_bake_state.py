@@ -6,7 +6,7 @@ import bpy
 import numpy as np
 import pytest
 
-from addon import compat
+from addon.blender import compat
 from addon.bake import BakeOptions, bake_lightmaps
 from addon.core import exr
 from addon.core.errors import InputError

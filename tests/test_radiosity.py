@@ -5,7 +5,7 @@ import bpy
 import numpy as np
 import pytest
 
-from addon import compat
+from addon.blender import compat
 from addon.core import exr
 from addon.core import radiosity as R
 from addon.core.errors import InputError

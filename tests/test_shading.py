@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from mathutils import Vector
 
-from addon import compat
+from addon.blender import compat
 from addon.core import brdf, lights as twin_lights
 from addon.lab import render
 from addon.blender import scene as sc

@@ -3,7 +3,7 @@ import bpy
 import numpy as np
 import pytest
 
-from addon import compat
+from addon.blender import compat
 from addon.core import brdf
 from addon.lab import render
 from addon.lab.bench import shading as sb

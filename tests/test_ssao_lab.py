@@ -5,7 +5,7 @@ import bpy
 import numpy as np
 import pytest
 
-from addon import compat
+from addon.blender import compat
 from addon.core import exr, ssao as core
 from addon.core.errors import ILError, InputError
 from addon.lab import ssao as lab

@@ -19,8 +19,8 @@ import bpy
 import numpy as np
 import pytest
 
-from addon import compat
-from addon import progress as progress_mod
+from addon.blender import compat
+from addon.blender import progress as progress_mod
 from addon.core import exr
 from addon.lab.demo import scene as demo
 

@@ -9,11 +9,11 @@ import time
 import bpy
 import numpy as np
 
-from .. import compat, interrupt
+from ..blender import compat, interrupt
 from ..core import errors, exr, imageio, lightmap
 from ..core.errors import ILError, InputError
 from ..core.fileio import write_json
-from ..progress import Progress
+from ..blender.progress import Progress
 from ..blender import materials, scene as sc
 from . import cost, orientation, uv as uvmod
 from .options import BakeOptions, article, check_out_dir, validate_maps

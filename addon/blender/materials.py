@@ -1,7 +1,7 @@
 """Materials the labs and the bake build from bpy.data (no operators, no context needed)."""
 import bpy
 
-from .. import compat
+from . import compat
 
 
 def empty_material(name):

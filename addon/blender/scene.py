@@ -5,7 +5,7 @@ import bmesh
 import bpy
 from mathutils import Vector
 
-from .. import compat
+from . import compat
 
 
 def new_scene(name, resolution=(256, 256)):

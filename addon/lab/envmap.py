@@ -10,7 +10,7 @@ import time
 import bpy
 import numpy as np
 
-from .. import compat
+from ..blender import compat
 from ..core import envmap as core
 from ..core import exr, imageio
 from ..core.errors import ILError, InputError

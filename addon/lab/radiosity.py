@@ -15,8 +15,8 @@ from ..core import charts, exr
 from ..core import radiosity as core
 from ..core.errors import ILError, InputError, warn
 from ..core.fileio import check_output_dir, write_json
-from .. import interrupt
-from ..progress import Progress
+from ..blender import interrupt
+from ..blender.progress import Progress
 from ..blender import materials, scene as scn
 
 COLLECTION = "IL Radiosity"

@@ -13,7 +13,7 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from .. import compat
+from ..blender import compat
 from ..core import camera as cam
 from ..core import shadow_map, shadow_metrics
 from ..core.errors import ILError, InputError

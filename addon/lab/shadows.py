@@ -16,7 +16,7 @@ import numpy as np
 from ..core import choices, imageio, shadow_map, shadow_metrics, shadow_planar, shadow_volume
 from ..core.errors import ILError, InputError, warn
 from ..core.fileio import write_json
-from ..progress import Progress
+from ..blender.progress import Progress
 from ..blender import scene as sc
 from . import shadow_scenes
 from .shadow_session import Session

@@ -23,11 +23,11 @@ import time
 import bpy
 import numpy as np
 
-from .. import compat
+from ..blender import compat
 from ..core import choices, exr, imageio, ssao, ssao_figures
 from ..core.errors import ILError, InputError
 from ..core.fileio import atomic_path, write_json
-from ..progress import Progress
+from ..blender.progress import Progress
 from ..blender import scene as sc
 from . import render, ssao_scenes
 

@@ -15,7 +15,7 @@ import numpy as np
 from ...core import brdf, charts
 from ...core.errors import ILError
 from ...core.fileio import atomic_path, write_json
-from ...progress import Progress
+from ...blender.progress import Progress
 from . import envmap, lightmaps, shading, shadows, ssao
 
 #: The registry, in report order (radiosity is part of the envmap section).

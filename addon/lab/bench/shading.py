@@ -10,11 +10,11 @@ import time
 import bpy
 import numpy as np
 
-from ... import compat
+from ...blender import compat
 from ...core import brdf, charts
 from ...core.errors import InputError
 from ...nodes import groups, material
-from ...progress import Progress
+from ...blender.progress import Progress
 from ...blender import materials, scene as sc
 from .. import render
 from .result import BenchResult

@@ -10,7 +10,7 @@ import time
 
 from ...core import charts, shadow_map, shadow_metrics
 from ...core.fileio import write_json
-from ...progress import Progress
+from ...blender.progress import Progress
 from ...blender import scene as sc
 from .. import shadow_scenes, shadows as lab
 from ..shadow_session import Session

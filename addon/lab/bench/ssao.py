@@ -10,7 +10,7 @@ import numpy as np
 
 from ...core import charts, ssao, ssao_figures
 from ...core.fileio import write_json
-from ...progress import Progress
+from ...blender.progress import Progress
 from .. import ssao as lab
 from ...blender import scene as sc
 from .. import ssao_scenes

@@ -12,7 +12,7 @@ from ...core import ssao as core_ssao
 from ...core.errors import InputError
 from ...core.fileio import write_json
 from ...nodes import groups, material
-from ...progress import Progress
+from ...blender.progress import Progress
 from .. import render, shadows, ssao as ssao_lab
 from ..bench import report as bench_report
 from . import scene as demo
