@@ -8,7 +8,7 @@ Each script builds an ``argparse`` parser and calls ``run(parser, main)``;
 ``InputError`` (exit 2) with a readable message. Numeric options use ``number``
 (finite, in range, else exit 2 at parse time); an ``--out`` folder is checked
 before anything runs (exit 2, nothing created); Ctrl-C stops at the next safe
-point with exit 130 (``addon.interrupt``); a full disk or out-of-memory is one
+point with exit 130 (``addon.blender.interrupt``); a full disk or out-of-memory is one
 line with exit 1; only a genuine bug shows its type name.
 """
 import argparse
@@ -22,7 +22,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if ROOT not in sys.path:
     sys.path.insert(0, ROOT)
 
-from addon import interrupt  # noqa: E402  (no bpy)
+from addon.blender import interrupt  # noqa: E402  (no bpy)
 from addon.core.errors import ILError, ILWarning, InputError  # noqa: E402
 from addon.core.io.files import check_output_dir  # noqa: E402
 

@@ -13,8 +13,8 @@ AREA_NAMES = ("shading", "lightmaps", "shadows", "ssao", "envmap")
 
 
 def main(args):
-    from addon.lab import bench
-    result = bench.run(os.path.abspath(args.out), quick=args.quick, areas=args.areas)
+    from addon.lab.bench import report
+    result = report.run(os.path.abspath(args.out), quick=args.quick, areas=args.areas)
     print(f"bench: {result['report']} ({result['seconds']:.0f} s)")
 
 

@@ -11,17 +11,17 @@ import _cli  # noqa: E402
 
 
 def main(args):
-    from addon.bake.bench import sweeps
+    from addon.lab.bench import lightmaps
     from addon.core import charts
     out = os.path.abspath(args.out)
-    result = sweeps(out, quick=args.quick)
-    for name, rows in result["tables"].items():
+    result = lightmaps.run(out, quick=args.quick)
+    for name, rows in result.tables.items():
         charts.write_csv(os.path.join(out, f"{name}.csv"), rows)
         print(f"{name}:")
         for row in rows:
             print("  " + "  ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in row.items()))
-    print("figures:", json.dumps(result["figures"], indent=1))
-    for c in result["charts"]:
+    print("figures:", json.dumps(result.figures, indent=1))
+    for c in result.charts:
         print(f"chart: {c}")
 
 

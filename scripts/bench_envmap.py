@@ -11,12 +11,12 @@ import _cli  # noqa: E402
 
 
 def main(args):
-    from addon.lab import envmap
-    res = envmap.sweeps(os.path.abspath(args.out), quick=args.quick)
+    from addon.lab.bench import envmap
+    res = envmap.run(os.path.abspath(args.out), quick=args.quick)
     print(f"{'measure':44s} {'value':>12s} {'target':>10s}")
-    for row in res["tables"]["targets"]:
+    for row in res.tables["targets"]:
         print(f"{row['measure']:44s} {row['value']:12.4g} {row['target']:>10}")
-    for c in res["charts"]:
+    for c in res.charts:
         print(f"  chart: {c}")
 
 

@@ -18,35 +18,11 @@ from addon.core.ssao import limits as core_ssao
 
 
 def main(args):
-    from addon.core.ssao import limits as ssao
-    from addon.core.ssao import methods
     from addon.core.ssao import metrics
-    ssao.check_cost(args.resolution, args.resolution, args.samples, args.reference_samples,
-                    len(methods.METHODS) * 2 * args.repeats)          # each method with and without blur, repeated
-    from addon.lab import ssao as lab
-    from addon.lab import ssao_scenes
-    from addon.lab.scene import remove_scene
-    scene = ssao_scenes.build_scene("corner", args.resolution, 1.0)
-    cache = os.path.abspath(os.path.join(args.out, "cache"))
-    gb, _, ref = lab.frame(scene, 1.0, args.reference_samples, args.resolution, cache)
-    rows = []
-    for m in methods.METHODS:
-        for blur in (False, True):
-            best, k = float("inf"), None
-            for _ in range(args.repeats):
-                k, sec, _ = methods.run_method(m, gb, 1.0, args.samples, blur=blur)
-                best = min(best, sec)
-            rows.append((m + (" + blur" if blur else ""), best, metrics.error_metrics(k, ref["k"], gb.mask)["rmse"]))
-    for m in ("workbench",) + (() if args.no_eevee else ("eevee",)):
-        if m == "eevee":
-            lab.blender_method(scene, "eevee", 1.0, 1, 32)           # compile shaders first
-        for spp in sorted({1, args.samples}):
-            best, k = float("inf"), None
-            for _ in range(args.repeats):
-                k, sec, _ = lab.blender_method(scene, m, 1.0, spp, args.resolution)
-                best = min(best, sec)
-            rows.append((f"{m} ({spp} spp)", best, metrics.error_metrics(k, ref["k"], gb.mask)["rmse"]))
-    remove_scene(scene)
+    from addon.lab.bench import ssao as bench_ssao
+    result = bench_ssao.speed(args.out, resolution=args.resolution, samples=args.samples, repeats=args.repeats,
+                              reference_samples=args.reference_samples, eevee=not args.no_eevee)
+    rows, gb, ref = result["rows"], result["gbuffer"], result["reference"]
     print(f"SSAO on the corner scene, {gb.width}x{gb.height} ({int(gb.mask.sum())} geometry pixels), "
           f"{args.samples} samples per pixel, radius = AO distance = 1 m")
     print(f"reference: Cycles AO pass, {ref['samples']} samples, {ref['seconds']:.1f} s"

@@ -17,21 +17,20 @@ import _cli  # noqa: E402
 
 def main(args):
     from addon.core.io.files import write_json
-    from addon.lab import shading_bench
+    from addon.lab.bench import shading
     out = os.path.abspath(args.out)
-    result = shading_bench.sweeps(out, quick=args.quick)
-    write_json(os.path.join(out, "brdf_report.json"), {"figures": result["figures"], "tables": result["tables"],
-                                                      "charts": result["charts"]})
+    result = shading.run(out, quick=args.quick)
+    write_json(os.path.join(out, "brdf_report.json"), vars(result))
     print(f"brdf_compare: outputs in {out}")
-    for name, value in result["figures"].items():
+    for name, value in result.figures.items():
         print(f"  {name}: {value:.4g}")
-    for row in result["tables"]["shading_oren_nayar_vs_diffuse"]:
+    for row in result.tables["shading_oren_nayar_vs_diffuse"]:
         print(f"  Diffuse BSDF roughness {row['blender_roughness']:g}: best IL sigma {row['best_fit_sigma']:.2f} rad, "
               f"rms {row['best_fit_rms']:.3g} (peak {row['peak']:.3g}); at sigma = roughness rms "
               f"{row['rms_difference']:.3g}")
-    for row in result["tables"]["shading_cook_torrance_vs_glossy"]:
+    for row in result.tables["shading_cook_torrance_vs_glossy"]:
         print(f"  Glossy GGX roughness {row['blender_roughness']:g}: relative rms {row['relative_rms']:.2g}")
-    for path in result["charts"]:
+    for path in result.charts:
         print(f"  chart: {path}")
 
 

@@ -11,8 +11,8 @@ import _cli  # noqa: E402
 
 
 def main(args):
-    from addon.lab import demo_job
-    summary = demo_job.run(os.path.abspath(args.out), quick=args.quick, samples=args.samples)
+    from addon.lab.demo import job
+    summary = job.run(os.path.abspath(args.out), quick=args.quick, samples=args.samples)
     print(f"demo: outputs in {summary['out']}")
     for line in summary["lines"]:
         print(f"  {line}")

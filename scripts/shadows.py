@@ -20,8 +20,9 @@ def main(args):
     from addon.lab import shadow_scenes, shadows
     out = os.path.abspath(args.out)
     if args.sweeps:
-        result = shadows.sweeps(out, quick=args.quick)
-        print(f"shadows: {len(result['charts'])} charts and {len(result['tables'])} tables in {out}")
+        from addon.lab.bench import shadows as bench_shadows
+        result = bench_shadows.run(out, quick=args.quick)
+        print(f"shadows: {len(result.charts)} charts and {len(result.tables)} tables in {out}")
         return
     methods = shadows.parse_methods(args.methods)
     params = dict(resolution=args.resolution, shadowmap_size=args.shadowmap_size, bias=args.bias,

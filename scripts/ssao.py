@@ -8,7 +8,7 @@
 Writes <out>/<method>_ao.exr and <out>/reference_ao.exr ("Y" = k_A, "A" = 1 on
 geometry), <method>_error.png, <out>/ssao_report.json; the reference is cached
 in <out>/cache (or --cache DIR). With --sweeps: the charts and tables of
-addon/lab/ssao_sweeps.py instead.
+addon/lab/bench/ssao.py instead.
 """
 import os
 import sys
@@ -41,12 +41,12 @@ def main(args):
     out = os.path.abspath(args.out)
     cache = os.path.abspath(args.cache) if args.cache else os.path.join(out, "cache")
     if args.sweeps:
-        from addon.lab import ssao_sweeps
-        result = ssao_sweeps.sweeps(out, quick=args.quick)
+        from addon.lab.bench import ssao as bench_ssao
+        result = bench_ssao.run(out, quick=args.quick)
         print(f"ssao sweeps: {out}")
-        for path in result["charts"]:
+        for path in result.charts:
             print(f"  chart {path}")
-        for name in result["tables"]:
+        for name in result.tables:
             print(f"  table {os.path.join(out, name + '.csv')}")
         return
     import bpy

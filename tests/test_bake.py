@@ -5,11 +5,11 @@ import bpy
 import numpy as np
 import pytest
 
-from addon import compat
+from addon.blender import compat
 from addon.bake import BakeOptions, bake_lightmaps
 from addon.core import lightmap as lm
 from addon.core.io import exr
-from addon.lab import scene as sc
+from addon.blender import scene as sc
 
 
 def receiver(scene, size, name="R", location=(0, 0, 0), cuts=0):

@@ -11,7 +11,7 @@ import pytest
 from addon.bake import BakeOptions, bake_lightmaps
 from addon.core.io import exr
 from addon.core.errors import ILError, ILWarning
-from addon.lab import scene as sc
+from addon.blender import scene as sc
 
 
 def added(op, **kw):

@@ -18,7 +18,7 @@ from addon.bake import BakeOptions, bake_lightmaps, cost
 from addon.bake import uv as uvmod
 from addon.core.io import exr
 from addon.core.errors import ILError, ILWarning, InputError
-from addon.lab import scene as sc
+from addon.blender import scene as sc
 from tests.conftest import ROOT
 
 PRIMITIVES = ("cube", "uv_sphere", "ico_sphere", "cylinder", "cone", "torus", "monkey", "grid", "circle", "plane")

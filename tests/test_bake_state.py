@@ -6,11 +6,11 @@ import bpy
 import numpy as np
 import pytest
 
-from addon import compat
+from addon.blender import compat
 from addon.bake import BakeOptions, bake_lightmaps
 from addon.core.io import exr
 from addon.core.errors import InputError
-from addon.lab import scene as sc
+from addon.blender import scene as sc
 
 
 def black_metal():

@@ -6,7 +6,8 @@ import os
 import numpy as np
 import pytest
 
-from addon.lab import bench, shadows
+from addon.lab import shadows
+from addon.lab.bench import lightmaps, report
 
 CHARTS = {
     "lightmaps": ["bake_error_vs_seconds.png", "bake_irradiance_error_vs_seconds.png"],
@@ -27,13 +28,13 @@ TABLES = {
 
 def test_monte_carlo_slope_recovers_known_exponents():
     n = np.array([4, 16, 64, 256])
-    assert bench.monte_carlo_slope(n, 0.3 * n ** -0.5) == pytest.approx(-0.5, abs=1e-12)
-    assert bench.monte_carlo_slope(n, 2.0 / n) == pytest.approx(-1.0, abs=1e-12)
-    assert math.isnan(bench.monte_carlo_slope([8], [0.1]))
+    assert lightmaps.monte_carlo_slope(n, 0.3 * n ** -0.5) == pytest.approx(-0.5, abs=1e-12)
+    assert lightmaps.monte_carlo_slope(n, 2.0 / n) == pytest.approx(-1.0, abs=1e-12)
+    assert math.isnan(lightmaps.monte_carlo_slope([8], [0.1]))
 
 
 def test_shading_edges_are_finite_and_bounded():
-    rows = bench.shading_edges()
+    rows = report.shading_edges()
     assert len(rows) >= 18
     assert all(r["finite"] for r in rows)
     back = [r for r in rows if r["input"].startswith("back-facing")]

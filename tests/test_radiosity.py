@@ -5,7 +5,7 @@ import bpy
 import numpy as np
 import pytest
 
-from addon import compat
+from addon.blender import compat
 from addon.core.io import exr
 from addon.core import analytic
 from addon.core.radiosity import atlas as rad_atlas
@@ -16,7 +16,7 @@ from addon.core.radiosity import subdivision
 from addon.core.radiosity import visibility as rad_visibility
 from addon.core.errors import InputError
 from addon.lab import radiosity as L
-from addon.lab import scene as S
+from addon.blender import scene as S
 
 
 @pytest.mark.both_versions

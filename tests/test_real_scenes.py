@@ -278,7 +278,7 @@ SHADING_DRIVER = textwrap.dedent("""
     sys.path.insert(0, {root!r})
     import bpy
     import addon
-    from addon import compat
+    from addon.blender import compat
     from addon.core.io import exr
     addon.register()
     model, out = sys.argv[1], sys.argv[2]

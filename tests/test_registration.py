@@ -54,7 +54,7 @@ def test_demo_operator_builds_a_new_scene_and_keeps_the_users(addon_registered):
 
 
 def test_a_second_demo_scene_finds_its_own_objects(addon_registered):
-    from addon.lab import demo
+    from addon.lab.demo import scene as demo
     first, second = demo.build_demo_scene(), demo.build_demo_scene()
     for role in demo.ROLES:
         a, b = demo.get(first, role), demo.get(second, role)

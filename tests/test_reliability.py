@@ -18,7 +18,7 @@ from addon.core.io import png
 from addon.core.io import exr
 from addon.lab import ssao as ssao_lab
 from addon.lab import ssao_scenes
-from addon.lab.scene import remove_scene
+from addon.blender.scene import remove_scene
 
 from conftest import ROOT
 

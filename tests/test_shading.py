@@ -4,9 +4,10 @@ import numpy as np
 import pytest
 from mathutils import Vector
 
-from addon import compat
+from addon.blender import compat
 from addon.core import brdf, lights as twin_lights
-from addon.lab import render, scene as sc
+from addon.lab import render
+from addon.blender import scene as sc
 from addon.nodes import groups, material
 
 CONTRACT = {
@@ -191,9 +192,9 @@ def test_il_light_types_and_empirical_attenuation_match_twins():
 
 
 def test_demo_step_shades_the_demo_scene():
-    from addon.lab import demo, shading_bench
+    from addon.lab.demo import job, scene as demo
     scene = demo.build_demo_scene(new_scene=True, resolution=(32, 24))
-    figures = shading_bench.demo_step(scene, "/nonexistent", quick=True)
+    figures = job.shading_step(scene)
     assert figures["models"] == {"Box": "PHONG", "Torus": "OREN_NAYAR", "Sphere": "COOK_TORRANCE"}
     for name, model in figures["models"].items():
         mat = scene.objects[name].active_material

@@ -3,9 +3,11 @@ import bpy
 import numpy as np
 import pytest
 
-from addon import compat
+from addon.blender import compat
 from addon.core import brdf
-from addon.lab import render, scene as sc, shading_bench as sb
+from addon.lab import render
+from addon.lab.bench import shading as sb
+from addon.blender import scene as sc
 from addon.nodes import material
 
 

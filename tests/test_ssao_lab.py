@@ -5,13 +5,13 @@ import bpy
 import numpy as np
 import pytest
 
-from addon import compat
+from addon.blender import compat
 from addon.core.ssao import limits
 from addon.core.io import exr
 from addon.core.errors import ILError, InputError
 from addon.lab import ssao as lab
 from addon.lab import ssao_scenes
-from addon.lab.scene import remove_scene
+from addon.blender.scene import remove_scene
 
 
 @pytest.mark.both_versions

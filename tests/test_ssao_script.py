@@ -76,16 +76,16 @@ def test_script_numbers_are_checked_at_parse_time(args, option, capsys):
 
 
 def test_quick_sweeps_write_charts_tables_and_failures(tmp_path):
-    from addon.lab import ssao_sweeps
-    result = ssao_sweeps.sweeps(str(tmp_path), quick=True)
-    assert {"ssao_error_vs_seconds", "ssao_radius", "ssao_failures"} <= set(result["tables"])
-    for path in result["charts"]:
+    from addon.lab.bench import ssao as bench_ssao
+    result = bench_ssao.run(str(tmp_path), quick=True)
+    assert {"ssao_error_vs_seconds", "ssao_radius", "ssao_failures"} <= set(result.tables)
+    for path in result.charts:
         assert os.path.getsize(path) > 1000
-    rows = result["tables"]["ssao_error_vs_seconds"]
+    rows = result.tables["ssao_error_vs_seconds"]
     assert {r["method"] for r in rows} >= {"crytek", "hemisphere", "hbao", "gtao", "workbench"}
-    assert result["figures"]["pareto_front"]
+    assert result.figures["pareto_front"]
     # the failure cases show: the sphere kernel greys the open plane; halos darken the wall
-    fail = {(r["scene"], r["method"]): r for r in result["tables"]["ssao_failures"]}
+    fail = {(r["scene"], r["method"]): r for r in result.tables["ssao_failures"]}
     assert fail[("plane", "crytek")]["region_bias"] < -0.3
     assert fail[("plane", "gtao")]["region_rmse"] < 0.01
     assert fail[("discontinuity", "crytek")]["region_bias"] < -0.3
@@ -97,5 +97,5 @@ def test_quick_sweeps_write_charts_tables_and_failures(tmp_path):
         se = [np.sqrt((r[f"{k}_rmse"] ** 2 - r[f"{k}_bias"] ** 2) / r[f"{k}_pixels"]) for k in ("region", "control")]
         assert r["region_bias"] < 0 and r["control_bias"] - r["region_bias"] > 4 * np.hypot(*se), r
     # radius sweep: GTAO is best with its radius matched to the AO distance
-    gt = {r["radius_over_ao_distance"]: r["rmse"] for r in result["tables"]["ssao_radius"] if r["method"] == "gtao"}
+    gt = {r["radius_over_ao_distance"]: r["rmse"] for r in result.tables["ssao_radius"] if r["method"] == "gtao"}
     assert min(gt, key=gt.get) == 1.0

@@ -19,10 +19,10 @@ import bpy
 import numpy as np
 import pytest
 
-from addon import compat
-from addon import progress as progress_mod
+from addon.blender import compat
+from addon.blender import progress as progress_mod
 from addon.core.io import exr
-from addon.lab import demo
+from addon.lab.demo import scene as demo
 
 UI_FUNCS = bpy.types.UILayout.bl_rna.functions
 UI_PROPS = {p.identifier for p in bpy.types.UILayout.bl_rna.properties}

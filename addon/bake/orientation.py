@@ -19,7 +19,7 @@ import numpy as np
 from mathutils import Vector
 
 from ..core import lightmap
-from ..lab import scene as sc
+from ..blender import scene as sc
 
 FIX = "Mesh > Normals > Recalculate Outside in edit mode"
 

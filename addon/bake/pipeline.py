@@ -9,14 +9,14 @@ import time
 import bpy
 import numpy as np
 
-from .. import compat, interrupt
+from ..blender import compat, interrupt
 from ..core import errors, lightmap
 from ..core.io import png as io_png
 from ..core.io import exr
 from ..core.errors import ILError, InputError
 from ..core.io.files import write_json
-from ..progress import Progress
-from ..lab import scene as sc
+from ..blender.progress import Progress
+from ..blender import materials, scene as sc
 from . import cost, orientation, uv as uvmod
 from .options import BakeOptions, article, check_out_dir, validate_maps
 from .state import SavedState
@@ -218,7 +218,7 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
         _flip_inside_out(scene, objects, flips, state)
         _setup_render(scene, options, state)
         layers, sides, margins = {}, {}, {}
-        materials = TemporaryMaterials(state)
+        temporary = TemporaryMaterials(state)
         if options.target == "image":
             step("light-map UVs")
             layers, sides, margins = uvmod.prepare(scene, objects, state, options, together=options.atlas)
@@ -241,7 +241,7 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
                                 f"{cost.seconds(size[0], size[1], [m], _planned_samples(options)):.2g} s)")
                 step(f"{name}: {m}" + (estimate or " (vertices)"))
                 t_map = time.perf_counter()
-                result = bake_map(scene, group, m, options, layers, size, materials.assign(group, m), state)
+                result = bake_map(scene, group, m, options, layers, size, temporary.assign(group, m), state)
                 if size is not None:
                     _check_covered(name, group, m, result, layers, areas)
                 if m == "ao":
@@ -397,7 +397,7 @@ class TemporaryMaterials:
         return nodes
 
     def _new(self, name):
-        return self.state.track(bpy.data.materials, sc.empty_material(name))
+        return self.state.track(bpy.data.materials, materials.empty_material(name))
 
     @staticmethod
     def _image_node(nt):
@@ -407,7 +407,7 @@ class TemporaryMaterials:
 
     def _ao(self):
         if self.ao is None:
-            mat = sc.white_lambert("IL bake AO", self._new("IL bake AO"))
+            mat = materials.white_lambert("IL bake AO", self._new("IL bake AO"))
             self.ao = (mat, self._image_node(mat.node_tree))
         return self.ao
 
@@ -445,7 +445,7 @@ class TemporaryMaterials:
         nt.links.new(path.outputs["Is Camera Ray"], mix.inputs["Fac"])
         if surface is not None:
             nt.links.new(surface, mix.inputs[1])
-        nt.links.new(sc.white_diffuse_node(nt).outputs["BSDF"], mix.inputs[2])
+        nt.links.new(materials.white_diffuse_node(nt).outputs["BSDF"], mix.inputs[2])
         nt.links.new(mix.outputs["Shader"], out.inputs["Surface"])
         self.copies[orig] = (mat, self._image_node(nt))
         return self.copies[orig]

@@ -10,7 +10,7 @@ import time
 import bpy
 import numpy as np
 
-from .. import compat
+from ..blender import compat
 from ..core import analytic
 from ..core.envmap import irradiance as env_irradiance
 from ..core.envmap import latlong
@@ -21,7 +21,7 @@ from ..core.errors import ILError, InputError
 from ..core.io.files import write_json
 from ..nodes import groups
 from ..nodes.builder import Graph
-from . import scene as sc
+from ..blender import materials, scene as sc
 
 GROUP = "IL Irradiance Env"
 IMAGE = "IL Irradiance"
@@ -194,7 +194,7 @@ def ensure_node_group(image):
 def irradiance_material(name, group, diffuse=(0.8, 0.8, 0.8), ao_image=None, uv_layer=""):
     """A material whose surface is the group's "Emission"; with ``ao_image`` the baked AO (its Y/R channel,
     read through UV layer ``uv_layer``) drives "AO" (k_A)."""
-    mat = sc.empty_material(name)
+    mat = materials.empty_material(name)
     nt = mat.node_tree
     g = nt.nodes.new("ShaderNodeGroup")
     g.node_tree = group
@@ -253,96 +253,3 @@ def cycles_sphere_irradiance(scene, sphere, samples=64, out=None):
     if len(E) != len(nrm):
         raise ILError(f"vertex bake returned {len(E)} values for {len(nrm)} vertices")
     return E, nrm, time.perf_counter() - t
-
-
-# ----------------------------------------------------------------------------- benchmark sweeps
-
-
-def _sharp_env(h, w, radius_deg=10.0, power=40.0):
-    d = latlong.latlong_directions(h, w)
-    env = analytic.linear_sky(h, w, 0.5, 0.2)
-    axis = np.array([0.5, 0.5, 0.7071]) / np.linalg.norm([0.5, 0.5, 0.7071])
-    return env + power * (d @ axis > np.cos(np.radians(radius_deg)))[..., None] * np.array([1.0, 0.8, 0.6])
-
-
-def sweeps(out_dir, quick=False):
-    """Speed and accuracy of the irradiance maps and of radiosity, for the project bench.
-
-    Returns {"tables": {name: rows}, "charts": [png paths], "figures": {name: value}}.
-    """
-    from ..core import charts as ch
-    from . import radiosity as lrad
-    os.makedirs(out_dir, exist_ok=True)
-    tables, figs, pngs = {}, {}, []
-
-    # SH9 timing on a 1024x512 environment (best of 3), brute force for scale
-    env = _sharp_env(512, 1024)
-    best = min(_timed(lambda: env_sh9.irradiance_map_sh9(env, 64))[1] for _ in range(3))
-    figs["sh9_1024x512_seconds"] = best
-    n64 = latlong.latlong_directions(32, 64)
-    _, tb = _timed(lambda: env_irradiance.irradiance_brute(env, n64, max_width=256))
-    figs["brute_1024x512_seconds"] = tb
-
-    # accuracy of SH9 against brute force as the light gets sharper
-    rows = []
-    for r in ((5, 20, 60) if quick else (2, 5, 10, 20, 40, 60, 90)):
-        e = _sharp_env(128, 256, r, 40.0)
-        ref = env_irradiance.irradiance_brute(e, n64)
-        sh, ts = _timed(lambda: env_sh9.irradiance_map_sh9(e, 64))
-        rows.append({"light_radius_deg": r, "sh9_rel_rms": float(np.sqrt(np.mean((sh - ref) ** 2)) / np.mean(ref)),
-                     "sh9_rel_max": float(np.max(np.abs(sh - ref)) / np.max(ref)), "sh9_seconds": ts})
-    tables["envmap_sh9_accuracy"] = rows
-    pngs.append(ch.line_chart(os.path.join(out_dir, "envmap_sh9_accuracy.png"),
-                              {"relative RMS": ([r["light_radius_deg"] for r in rows], [r["sh9_rel_rms"] for r in rows]),
-                               "max / max E": ([r["light_radius_deg"] for r in rows], [r["sh9_rel_max"] for r in rows])},
-                              "Nine SH coefficients vs brute-force E(n)", "light radius (degrees)", "error", logy=True))
-
-    # brute force: speed against accuracy as the environment is box-filtered
-    rows = []
-    ref = env_irradiance.irradiance_brute(env, n64, max_width=512)
-    for mw in ((32, 64, 128) if quick else (16, 32, 64, 128, 256)):
-        e, t = _timed(lambda: env_irradiance.irradiance_brute(env, n64, max_width=mw))
-        rows.append({"max_width": mw, "seconds": t, "rel_rms": float(np.sqrt(np.mean((e - ref) ** 2)) / np.mean(ref))})
-    tables["envmap_brute_speed"] = rows
-    pngs.append(ch.scatter_chart(os.path.join(out_dir, "envmap_brute_speed.png"),
-                                 {f"{r['max_width']} px": (r["seconds"], max(r["rel_rms"], 1e-9)) for r in rows},
-                                 "Brute-force E(n): speed vs accuracy", "seconds", "relative RMS vs 512 px", logx=True,
-                                 logy=True))
-
-    # radiosity: cost against patches (visibility by BVH rays, form factors, solve)
-    rows, last = [], None
-    meshes = analytic.cornell_box()
-    for edge in ((0.5, 0.25) if quick else (0.5, 0.25, 0.125)):
-        r = lrad.solve_scene(meshes, edge, "gauss_seidel", 1e-6)
-        t = r["timings"]
-        rows.append({"max_edge": edge, "patches": len(r["patches"]), "visibility_s": t["visibility"],
-                     "form_factors_s": t["form_factors"], "solve_s": t["solve"], "total_s": t["total"]})
-        last = r
-    tables["radiosity_cost"] = rows
-    pngs.append(ch.line_chart(os.path.join(out_dir, "radiosity_cost.png"),
-                              {k: ([r["patches"] for r in rows], [r[k] for r in rows])
-                               for k in ("visibility_s", "form_factors_s", "solve_s", "total_s")},
-                              "Radiosity cost (Cornell box)", "patches", "seconds", logx=True, logy=True))
-    big = rows[-1]
-    figs["radiosity_patches"] = big["patches"]
-    figs["radiosity_seconds"] = big["total_s"]
-    sols = lrad.convergence(last["F"], last["patches"], 1e-6)
-    pngs.append(lrad.convergence_chart(os.path.join(out_dir, "radiosity_convergence.png"), sols, len(last["patches"])))
-    tables["radiosity_solvers"] = [{"solver": s, "patches": len(last["patches"]), "iterations": so.iterations,
-                                    "seconds": so.seconds, "final_residual": so.residuals[-1]} for s, so in sols.items()]
-    tables["targets"] = [
-        {"measure": "SH9 irradiance of 1024x512, seconds", "value": figs["sh9_1024x512_seconds"], "target": "<= 0.2"},
-        {"measure": "brute-force E of 1024x512 (64x32 map), seconds", "value": tb, "target": "-"},
-        {"measure": f"radiosity of {big['patches']} patches incl. visibility, s", "value": big["total_s"],
-         "target": "<= 30" if big["patches"] >= 2000 else "-"},
-    ]
-    for name, rows_ in tables.items():
-        ch.write_csv(os.path.join(out_dir, f"{name}.csv"), rows_)
-    return {"tables": tables, "charts": pngs, "figures": figs}
-
-
-def _timed(fn):
-    """(fn(), seconds it took)."""
-    t = time.perf_counter()
-    out = fn()
-    return out, time.perf_counter() - t

@@ -24,9 +24,9 @@ from ..core.radiosity import subdivision as rad_subdivision
 from ..core.radiosity import visibility as rad_visibility
 from ..core.errors import ILError, InputError, warn
 from ..core.io.files import check_output_dir, write_json
-from .. import interrupt
-from ..progress import Progress
-from . import scene as scn
+from ..blender import interrupt
+from ..blender.progress import Progress
+from ..blender import materials, scene as scn
 
 COLLECTION = "IL Radiosity"
 ATTRIBUTE = "IL Radiosity E"
@@ -52,7 +52,7 @@ def build_cornell_scene(name="IL Cornell", light_radiance=15.0):
 
 
 def _material(name, rho, emission):
-    mat = scn.empty_material(name)
+    mat = materials.empty_material(name)
     nt = mat.node_tree
     out = nt.nodes.new("ShaderNodeOutputMaterial")
     if max(emission) > 0:

@@ -14,7 +14,7 @@ import math
 from mathutils import Vector
 
 from ..core.errors import InputError
-from . import scene as sc
+from ..blender import scene as sc
 
 SCENES = ("sphere", "stairs", "acne", "plate", "inside")
 LIGHT_KINDS = ("sun", "point", "spot")

@@ -13,12 +13,13 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from .. import compat
+from ..blender import compat
 from ..core import camera as cam
 from ..core.shadow import metrics
 from ..core.shadow import depth_map
 from ..core.errors import ILError, InputError
-from . import render, scene as sc
+from ..blender import materials, scene as sc
+from . import render
 
 #: Object types Cycles renders as a surface that Blender evaluates to a mesh (triangulated for the
 #: planar and volume methods); other renderable types are listed as skipped.
@@ -343,7 +344,7 @@ def _pass(passes, name):
 
 def _white_diffuse():
     """A white Lambertian material (Diffuse BSDF, colour 1, roughness 0) for the material override."""
-    return sc.white_lambert("IL Shadow Lab White")
+    return materials.white_lambert("IL Shadow Lab White")
 
 
 def compat_workbench_direction(direction):

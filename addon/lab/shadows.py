@@ -4,8 +4,8 @@
 
 writes ``<out>/<method>_mask.png`` (white lit, black shadow), ``<out>/<method>_error.png`` (greys
 agree, red false shadow, blue false light; see core.shadow.metrics.COLOURS) and
-``<out>/shadows_report.json`` (DESIGN.md). :func:`sweeps` and :func:`demo_step` serve the bench
-and the demo job.
+``<out>/shadows_report.json`` (DESIGN.md). The bench (lab/bench/shadows.py) and the demo
+(lab/demo/job.py) call it.
 """
 import math
 import os
@@ -21,8 +21,9 @@ from ..core.shadow import depth_map
 from ..core.shadow import planar as shadow_planar
 from ..core.errors import ILError, InputError, warn
 from ..core.io.files import write_json
-from ..progress import Progress
-from . import scene as sc, shadow_scenes
+from ..blender.progress import Progress
+from ..blender import scene as sc
+from . import shadow_scenes
 from .shadow_session import Session
 
 METHODS = ("raytraced", "planar", "shadowmap", "volume_zpass", "volume_zfail", "eevee", "workbench")
@@ -216,15 +217,3 @@ def compare_builtin(name, light_kind, methods, out, keep=False, **params):
     finally:
         if not keep:
             sc.remove_scene(scene)
-
-
-def demo_step(out, quick=True):
-    """The demo's shadow step: the sphere scene under a sun, a few methods; returns figures for its report."""
-    methods = ["raytraced", "planar", "shadowmap", "volume_zpass", "volume_zfail"]
-    rep = compare_builtin("sphere", "sun", methods, os.path.join(out, "shadows"),
-                          resolution=96 if quick else 256, shadowmap_size=512 if quick else 2048)
-    return {"report": rep["report"],
-            "methods": {m: {"error": e["error"], "seconds": e["seconds"]} for m, e in rep["methods"].items()}}
-
-
-from .shadow_sweeps import sweeps  # noqa: E402,F401  (the sweep logic lives beside the comparison)

@@ -23,7 +23,7 @@ import time
 import bpy
 import numpy as np
 
-from .. import compat
+from ..blender import compat
 from ..core import choices
 from ..core.ssao import figures
 from ..core import camera as core_camera
@@ -35,8 +35,9 @@ from ..core.io import png
 from ..core.io import exr
 from ..core.errors import ILError, InputError
 from ..core.io.files import atomic_path, write_json
-from ..progress import Progress
-from . import render, scene as sc, ssao_scenes
+from ..blender.progress import Progress
+from ..blender import scene as sc
+from . import render, ssao_scenes
 
 #: Bumped when the reference render changes meaning (invalidates caches).
 REFERENCE_VERSION = 1

@@ -23,7 +23,7 @@ from ..core import analytic
 from ..core.ssao import limits
 from ..core.ssao import metrics
 from ..core.ssao.limits import SCENES
-from . import scene as sc
+from ..blender import scene as sc
 
 #: Geometry of the corner scene (metres): floor [0, ROOM]², walls x = 0 and y = 0 of height WALL.
 ROOM, WALL = 8.0, 3.0

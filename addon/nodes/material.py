@@ -13,7 +13,7 @@ still works: one model node with a black light, i.e. ambient and emission only.
 """
 import bpy
 
-from .. import compat
+from ..blender import compat
 from ..core.errors import InputError
 from ..core.lights import TYPES
 from . import groups

@@ -3,7 +3,7 @@
 import bpy
 from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 
-from .. import compat
+from ..blender import compat
 from ..core.errors import InputError
 from . import common, polls
 

@@ -2,7 +2,7 @@
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 
-from .. import compat
+from ..blender import compat
 from ..bake.cost import panel_max_side
 from ..core.lightmap import MAX_RESOLUTION
 from . import polls

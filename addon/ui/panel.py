@@ -1,7 +1,7 @@
 """The sidebar panel "Illumination" (3D viewport > N panel) and its Comparisons parent."""
 import bpy
 
-from ..lab import demo
+from ..lab.demo import scene as demo
 from . import common, polls
 
 

@@ -2,7 +2,7 @@
 import bpy
 from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 
-from .. import compat
+from ..blender import compat
 from ..core.shadow import depth_map
 from . import common, polls
 

@@ -4,7 +4,7 @@ import json
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 
-from .. import compat
+from ..blender import compat
 from ..core.ssao import limits
 from . import common, polls
 

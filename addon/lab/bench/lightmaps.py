@@ -1,9 +1,9 @@
-"""Light-map benchmarks and the demo step.
+"""Light-map benchmark.
 
-- :func:`sweeps` -- pipeline overhead over the bare Cycles bake call, and time to reach
+- :func:`run` -- pipeline overhead over the bare Cycles bake call, and time to reach
   RMS 0.01 against the analytic k_A of the demo floor for plain sampling, target-error
   (pilot variance) and Blender's denoiser; tables, charts, figures.
-- :func:`demo_step` -- AO and irradiance maps of the demo scene's objects.
+- :func:`monte_carlo_slope` -- the error's exponent in the sample count (-1/2 for plain Monte Carlo).
 """
 import math
 import os
@@ -12,42 +12,20 @@ import time
 import bpy
 import numpy as np
 
-from ..core import charts
-from ..core.io import exr
-from ..core import lightmap as lm
-from ..lab import demo
-from ..lab.scene import remove_scene, white_lambert
-from .options import BakeOptions
-from .pipeline import bake_lightmaps
+from ...core import charts
+from ...core.io import exr
+from ...core import lightmap as lm
+from ..demo import scene as demo
+from ...blender.materials import white_lambert
+from ...blender.scene import remove_scene
+from ...bake.options import BakeOptions
+from ...bake.pipeline import bake_lightmaps
+from .result import BenchResult
 
-DEMO_OBJECTS = ("Floor", "Box", "Sphere", "Torus")
+KEY = "lightmaps"
+TITLE = "Light maps: bake error against seconds"
+
 PLANAR = "IL planar"
-
-
-def demo_step(scene, out, quick=False):
-    """Bake AO and irradiance maps of Floor, Box, Sphere and Torus of the demo ``scene`` into ``out``.
-
-    Returns figures for the demo report: {"seconds", "resolution", "samples", "maps":
-    {object: {map: {file, seconds, estimated_error, mean}}}, "files": [...]}.
-    """
-    objects = [demo.get(scene, n) for n in DEMO_OBJECTS]
-    res, samples = (32, 8) if quick else (256, 64)
-    t = time.perf_counter()
-    report = bake_lightmaps(objects, ["ao", "irradiance"], out,
-                            BakeOptions(resolution=res, samples=samples, bounces=2, overwrite=True), scene=scene)
-    maps, files = {}, []
-    for name, entries in report["objects"].items():
-        for kind, e in entries.items():
-            ch, _ = exr.read_exr(e["file"])
-            cov = ch["A"] > 0
-            v = ch["Y"] if kind == "ao" else (ch["R"] + ch["G"] + ch["B"]) / 3.0
-            maps.setdefault(name, {})[kind] = {
-                "file": e["file"], "seconds": e["seconds"], "estimated_error": e["estimated_error"],
-                "mean": float(v[cov].mean()) if cov.any() else None,
-                "units": "1" if kind == "ao" else "W/m^2"}
-            files += [e["file"], e["preview"]]
-    files.append(report["report"])
-    return {"seconds": time.perf_counter() - t, "resolution": res, "samples": samples, "maps": maps, "files": files}
 
 
 # ------------------------------------------------------------------ the demo floor and its analytic k_A
@@ -188,18 +166,18 @@ def _time_to(seconds, errors, goal):
     return None
 
 
-def sweeps(out_dir, quick=False):
+def run(output_dir, quick=False):
     """Run the light-map benchmarks; return {"tables", "charts", "figures"} (see module doc)."""
-    os.makedirs(out_dir, exist_ok=True)
-    work = os.path.join(out_dir, "bake_bench_maps")
+    os.makedirs(output_dir, exist_ok=True)
+    work = os.path.join(output_dir, "bake_bench_maps")
     scene, floor = _demo_floor_scene()
     try:
-        return _sweeps(scene, floor, out_dir, work, quick)
+        return _sweeps(scene, floor, output_dir, work, quick)
     finally:
         remove_scene(scene)
 
 
-def _sweeps(scene, floor, out_dir, work, quick):
+def _sweeps(scene, floor, output_dir, work, quick):
     tables, figures = {}, {}
     # 1. overhead over the bare bake call: interleaved repetitions, the least time of each (the shared
     # machine's load only ever adds time); also the pipeline's own time outside its Cycles call, which the
@@ -265,12 +243,24 @@ def _sweeps(scene, floor, out_dir, work, quick):
     plain = times.get("plain")
     best = min((t for m, t in times.items() if m != "plain" and t), default=None)
     figures["bake_speedup_best_vs_plain"] = (plain / best) if (plain and best) else None
-    chart = charts.line_chart(os.path.join(out_dir, "bake_error_vs_seconds.png"), series,
+    chart = charts.line_chart(os.path.join(output_dir, "bake_error_vs_seconds.png"), series,
                               f"AO light map of the demo floor ({n}x{n}): error against time",
                               "seconds (whole pipeline)", "RMS error vs analytic k_A", logx=True, logy=True,
                               marks={f"goal RMS {goal}": (plain or (min(series['plain'][0])), goal)})
-    irr_chart = charts.line_chart(os.path.join(out_dir, "bake_irradiance_error_vs_seconds.png"), irr_series,
+    irr_chart = charts.line_chart(os.path.join(output_dir, "bake_irradiance_error_vs_seconds.png"), irr_series,
                                   f"Irradiance map of the demo floor ({n}x{n}) under a uniform sky: error "
                                   "against time", "seconds (whole pipeline)", "RMS error / (pi L)",
                                   logx=True, logy=True)
-    return {"tables": tables, "charts": [chart, irr_chart], "figures": figures}
+    for table, column, key in (("bake_time_to_error", "rms", "mc_slope"),
+                               ("bake_irradiance_time_to_error", "relative_rms", "mc_slope_irradiance")):
+        plain = [r for r in tables[table] if r["method"] == "plain"]
+        figures[key] = monte_carlo_slope([r["samples"] for r in plain], [r[column] for r in plain])
+    return BenchResult(tables, [chart, irr_chart], figures)
+
+
+def monte_carlo_slope(samples, rms):
+    """Least-squares slope of log(rms) against log(samples); -1/2 for an unbiased Monte Carlo estimate."""
+    x, y = np.log(np.asarray(samples, float)), np.log(np.asarray(rms, float))
+    if len(x) < 2 or np.ptp(x) == 0:
+        return float("nan")
+    return float(np.polyfit(x, y, 1)[0])

@@ -1,17 +1,25 @@
 """Sweeps of the shadow lab: each failure pushed along one parameter, as tables and charts.
 
-sweeps(out_dir, quick) -> {"tables": {name: [rows]}, "charts": [png paths], "figures": {...}}
+run(output_dir, quick) -> BenchResult: the sweeps, then every method on the sphere scene (error
+against seconds); speed() prints beside the targets (scripts/bench_shadows.py).
 """
 import contextlib
 import os
+import tempfile
 import time
 
-from ..core import charts
-from ..core.shadow import metrics as shadow_metrics
-from ..core.io.files import write_json
-from ..progress import Progress
-from . import scene as sc, shadow_scenes
-from .shadow_session import Session
+from ...core import charts
+from ...core.shadow import depth_map as shadow_map
+from ...core.shadow import metrics as shadow_metrics
+from ...core.io.files import write_json
+from ...blender.progress import Progress
+from ...blender import scene as sc
+from .. import shadow_scenes, shadows as lab
+from ..shadow_session import Session
+from .result import BenchResult
+
+KEY = "shadows"
+TITLE = "Shadows: methods against ray-traced shadows"
 
 
 def _score(s, mask):
@@ -31,10 +39,9 @@ def _reference(name, res, **kw):
         sc.remove_scene(scene)
 
 
-def sweeps(out_dir, quick=False):
-    """Run every shadow sweep; write CSV tables and PNG charts into ``out_dir``; return what was made."""
-    from . import shadows as lab
-    os.makedirs(out_dir, exist_ok=True)
+def run(output_dir, quick=False):
+    """Run every shadow sweep; write CSV tables and PNG charts into ``output_dir``; return what was made."""
+    os.makedirs(output_dir, exist_ok=True)
     res = 64 if quick else 256
     sizes = [32, 64, 128, 256, 512, 1024] if quick else [128, 256, 512, 1024, 2048, 4096]
     biases = [0.0, 1e-3, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0] if quick else \
@@ -60,18 +67,18 @@ def sweeps(out_dir, quick=False):
         tables["shadowmap_pcf"] = pcf_rows
         x = [r["size"] for r in rows]
         chart_paths.append(charts.line_chart(
-            os.path.join(out_dir, "shadowmap_resolution_error.png"),
+            os.path.join(output_dir, "shadowmap_resolution_error.png"),
             {"error": (x, [r["error"] for r in rows]), "false shadow": (x, [r["false_shadow"] for r in rows]),
              "false light": (x, [r["false_light"] for r in rows])},
             "Shadow map: error against resolution (sphere, sun)", "shadow-map size N (N x N texels)",
             "misclassified fraction of receiver pixels", logx=True))
         chart_paths.append(charts.line_chart(
-            os.path.join(out_dir, "shadowmap_resolution_time.png"),
+            os.path.join(output_dir, "shadowmap_resolution_time.png"),
             {"depth render (Cycles)": (x, [r["render_seconds"] for r in rows]),
              "numpy lookup": (x, [r["lookup_seconds"] for r in rows])},
             "Shadow map: time against resolution", "shadow-map size N", "seconds", logx=True, logy=True))
         chart_paths.append(charts.line_chart(
-            os.path.join(out_dir, "shadowmap_pcf.png"),
+            os.path.join(output_dir, "shadowmap_pcf.png"),
             {"error": ([r["pcf"] for r in pcf_rows], [r["error"] for r in pcf_rows])},
             "Shadow map: PCF kernel size", "PCF kernel K (K x K texels)", "misclassified fraction"))
         figures["shadowmap_error_by_size"] = {r["size"]: r["error"] for r in rows}
@@ -87,7 +94,7 @@ def sweeps(out_dir, quick=False):
         best = min(rows, key=lambda r: r["error"])
         xb = [max(r["bias"], 1e-4) for r in rows]
         chart_paths.append(charts.line_chart(
-            os.path.join(out_dir, "shadowmap_bias.png"),
+            os.path.join(output_dir, "shadowmap_bias.png"),
             {"false shadow (acne)": (xb, [r["false_shadow"] for r in rows]),
              "false light (peter-panning)": (xb, [r["false_light"] for r in rows]),
              "error": (xb, [r["error"] for r in rows])},
@@ -109,7 +116,7 @@ def sweeps(out_dir, quick=False):
             r.pop("skipped_open_meshes", None)
         tables["volume_cost"] = rows
         chart_paths.append(charts.line_chart(
-            os.path.join(out_dir, "volume_cost.png"),
+            os.path.join(output_dir, "volume_cost.png"),
             {"z-fail stencil (numpy)": ([r["occluder_triangles"] for r in rows], [r["seconds"] for r in rows])},
             f"Shadow volumes: cost against occluder triangles ({res}x{res} frame)", "occluder triangles",
             "seconds", logx=True, logy=True))
@@ -121,7 +128,7 @@ def sweeps(out_dir, quick=False):
                 mask, _, _ = lab.run_method(s, "planar", base)
                 rows.append(dict(scene=name, receiver="planar" if name == "sphere" else "stairs", **_score(s, mask)))
         tables["planar_receivers"] = rows
-        chart_paths.append(_bar(os.path.join(out_dir, "planar_receivers.png"), rows, "scene",
+        chart_paths.append(_bar(os.path.join(output_dir, "planar_receivers.png"), rows, "scene",
                                 "Planar shadows: planar floor vs stairs"))
 
         progress.step("z-pass against z-fail, camera outside and inside a volume")
@@ -133,12 +140,72 @@ def sweeps(out_dir, quick=False):
                     rows.append(dict(scene=name, camera="inside" if name == "inside" else "outside", mode=mode,
                                      **_score(s, lab.volume_mask(s, volume, mode))))
         tables["zpass_zfail"] = rows
-        chart_paths.append(_bar(os.path.join(out_dir, "zpass_zfail.png"), rows, ("camera", "mode"),
+        chart_paths.append(_bar(os.path.join(output_dir, "zpass_zfail.png"), rows, ("camera", "mode"),
                                 "Shadow volumes: z-pass vs z-fail"))
     for name, t in tables.items():
-        charts.write_csv(os.path.join(out_dir, f"{name}.csv"), t)
-    write_json(os.path.join(out_dir, "shadow_sweeps.json"), {"tables": tables, "figures": figures})
-    return {"tables": tables, "charts": chart_paths, "figures": figures}
+        charts.write_csv(os.path.join(output_dir, f"{name}.csv"), t)
+    write_json(os.path.join(output_dir, "shadow_sweeps.json"), {"tables": tables, "figures": figures})
+    tables["shadow_methods"], pareto = methods_pareto(output_dir, quick)
+    chart_paths.append(pareto)
+    return BenchResult(tables, chart_paths, figures)
+
+
+def methods_pareto(output_dir, quick):
+    """All shadow methods on the sphere scene: error against seconds (EEVEE warmed up first)."""
+    res = 96 if quick else 256
+    with tempfile.TemporaryDirectory(prefix="il_warmup_") as tmp:
+        lab.compare_builtin("sphere", "sun", ["raytraced", "eevee"], tmp, resolution=32)
+    rep = lab.compare_builtin("sphere", "sun", list(lab.METHODS), os.path.join(output_dir, "methods"),
+                              resolution=res, shadowmap_size=1024 if quick else 2048)
+    rows = [{"method": m, "error": e["error"], "false_shadow": e["false_shadow"], "false_light": e["false_light"],
+             "seconds": e["seconds"]} for m, e in rep["methods"].items()]
+    points = {r["method"]: (max(r["seconds"], 1e-4), max(r["error"], 1e-5)) for r in rows if r["method"] != "raytraced"}
+    chart = charts.scatter_chart(os.path.join(output_dir, "shadow_pareto.png"), points,
+                                 f"Shadow methods, sphere scene {res}² (error floor 1e-5)", "seconds",
+                                 "misclassified fraction of receiver pixels", logx=True, logy=True)
+    return rows, chart
+
+
+def speed(resolution=512, map_size=2048):
+    """Performance figures beside the issue's targets: [(what, seconds, target seconds or None)].
+
+    1. numpy shadow-map lookup with 3x3 PCF: a ``resolution``² frame against a ``map_size``² map (target 0.5 s);
+    2. shadow volumes (silhouette, extrusion, z-fail stencil) for a 10k-triangle occluder (target 5 s);
+    3. per-method seconds of one comparison on the sphere scene at 256x256.
+    """
+    rows = []
+    res = resolution
+    shadow_map.check_cost(res, res, map_size, 1)
+    scene = shadow_scenes.build("sphere", "sun", (res, res), segments=102, rings=50)   # 10 000 triangles
+    try:
+        with Session(scene, scene["il_shadow_light"], res) as s:
+            s.render_reference()
+            maps, render_s = s.depth_maps(map_size)
+            r = s.receiver
+            pts, nrm, tl = s.position[r], s.normal[r], s.to_light[r]
+            best = min(_timed(lambda: shadow_map.lit_fraction(maps, pts, nrm, tl, 0.01, 2.0, 3)) for _ in range(3))
+            rows.append((f"shadow-map lookup, 3x3 PCF, {res}^2 frame ({r.sum()} receiver px), {map_size}^2 map",
+                         best, 0.5))
+            rows.append((f"  (depth-map render by Cycles, {map_size}^2, not in the target)", render_s, None))
+            t = time.perf_counter()
+            volume, info = lab.volume_inputs(s)
+            lab.volume_mask(s, volume, "zfail")
+            rows.append((f"shadow volumes z-fail, {info['occluder_triangles']}-triangle occluder, {res}^2 frame",
+                         time.perf_counter() - t, 5.0))
+    finally:
+        sc.remove_scene(scene)
+    with tempfile.TemporaryDirectory() as tmp:
+        rep = lab.compare_builtin("sphere", "sun", "raytraced,planar,shadowmap,volume_zpass,volume_zfail", tmp,
+                                  resolution=256, shadowmap_size=2048)
+    for m, e in rep["methods"].items():
+        rows.append((f"comparison 256^2, {m} (error {e['error']:.4f})", e["seconds"], None))
+    return rows
+
+
+def _timed(fn):
+    t = time.perf_counter()
+    fn()
+    return time.perf_counter() - t
 
 
 def _bar(path, rows, key, title):

@@ -1,7 +1,7 @@
 """The embedded demo scene: a floor, three objects for three shading models, a sun and a point light."""
 import bpy
 
-from . import scene as sc
+from ...blender import scene as sc
 
 DEMO_NAME = "IL Demo"
 ROLE = "il_demo_role"
@@ -15,7 +15,7 @@ def get(scene, role):
             return obj
     obj = scene.objects.get(role)
     if obj is None:
-        from ..core.errors import InputError
+        from ...core.errors import InputError
         raise InputError(f"scene '{scene.name}' has no demo object '{role}'")
     return obj
 

@@ -1,21 +1,27 @@
 """SSAO sweeps: error against seconds (Pareto front), samples, radius, and the failure cases side by side.
 
-``sweeps(out_dir, quick)`` is used by ``scripts/ssao.py --sweeps`` and by the
-project-wide bench; ``demo_step(out, quick)`` is the demo's quick comparison.
-Errors are RMSE against Cycles' AO pass over geometry pixels (core.ssao.error_metrics).
+``run(output_dir, quick)`` is used by ``scripts/ssao.py --sweeps`` and by the
+project-wide bench; ``speed(...)`` times the methods on one frame (scripts/bench_ssao.py).
+Errors are RMSE against Cycles' AO pass over geometry pixels (core.ssao.metrics.error_metrics).
 """
 import os
 
 import numpy as np
 
-from ..core import charts
-from ..core.ssao import figures as ssao_figures
-from ..core.ssao import methods as ssao
-from ..core.ssao import metrics
-from ..core.io.files import write_json
-from ..progress import Progress
-from . import ssao as lab
-from . import scene as sc, ssao_scenes
+from ...core import charts
+from ...core.ssao import figures as ssao_figures
+from ...core.ssao import methods as ssao
+from ...core.ssao import limits as ssao_limits
+from ...core.ssao import metrics
+from ...core.io.files import write_json
+from ...blender.progress import Progress
+from .. import ssao as lab
+from ...blender import scene as sc
+from .. import ssao_scenes
+from .result import BenchResult
+
+KEY = "ssao"
+TITLE = "Screen-space AO against ray-traced AO"
 
 #: Per failure scene: the methods shown and the one whose failure the scene is about.
 FAILURES = (("plane", "crytek", "flat plane grey under the sphere kernel"),
@@ -32,14 +38,14 @@ def _settings(quick):
                 radii=(0.125, 0.25, 0.5, 1.0, 2.0, 4.0), blender=("workbench", "eevee"))
 
 
-def sweeps(out_dir, quick=False, radius=1.0, samples=16):
-    """Run every sweep; write charts (PNG) and tables (CSV) to ``out_dir``.
+def run(output_dir, quick=False, radius=1.0, samples=16):
+    """Run every sweep; write charts (PNG) and tables (CSV) to ``output_dir``.
 
     Returns {"tables": {name: [row dicts]}, "charts": [png paths], "figures": {...}}.
     """
     cfg = _settings(quick)
-    os.makedirs(out_dir, exist_ok=True)
-    cache = os.path.join(out_dir, "cache")
+    os.makedirs(output_dir, exist_ok=True)
+    cache = os.path.join(output_dir, "cache")
     tables, chart_paths, figures = {}, [], {}
     steps = 3 + len(FAILURES)
     with Progress("ssao sweeps", steps) as progress:
@@ -65,7 +71,7 @@ def sweeps(out_dir, quick=False, radius=1.0, samples=16):
             tables["ssao_error_vs_seconds"] = rows
             points = {f"{r['method']} {r['samples']}": (r["seconds"], r["rmse"]) for r in rows}
             chart_paths.append(charts.scatter_chart(
-                os.path.join(out_dir, "ssao_pareto.png"), points,
+                os.path.join(output_dir, "ssao_pareto.png"), points,
                 f"SSAO on the corner scene, {gb.width}x{gb.height}: error against time",
                 "seconds per frame (log)", "RMSE of k_A against Cycles AO", logx=True))
             front = charts.pareto_front([p[0] for p in points.values()], [p[1] for p in points.values()])
@@ -73,7 +79,7 @@ def sweeps(out_dir, quick=False, radius=1.0, samples=16):
             series = {m: ([r["samples"] for r in rows if r["method"] == m],
                           [r["rmse"] for r in rows if r["method"] == m]) for m in ssao.METHODS}
             chart_paths.append(charts.line_chart(
-                os.path.join(out_dir, "ssao_samples.png"), series,
+                os.path.join(output_dir, "ssao_samples.png"), series,
                 "SSAO error against samples per pixel (corner scene)", "samples per pixel (log)",
                 "RMSE of k_A (log)", logx=True, logy=True))
 
@@ -87,7 +93,7 @@ def sweeps(out_dir, quick=False, radius=1.0, samples=16):
                                   "seconds": sec})
             tables["ssao_radius"] = rrows
             chart_paths.append(charts.line_chart(
-                os.path.join(out_dir, "ssao_radius.png"),
+                os.path.join(output_dir, "ssao_radius.png"),
                 {m: ([r["radius_over_ao_distance"] for r in rrows if r["method"] == m],
                      [r["rmse"] for r in rrows if r["method"] == m]) for m in ssao.METHODS},
                 f"SSAO radius against the reference's AO distance ({radius} m), {samples} samples",
@@ -133,26 +139,44 @@ def sweeps(out_dir, quick=False, radius=1.0, samples=16):
                 r["method"]: round(r["region_bias"], 4) for r in frows if r["scene"] == name}
         tables["ssao_failures"] = frows
         chart_paths.append(ssao_figures.failure_grid(
-            os.path.join(out_dir, "ssao_failures.png"), ao_rows,
+            os.path.join(output_dir, "ssao_failures.png"), ao_rows,
             f"k_A side by side (white = open), radius = AO distance = {radius} m, {samples} samples"))
         chart_paths.append(ssao_figures.failure_grid(
-            os.path.join(out_dir, "ssao_failures_error.png"), err_rows,
+            os.path.join(output_dir, "ssao_failures_error.png"), err_rows,
             "signed error (blue = too dark, red = too bright, saturated at 0.5)"))
     for name, rows in tables.items():
-        charts.write_csv(os.path.join(out_dir, f"{name}.csv"), rows)
-    write_json(os.path.join(out_dir, "ssao_sweeps.json"), {"figures": figures, "charts": chart_paths})
-    return {"tables": tables, "charts": chart_paths, "figures": figures}
+        charts.write_csv(os.path.join(output_dir, f"{name}.csv"), rows)
+    write_json(os.path.join(output_dir, "ssao_sweeps.json"), {"figures": figures, "charts": chart_paths})
+    return BenchResult(tables, chart_paths, figures)
 
 
-def demo_step(out, quick=False):
-    """The demo's SSAO step: corner scene, the numpy methods against the reference, files in ``out``.
+def speed(output_dir, resolution=512, samples=16, repeats=3, reference_samples=256, eevee=True):
+    """Every numpy method (with and without blur) and Blender's AO on the corner scene, best of ``repeats``.
 
-    Returns {"report": path of ssao_report.json, "figures": {method: {"rmse", "bias", "seconds"}},
-    "reference": {...}, "lines": [summary lines]}.
+    Returns {"rows": [(method, seconds, rmse)], "gbuffer", "reference"}; the reference is cached in
+    ``output_dir``/cache.
     """
-    report = lab.run_builtin("corner", list(ssao.METHODS), out, resolution=64 if quick else 128, samples=16,
-                             radius=1.0, reference_samples=256 if quick else 1024)
-    return {"report": os.path.join(out, "ssao_report.json"),
-            "figures": {m: {k: r[k] for k in ("rmse", "bias", "seconds")} for m, r in report["methods"].items()},
-            "reference": {k: report["reference"][k] for k in ("samples", "seconds", "noise_rms")},
-            "lines": lab.summary_lines(report)}
+    ssao_limits.check_cost(resolution, resolution, samples, reference_samples,
+                    len(ssao.METHODS) * 2 * repeats)          # each method with and without blur, repeated
+    scene = ssao_scenes.build_scene("corner", resolution, 1.0)
+    cache = os.path.abspath(os.path.join(output_dir, "cache"))
+    gb, _, ref = lab.frame(scene, 1.0, reference_samples, resolution, cache)
+    rows = []
+    for m in ssao.METHODS:
+        for blur in (False, True):
+            best, k = float("inf"), None
+            for _ in range(repeats):
+                k, sec, _ = ssao.run_method(m, gb, 1.0, samples, blur=blur)
+                best = min(best, sec)
+            rows.append((m + (" + blur" if blur else ""), best, metrics.error_metrics(k, ref["k"], gb.mask)["rmse"]))
+    for m in ("workbench",) + (("eevee",) if eevee else ()):
+        if m == "eevee":
+            lab.blender_method(scene, "eevee", 1.0, 1, 32)           # compile shaders first
+        for spp in sorted({1, samples}):
+            best, k = float("inf"), None
+            for _ in range(repeats):
+                k, sec, _ = lab.blender_method(scene, m, 1.0, spp, resolution)
+                best = min(best, sec)
+            rows.append((f"{m} ({spp} spp)", best, metrics.error_metrics(k, ref["k"], gb.mask)["rmse"]))
+    sc.remove_scene(scene)
+    return {"rows": rows, "gbuffer": gb, "reference": ref}

@@ -1,50 +1,31 @@
-"""The speed-versus-accuracy report: every lab's sweeps, their charts and CSV tables, one report.md.
+"""The speed-versus-accuracy report: every area's benchmark, their charts and CSV tables, one report.md.
 
-Each area keeps its own sweep logic (``sweeps(out_dir, quick) -> {"tables", "charts",
-"figures"}``); this module runs them, adds what needs more than one area (the shadow
-methods' Pareto front, the Monte Carlo slope, the stability table) and writes the report.
+Each area's module (the registry :data:`AREAS`) has ``KEY``, ``TITLE`` and
+``run(output_dir, quick=False) -> BenchResult``; this module runs them, adds what needs more
+than one area (the stability table, the shading twins at their edge inputs) and writes the report.
 """
-import importlib
 import math
 import os
 import platform
-import tempfile
 import time
 
 import bpy
 import numpy as np
 
-from ..core import brdf, charts
-from ..core.errors import ILError
-from ..core.io.files import atomic_path, write_json
-from ..progress import Progress
+from ...core import brdf, charts
+from ...core.errors import ILError
+from ...core.io.files import atomic_path, write_json
+from ...blender.progress import Progress
+from . import envmap, lightmaps, shading, shadows, ssao
 
-#: (key, title, module with ``sweeps``); modules are relative to the ``addon`` package.
-AREAS = (
-    ("shading", "Shading models against Blender's closures", ".lab.shading_bench"),
-    ("lightmaps", "Light maps: bake error against seconds", ".bake.bench"),
-    ("shadows", "Shadows: methods against ray-traced shadows", ".lab.shadows"),
-    ("ssao", "Screen-space AO against ray-traced AO", ".lab.ssao_sweeps"),
-    ("envmap", "Irradiance environment maps and radiosity", ".lab.envmap"),
-)
+#: The registry, in report order (radiosity is part of the envmap section).
+AREAS = (shading, lightmaps, shadows, ssao, envmap)
 SSAO_REMEDY = {
     "plane": "normal-oriented methods (hemisphere, HBAO, GTAO) read 1 on open surfaces",
     "edge": "reported, not hidden: render a guard band beyond the frame to avoid it",
     "discontinuity": "range check (samples past the radius ignored); crytek + range check shown",
     "thin": "reported: a depth buffer cannot see thickness",
 }
-
-
-def _sweeps(module):
-    return importlib.import_module(module, __package__.rpartition(".")[0]).sweeps
-
-
-def monte_carlo_slope(samples, rms):
-    """Least-squares slope of log(rms) against log(samples); -1/2 for an unbiased Monte Carlo estimate."""
-    x, y = np.log(np.asarray(samples, float)), np.log(np.asarray(rms, float))
-    if len(x) < 2 or np.ptp(x) == 0:
-        return float("nan")
-    return float(np.polyfit(x, y, 1)[0])
 
 
 def shading_edges():
@@ -115,7 +96,7 @@ def _pct(x):
 
 def stability_table(results, shading_rows):
     """One row per (method, input where it fails): what was measured and what the project does there."""
-    sh, ss, bk, ev = (results.get(k, {}) for k in ("shadows", "ssao", "lightmaps", "envmap"))
+    sh, ss, bk, ev = (vars(results[k]) if k in results else {} for k in ("shadows", "ssao", "lightmaps", "envmap"))
     sht = sh.get("tables", {})
     zz = {(r["camera"], r["mode"]): r["error"] for r in sht.get("zpass_zfail", [])}
     planar = {r["scene"]: r["error"] for r in sht.get("planar_receivers", [])}
@@ -171,23 +152,6 @@ def stability_table(results, shading_rows):
     return rows
 
 
-def _shadow_pareto(out, quick):
-    """All shadow methods on the sphere scene: error against seconds (EEVEE warmed up first)."""
-    from . import shadows
-    res = 96 if quick else 256
-    with tempfile.TemporaryDirectory(prefix="il_warmup_") as tmp:
-        shadows.compare_builtin("sphere", "sun", ["raytraced", "eevee"], tmp, resolution=32)
-    rep = shadows.compare_builtin("sphere", "sun", list(shadows.METHODS), os.path.join(out, "methods"),
-                                  resolution=res, shadowmap_size=1024 if quick else 2048)
-    rows = [{"method": m, "error": e["error"], "false_shadow": e["false_shadow"], "false_light": e["false_light"],
-             "seconds": e["seconds"]} for m, e in rep["methods"].items()]
-    points = {r["method"]: (max(r["seconds"], 1e-4), max(r["error"], 1e-5)) for r in rows if r["method"] != "raytraced"}
-    chart = charts.scatter_chart(os.path.join(out, "shadow_pareto.png"), points,
-                                 f"Shadow methods, sphere scene {res}² (error floor 1e-5)", "seconds",
-                                 "misclassified fraction of receiver pixels", logx=True, logy=True)
-    return rows, chart
-
-
 def _md_table(rows, limit=30):
     if not rows:
         return "_no rows_\n"
@@ -204,47 +168,38 @@ def _md_table(rows, limit=30):
     return "\n".join(lines) + "\n"
 
 
-def run(out, quick=False, areas=None):
-    """Run the sweeps of ``areas`` (default all) into ``out``; write report.md, report.json, CSVs, charts."""
-    chosen = [a for a in AREAS if areas is None or a[0] in areas]
-    unknown = set(areas or ()) - {a[0] for a in AREAS}
+def run(output_dir, quick=False, areas=None):
+    """Run the benchmarks of ``areas`` (keys, default all) into ``output_dir``; write report.md, report.json,
+    CSVs, charts. Returns {"report": path, "seconds", "results": {key: BenchResult}, "stability": rows}."""
+    chosen = [a for a in AREAS if areas is None or a.KEY in areas]
+    unknown = set(areas or ()) - {a.KEY for a in AREAS}
     if unknown:
-        raise ILError(f"unknown area(s): {', '.join(sorted(unknown))}; choose from {', '.join(a[0] for a in AREAS)}")
-    os.makedirs(out, exist_ok=True)
+        raise ILError(f"unknown area(s): {', '.join(sorted(unknown))}; choose from {', '.join(a.KEY for a in AREAS)}")
+    os.makedirs(output_dir, exist_ok=True)
     t_all = time.perf_counter()
     results, seconds = {}, {}
     with Progress("bench", len(chosen) + 1) as progress:
-        for key, title, module in chosen:
-            progress.step(title)
+        for area in chosen:
+            progress.step(area.TITLE)
             t = time.perf_counter()
-            results[key] = _sweeps(module)(os.path.join(out, key), quick)
-            seconds[key] = time.perf_counter() - t
+            results[area.KEY] = area.run(os.path.join(output_dir, area.KEY), quick)
+            seconds[area.KEY] = time.perf_counter() - t
         progress.step("cross-area tables and the report")
-        if "shadows" in results:
-            rows, chart = _shadow_pareto(os.path.join(out, "shadows"), quick)
-            results["shadows"]["tables"]["shadow_methods"] = rows
-            results["shadows"]["charts"].append(chart)
-        if "lightmaps" in results:
-            lm = results["lightmaps"]
-            for table, column, key in (("bake_time_to_error", "rms", "mc_slope"),
-                                       ("bake_irradiance_time_to_error", "relative_rms", "mc_slope_irradiance")):
-                plain = [r for r in lm["tables"].get(table, []) if r["method"] == "plain"]
-                lm["figures"][key] = monte_carlo_slope([r["samples"] for r in plain], [r[column] for r in plain])
         shading_rows = shading_edges()
         stability = stability_table(results, shading_rows)
     for key, r in results.items():
-        for name, rows in r["tables"].items():
-            charts.write_csv(os.path.join(out, key, f"{name}.csv"), rows)
-    charts.write_csv(os.path.join(out, "stability.csv"), stability)
-    charts.write_csv(os.path.join(out, "shading_edges.csv"), shading_rows)
+        for name, rows in r.tables.items():
+            charts.write_csv(os.path.join(output_dir, key, f"{name}.csv"), rows)
+    charts.write_csv(os.path.join(output_dir, "stability.csv"), stability)
+    charts.write_csv(os.path.join(output_dir, "shading_edges.csv"), shading_rows)
     total = time.perf_counter() - t_all
-    path = os.path.join(out, "report.md")
+    path = os.path.join(output_dir, "report.md")
     with atomic_path(path) as tmp:
         with open(tmp, "w", encoding="utf-8") as f:
-            f.write(_markdown(out, results, seconds, stability, shading_rows, quick, total))
-    write_json(os.path.join(out, "report.json"),
+            f.write(_markdown(output_dir, results, seconds, stability, shading_rows, quick, total))
+    write_json(os.path.join(output_dir, "report.json"),
                {"quick": quick, "seconds": total, "area_seconds": seconds, "stability": stability,
-                "figures": {k: r["figures"] for k, r in results.items()}})
+                "figures": {k: r.figures for k, r in results.items()}})
     return {"report": path, "seconds": total, "results": results, "stability": stability}
 
 
@@ -256,16 +211,16 @@ def _markdown(out, results, seconds, stability, shading_rows, quick, total):
           "## Stability: where each method fails, and what the project does\n\n", _md_table(stability),
           "\nShading twins at their edge inputs ([shading_edges.csv](shading_edges.csv)):\n\n",
           _md_table(shading_rows)]
-    titles = {k: t for k, t, _ in AREAS}
+    titles = {a.KEY: a.TITLE for a in AREAS}
     for key, r in results.items():
         md.append(f"\n## {titles[key]} ({seconds[key]:.0f} s)\n\n")
-        figs = {k: v for k, v in r["figures"].items() if not isinstance(v, (list, dict)) or len(str(v)) < 300}
+        figs = {k: v for k, v in r.figures.items() if not isinstance(v, (list, dict)) or len(str(v)) < 300}
         if figs:
             md.append("".join(f"- **{k}**: {_fmt_fig(v)}\n" for k, v in figs.items()))
-        for chart in r["charts"]:
+        for chart in r.charts:
             rel = os.path.relpath(chart, out)
             md.append(f"\n![{os.path.basename(chart)}]({rel})\n")
-        for name, rows in r["tables"].items():
+        for name, rows in r.tables.items():
             md.append(f"\n### {name} ([{key}/{name}.csv]({key}/{name}.csv))\n\n")
             md.append(_md_table(rows))
     return "".join(md)

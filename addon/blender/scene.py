@@ -6,7 +6,7 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from .. import compat
+from . import compat
 
 
 def new_scene(name, resolution=(256, 256)):
@@ -98,32 +98,6 @@ def camera(scene, name, location, target=(0, 0, 0), lens=50.0, ortho_scale=None)
 def look_at(obj, target):
     direction = Vector(target) - Vector(obj.location)
     obj.rotation_euler = direction.to_track_quat("-Z", "Y").to_euler()
-
-
-def empty_material(name):
-    """A new material with an empty node tree (in 5.0 and 4.5 alike)."""
-    mat = bpy.data.materials.new(name)
-    compat.ensure_use_nodes(mat)
-    mat.node_tree.nodes.clear()
-    return mat
-
-
-def white_diffuse_node(node_tree):
-    """A Diffuse BSDF of albedo 1 and roughness 0 (white Lambert) in ``node_tree``."""
-    bsdf = node_tree.nodes.new("ShaderNodeBsdfDiffuse")
-    bsdf.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-    bsdf.inputs["Roughness"].default_value = 0.0
-    return bsdf
-
-
-def white_lambert(name, material=None):
-    """A white Lambertian material (``material``, empty, or a new one): white Diffuse BSDF -> Surface."""
-    mat = material or empty_material(name)
-    nt = mat.node_tree
-    out = nt.nodes.new("ShaderNodeOutputMaterial")
-    nt.links.new(white_diffuse_node(nt).outputs["BSDF"], out.inputs["Surface"])
-    mat.diffuse_color = (1.0, 1.0, 1.0, 1.0)
-    return mat
 
 
 def world(scene, strength=0.0, color=(1.0, 1.0, 1.0), ao_distance=None):

@@ -2,8 +2,7 @@
 
 - :func:`render_group_sweep` renders spheres shaded by one node group with fixed inputs
   (orthographic camera, 1 sample, Normal pass): every pixel is one (n, l, v) triple.
-- :func:`sweeps` is the benchmark (``scripts/brdf_compare.py`` and the project-wide bench call it).
-- :func:`demo_step` shades the demo scene with the three models.
+- :func:`run` is the benchmark (``scripts/brdf_compare.py`` and the project-wide bench call it).
 """
 import os
 import time
@@ -11,12 +10,17 @@ import time
 import bpy
 import numpy as np
 
-from .. import compat
-from ..core import brdf, charts
-from ..core.errors import InputError
-from ..nodes import groups, material
-from ..progress import Progress
-from . import demo, render, scene as sc
+from ...blender import compat
+from ...core import brdf, charts
+from ...core.errors import InputError
+from ...nodes import groups, material
+from ...blender.progress import Progress
+from ...blender import materials, scene as sc
+from .. import render
+from .result import BenchResult
+
+KEY = "shading"
+TITLE = "Shading models against Blender's closures"
 
 V_ORTHO = np.array([0.0, -1.0, 0.0])  # toward the viewer of the sweep camera (which looks along +Y)
 
@@ -48,7 +52,7 @@ def sphere_grid(name, count, size=96, segments=64, rings=32):
 
 def group_material(name, group_name, inputs, output="Emission"):
     """A material whose surface is the node group's ``output`` with constant ``inputs``."""
-    mat = sc.empty_material(name)
+    mat = materials.empty_material(name)
     nt = mat.node_tree
     node = nt.nodes.new("ShaderNodeGroup")
     node.node_tree = groups.ensure_group(group_name)
@@ -69,7 +73,7 @@ def set_inputs(node, inputs):
 
 def closure_material(name, kind, color=(1.0, 1.0, 1.0), roughness=0.0, distribution="GGX"):
     """A material with one of Blender's BSDFs: 'DIFFUSE', 'GLOSSY' or 'PRINCIPLED'."""
-    mat = sc.empty_material(name)
+    mat = materials.empty_material(name)
     nt = mat.node_tree
     node = nt.nodes.new({"DIFFUSE": "ShaderNodeBsdfDiffuse", "GLOSSY": "ShaderNodeBsdfGlossy",
                          "PRINCIPLED": "ShaderNodeBsdfPrincipled"}[kind])
@@ -210,8 +214,8 @@ def _albedo_frame(theta_v):
 def albedo_material(name, group_name, inputs, theta_v):
     """A material that feeds the group, at each point (x, y) of the unit square (Object coordinates of a
     [-1, 1]^2 plane in XZ), the light direction brdf.half_vector_map(x, y) in the plane's normal frame."""
-    from ..nodes.builder import Graph
-    mat = sc.empty_material(name)
+    from ...nodes.builder import Graph
+    mat = materials.empty_material(name)
     g = Graph(mat.node_tree)
     e1, e2, nrm = _albedo_frame(theta_v)
     width = _albedo_width(inputs)
@@ -400,7 +404,7 @@ def render_cost(size=128, samples=32):
 
 # -- charts of the twins ------------------------------------------------------------------------------
 
-def twin_charts(out_dir):
+def twin_charts(output_dir):
     """Radiance of each model in the plane of incidence against the view angle, for several incidence angles."""
     paths = []
     tv = np.radians(np.linspace(-89, 89, 179))
@@ -425,10 +429,10 @@ def twin_charts(out_dir):
         for ti in (0, 30, 60, 80):
             l = brdf.direction(np.radians(ti), np.pi)
             series[f"incidence {ti} deg"] = (np.degrees(tv), fn(l)[:, 0])
-        paths.append(charts.line_chart(os.path.join(out_dir, f"brdf_{name}.png"), series,
+        paths.append(charts.line_chart(os.path.join(output_dir, f"brdf_{name}.png"), series,
                                        f"{name}: radiance in the plane of incidence (I = 1)",
                                        "view angle (deg, + = mirror side)", "radiance L / I"))
-    paths.append(albedo_chart(os.path.join(out_dir, "brdf_albedo.png")))
+    paths.append(albedo_chart(os.path.join(output_dir, "brdf_albedo.png")))
     return paths
 
 
@@ -478,12 +482,12 @@ def _profile_chart(path, data, l, title, label_fn):
                              "mean radiance over the bin (W m^-2 sr^-1)")
 
 
-def sweeps(out_dir, quick=False):
+def run(output_dir, quick=False):
     """The shading benchmark: node-vs-twin errors, node-vs-Blender-closure differences, render cost.
 
     Returns {"tables": {name: [rows]}, "charts": [png paths], "figures": {...}}.
     """
-    os.makedirs(out_dir, exist_ok=True)
+    os.makedirs(output_dir, exist_ok=True)
     groups.add_node_groups()
     size = 64 if quick else 128
     steps = ["twin charts", "node groups vs twins", "Oren-Nayar vs Diffuse BSDF",
@@ -491,7 +495,7 @@ def sweeps(out_dir, quick=False):
     tables, chart_paths, figures = {}, [], {}
     with Progress("shading", len(steps)) as progress:
         progress.step(steps[0])
-        chart_paths += twin_charts(out_dir)
+        chart_paths += twin_charts(output_dir)
 
         progress.step(steps[1])
         rows = []
@@ -518,7 +522,7 @@ def sweeps(out_dir, quick=False):
             sigma, rms = best_sigma(d["n_blender"], d["L_blender"], l)
             row["best_fit_sigma"], row["best_fit_rms"] = sigma, rms
         tables["shading_oren_nayar_vs_diffuse"] = on_rows
-        chart_paths.append(_profile_chart(os.path.join(out_dir, "oren_nayar_vs_diffuse.png"), on_data, l,
+        chart_paths.append(_profile_chart(os.path.join(output_dir, "oren_nayar_vs_diffuse.png"), on_data, l,
                                           "IL Oren-Nayar (sigma = r) vs Diffuse BSDF (roughness r)",
                                           lambda r, who: f"{'Blender' if who == 'blender' else 'IL'} r={r:g}"))
         figures["oren_nayar_sigma0_relative_rms"] = on_rows[0]["relative_rms"]
@@ -527,7 +531,7 @@ def sweeps(out_dir, quick=False):
         values = (0.2, 0.5) if quick else (0.1, 0.2, 0.3, 0.5, 0.7)
         ct_rows, ct_data, l = closure_comparison("COOK_TORRANCE", values, size=size, samples=8 if quick else 32)
         tables["shading_cook_torrance_vs_glossy"] = ct_rows
-        chart_paths.append(_profile_chart(os.path.join(out_dir, "cook_torrance_vs_glossy.png"), ct_data, l,
+        chart_paths.append(_profile_chart(os.path.join(output_dir, "cook_torrance_vs_glossy.png"), ct_data, l,
                                           "IL Cook-Torrance (GGX, Smith, F=1, alpha=r^2) vs Glossy GGX (r)",
                                           lambda r, who: f"{'Blender' if who == 'blender' else 'IL'} r={r:g}"))
         figures["cook_torrance_vs_glossy_max_relative_rms"] = max(r["relative_rms"] for r in ct_rows)
@@ -537,31 +541,5 @@ def sweeps(out_dir, quick=False):
         tables["shading_render_cost"] = [cost]
         figures["render_time_ratio_il_ct_over_principled"] = cost["ratio_il_over_principled"]
     for name, rows in tables.items():
-        charts.write_csv(os.path.join(out_dir, f"{name}.csv"), rows)
-    return {"tables": tables, "charts": chart_paths, "figures": figures}
-
-
-# -- demo ---------------------------------------------------------------------------------------------
-
-DEMO_MODELS = {"Box": ("PHONG", {"Kd": (0.8, 0.3, 0.2), "Ks": 0.5, "Shininess": 40.0}),
-               "Torus": ("OREN_NAYAR", {"Albedo": (0.3, 0.6, 0.8), "Sigma": 0.6}),
-               "Sphere": ("COOK_TORRANCE", {"Kd": (0.1, 0.1, 0.1), "F0": 0.9, "Roughness": 0.25})}
-
-
-def demo_step(scene, out, quick=False):
-    """Shade the demo scene: Phong on "Box", Oren-Nayar on "Torus", Cook-Torrance on "Sphere".
-
-    Returns figures for the demo report: {"seconds", "materials": {object: material}, "lights", "warnings"}.
-    """
-    t = time.perf_counter()
-    groups.add_node_groups()
-    mats, warnings = {}, []
-    for obj_name, (model, params) in DEMO_MODELS.items():
-        obj = demo.get(scene, obj_name)
-        mat, w = material.assign_shading_model(scene, [obj], model, params=params,
-                                               name=f"IL {material.MODEL_LABELS[model]} ({obj.name})")
-        mats[obj.name] = mat.name
-        warnings += w
-    lights = [o.name for o in material.scene_lights(scene)]
-    return {"seconds": time.perf_counter() - t, "materials": mats, "lights": lights, "warnings": warnings,
-            "models": {k: v[0] for k, v in DEMO_MODELS.items()}}
+        charts.write_csv(os.path.join(output_dir, f"{name}.csv"), rows)
+    return BenchResult(tables, chart_paths, figures)
