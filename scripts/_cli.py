@@ -3,9 +3,9 @@
     blender -b [FILE.blend] -P scripts/x.py -- ARGS
     python scripts/x.py [FILE.blend] ARGS          (the pip bpy module)
 
-Each script builds an ``argparse`` parser and calls ``run(parser, main)``;
-``main(args)`` returns nothing on success and raises ``ILError`` (exit 1) or
-``InputError`` (exit 2) with a readable message. Numeric options use ``number``
+Each script builds an ``argparse`` parser (its job's options from the job's options class, see
+``add_options``) and calls ``run(parser, main)``; ``main(args)`` returns nothing on success and
+raises ``ILError`` (exit 1) or ``InputError`` (exit 2) with a readable message. Numeric options use ``number``
 (finite, in range, else exit 2 at parse time); an ``--out`` folder is checked
 before anything runs (exit 2, nothing created); Ctrl-C stops at the next safe
 point with exit 130 (``addon.blender.interrupt``); a full disk or out-of-memory is one
@@ -25,6 +25,8 @@ if ROOT not in sys.path:
 from addon.blender import interrupt  # noqa: E402  (no bpy)
 from addon.core.errors import ILError, ILWarning, InputError  # noqa: E402
 from addon.core.io.files import check_output_dir  # noqa: E402
+from addon.core import options as core_options  # noqa: E402
+from addon.core.choices import parse_choices  # noqa: E402
 
 INTERRUPTED = 130
 
@@ -43,6 +45,14 @@ def parser(prog, description, blend_file=True):
     if blend_file:
         p.add_argument("blend", nargs="?", metavar="FILE.blend",
                        help="open this file first (inside Blender: give it before -P instead)")
+    return p
+
+
+def bench_parser(prog, description, output_dir, quick_help="small sizes and sample counts"):
+    """A parser for a benchmark or the demo: ``--out`` (default ``output_dir``) and ``--quick``; no .blend."""
+    p = parser(prog, description, blend_file=False)
+    p.add_argument("--out", default=output_dir, help=f"output folder (default {output_dir})")
+    p.add_argument("--quick", action="store_true", help=quick_help)
     return p
 
 
@@ -65,6 +75,77 @@ def number(kind=float, minimum=None, maximum=None, above=None):
         return value
     parse.__name__ = kind.__name__
     return parse
+
+
+def joined(choices, separator, what):
+    """An argparse ``type``: ``a,b,c`` -> ["a", "b", "c"], each one of ``choices`` (a parse error names the
+    unknown one and the choices)."""
+    def parse(text):
+        try:
+            return parse_choices(text.split(separator), choices, what)
+        except InputError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
+    parse.__name__ = what
+    return parse
+
+
+def add_options(p, cls, skip=()):
+    """Add one argument per field of the options class ``cls`` (core.options): ``--name-with-dashes``,
+    its type with the field's limits (``number``), its choices, ``store_true`` for a bool that defaults to
+    False and ``--no-name`` for one that defaults to True, ``nargs="+"`` for a list. argparse defaults
+    are None so :func:`options_from` keeps the class default (shown in the help)."""
+    groups = {}
+    for name, kind, default, spec in core_options.specs(cls):
+        if not spec.cli or name in skip:
+            continue
+        target = p
+        if spec.group:
+            if spec.group not in groups:
+                groups[spec.group] = p.add_mutually_exclusive_group()
+            target = groups[spec.group]
+        flag = spec.flag or "--" + name.replace("_", "-")
+        shown = (spec.separator or " ").join(map(str, default)) if isinstance(default, (list, tuple)) else default
+        notes = []
+        if kind in (int, float) and spec.minimum is not None and spec.maximum is not None:
+            notes.append(f"{spec.minimum}..{spec.maximum}")
+        if default is not None and default is not False and kind is not bool:
+            notes.append(f"default {shown}")
+        help_ = spec.help + (f" ({'; '.join(notes)})" if notes else "")
+        kw = {"dest": name, "default": None, "help": help_}
+        if kind is bool:
+            if default:
+                flag = spec.flag or "--no-" + name.replace("_", "-")
+                kw.update(action="store_false")
+            else:
+                kw.update(action="store_true")
+            kw.pop("default")
+            target.add_argument(flag, **kw)
+            continue
+        if spec.multiple and spec.separator:
+            kw["type"] = joined(core_options.choice_ids(spec), spec.separator, spec.item or spec.label.lower())
+        elif spec.choices:
+            kw["choices"] = core_options.choice_ids(spec)
+        elif kind in (int, float):
+            kw["type"] = number(kind, spec.minimum, spec.maximum, spec.above)
+        if spec.multiple and not spec.separator:
+            kw["nargs"] = "+"
+        kw["metavar"] = spec.metavar or ("N" if kind is int else "X" if kind is float else
+                                         "M[,M...]" if spec.separator else None)
+        if kw["metavar"] is None:
+            del kw["metavar"]
+        target.add_argument(flag, **kw)
+    for name, kind, default, spec in core_options.specs(cls):
+        if kind is bool and spec.cli and name not in skip:
+            p.set_defaults(**{name: default})
+    return p
+
+
+def options_from(cls, args, **extra):
+    """An instance of the options class ``cls`` from parsed ``args`` (class defaults where an argument was
+    not given), validated."""
+    values = {name: getattr(args, name) for name, _, _, spec in core_options.specs(cls)
+              if spec.cli and getattr(args, name, None) is not None}
+    return cls(**values, **extra).validate()
 
 
 def script_argv(argv=None):

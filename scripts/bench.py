@@ -19,10 +19,8 @@ def main(args):
 
 
 def build_parser():
-    p = _cli.parser("bench.py", "Run the sweeps of all labs and write report.md with charts and CSV tables.",
-                    blend_file=False)
-    p.add_argument("--out", default="out/bench", help="output folder (default: out/bench)")
-    p.add_argument("--quick", action="store_true", help="small sizes and sample counts (a few minutes)")
+    p = _cli.bench_parser("bench.py", "Run the sweeps of all labs and write report.md with charts and CSV tables.",
+                          "out/bench", "small sizes and sample counts (a few minutes)")
     p.add_argument("--areas", nargs="+", choices=AREA_NAMES, help="only these areas (default: all)")
     return p
 

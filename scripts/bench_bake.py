@@ -26,9 +26,8 @@ def main(args):
 
 
 def build_parser():
-    p = _cli.parser("bench_bake.py", "Benchmark the light-map bake.", blend_file=False)
-    p.add_argument("--out", default="out/bench_bake", help="output folder (default out/bench_bake)")
-    p.add_argument("--quick", action="store_true", help="small sizes (well under a minute)")
+    p = _cli.bench_parser("bench_bake.py", "Benchmark the light-map bake.",
+                          "out/bench_bake", "small sizes (well under a minute)")
     return p
 
 

@@ -21,9 +21,8 @@ def main(args):
 
 
 def build_parser():
-    p = _cli.parser("bench_envmap.py", "Speed and accuracy of irradiance maps and radiosity.", blend_file=False)
-    p.add_argument("--out", default="out/bench_envmap", help="output folder (default out/bench_envmap)")
-    p.add_argument("--quick", action="store_true", help="small sizes (seconds)")
+    p = _cli.bench_parser("bench_envmap.py", "Speed and accuracy of irradiance maps and radiosity.",
+                          "out/bench_envmap", "small sizes (seconds)")
     return p
 
 

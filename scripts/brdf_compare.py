@@ -35,10 +35,8 @@ def main(args):
 
 
 def build_parser():
-    p = _cli.parser("brdf_compare.py", "Chart the shading models and compare them with Blender's closures.",
-                    blend_file=False)
-    p.add_argument("--out", default="out/brdf", help="output folder (default: out/brdf)")
-    p.add_argument("--quick", action="store_true", help="small renders and fewer values, for tests")
+    p = _cli.bench_parser("brdf_compare.py", "Chart the shading models and compare them with Blender's closures.",
+                          "out/brdf", "small renders and fewer values, for tests")
     return p
 
 

@@ -12,18 +12,17 @@ import _cli  # noqa: E402
 
 def main(args):
     from addon.lab.demo import job
-    summary = job.run(os.path.abspath(args.out), quick=args.quick, samples=args.samples)
-    print(f"demo: outputs in {summary['out']}")
-    for line in summary["lines"]:
+    result = job.run(os.path.abspath(args.out), quick=args.quick, samples=args.samples)
+    print(f"demo: outputs in {os.path.dirname(result.path)}")
+    for line in result.summary.splitlines():
         print(f"  {line}")
 
 
 def build_parser():
-    p = _cli.parser("demo.py", "Build the demo scene and run the project's tools on it.", blend_file=False)
-    p.add_argument("--out", default="out/demo", help="output folder (default: out/demo)")
+    p = _cli.bench_parser("demo.py", "Build the demo scene and run the project's tools on it.",
+                          "out/demo", "smallest sizes, for tests")
     p.add_argument("--samples", type=_cli.number(int, 1, 4096), default=32,
                    help="Cycles samples of the preview render, 1..4096 (default 32)")
-    p.add_argument("--quick", action="store_true", help="smallest sizes, for tests")
     return p
 
 

@@ -9,19 +9,18 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import _cli  # noqa: E402
 
-MAX_ADAPTIVE = 8           # addon.lab.radiosity.MAX_ADAPTIVE, MAX_SAMPLES (not imported: --help needs no bpy)
-MAX_SAMPLES = 65536
 
 
 def main(args):
     from addon.core.errors import InputError
     from addon.lab import radiosity
+    from addon.lab.options import RadiosityOptions
     if args.scene and args.blend:
         raise InputError("give either FILE.blend or --scene cornell, not both")
-    r = radiosity.run(os.path.abspath(args.out), cornell=args.scene == "cornell", solver=args.solver,
-                      max_edge=args.max_edge, adaptive=args.adaptive, samples=args.samples,
-                      compare=not args.no_compare, tol=args.tol)
-    rep = r["report"]
+    o = _cli.options_from(RadiosityOptions, args)
+    result = radiosity.run(os.path.abspath(args.out), cornell=args.scene == "cornell", solver=o.solver,
+                           max_edge=o.max_edge, adaptive=o.adaptive, samples=o.samples, compare=o.compare, tol=o.tol)
+    rep = result["report"]
     print(f"radiosity: {rep['patches']} patches ({rep['back_patches']} of them back sides), {rep['solver']} "
           f"{rep['iterations']} iterations, {rep['seconds']:.2f} s")
     if rep["rms_vs_cycles"] is not None:
@@ -31,21 +30,11 @@ def main(args):
 
 
 def build_parser():
+    from addon.lab.options import RadiosityOptions
     p = _cli.parser("radiosity.py", "Radiosity solution as vertex colours and light maps, checked against Cycles.")
     p.add_argument("--scene", choices=("cornell",), help="the built-in Cornell-box-like scene")
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--solver", choices=("jacobi", "gauss_seidel", "progressive"), default="jacobi")
-    p.add_argument("--max-edge", type=_cli.number(float, above=0), default=0.25,
-                   help="longest patch edge in metres (default 0.25); refused up front when the N² solve would "
-                        "not fit in the available memory or would take more than an hour")
-    p.add_argument("--adaptive", type=_cli.number(int, 0, MAX_ADAPTIVE), default=0,
-                   help="rounds of adaptive subdivision (default 0)")
-    p.add_argument("--samples", type=_cli.number(int, 1, MAX_SAMPLES), default=64,
-                   help="Cycles samples of the comparison bake (default 64)")
-    p.add_argument("--tol", type=_cli.number(float, above=0, maximum=0.5), default=1e-5,
-                   help="relative residual to stop at (default 1e-5)")
-    p.add_argument("--no-compare", action="store_true", help="skip the Cycles bake")
-    return p
+    return _cli.add_options(p, RadiosityOptions)
 
 
 if __name__ == "__main__":

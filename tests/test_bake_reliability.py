@@ -218,7 +218,7 @@ def test_operator_with_everything_selected_bakes_the_meshes_and_warns(tmp_path):
     cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
     scene.collection.objects.link(cam)
     s = scene.illumination.lightmaps
-    s.out_dir, s.resolution, s.samples, s.bake_irradiance = str(tmp_path), 8, 1, False
+    s.output_dir, s.resolution, s.samples, s.maps = str(tmp_path), 8, 1, {"ao"}
     for o in (p, lamp, cam):
         o.select_set(True)
     bpy.context.view_layer.objects.active = cam
@@ -233,7 +233,7 @@ def test_operator_reports_a_full_disk_instead_of_a_traceback(tmp_path, monkeypat
     scene = bpy.context.scene
     p = sc.plane(scene, "P", 2.0)
     s = scene.illumination.lightmaps
-    s.out_dir, s.resolution, s.samples, s.bake_irradiance = str(tmp_path), 8, 1, False
+    s.output_dir, s.resolution, s.samples, s.maps = str(tmp_path), 8, 1, {"ao"}
     p.select_set(True)
     bpy.context.view_layer.objects.active = p
 

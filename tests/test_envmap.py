@@ -164,11 +164,11 @@ def test_operator_from_world_and_errors(tmp_path):
     sc = bpy.context.scene
     S.world(sc, 1.0)   # no environment texture
     with pytest.raises(RuntimeError, match="no Environment Texture"):   # reported, cancelled
-        bpy.ops.illumination.envmap_irradiance(out_dir=str(tmp_path / "o"))
+        bpy.ops.illumination.envmap_irradiance(output_dir=str(tmp_path / "o"))
     assert not (tmp_path / "o" / "irradiance_latlong.exr").exists()
     img, _ = _env_image(tmp_path, np.full((16, 32, 3), 0.5, np.float32))
     L.set_world_environment(sc, img)
-    assert bpy.ops.illumination.envmap_irradiance(out_dir=str(tmp_path / "o"), width=8) == {"FINISHED"}
+    assert bpy.ops.illumination.envmap_irradiance(output_dir=str(tmp_path / "o"), width=8) == {"FINISHED"}
     ch, _ = exr.read_exr(tmp_path / "o" / "irradiance_latlong.exr")
     assert np.allclose(ch["R"], np.pi * 0.5, rtol=1e-3)
     assert L.GROUP in bpy.data.node_groups

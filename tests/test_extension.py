@@ -71,7 +71,8 @@ CHECK = textwrap.dedent("""
 
     # AO + irradiance light maps at 16², margin 2 (the dilation runs)
     lm = scene.illumination.lightmaps
-    lm.out_dir, lm.resolution, lm.samples, lm.bounces, lm.margin = os.path.join(out, "lightmaps"), 16, 4, 1, 2
+    lm.output_dir, lm.resolution, lm.samples, lm.bounces, lm.margin = os.path.join(out, "lightmaps"), 16, 4, 1, 2
+    lm.maps = {"ao", "irradiance"}
     press(ops.bake_lightmaps)
     exrs = glob.glob(os.path.join(out, "lightmaps", "*.exr"))
     assert len(exrs) == 2, exrs
@@ -79,7 +80,7 @@ CHECK = textwrap.dedent("""
 
     # radiosity on the Cornell box, coarse patches, no comparison bake: the chart is skipped
     press(ops.build_cornell_box)
-    press(ops.radiosity, out_dir=os.path.join(out, "radiosity"), solver="gauss_seidel", max_edge=1.0, samples=0)
+    press(ops.radiosity, output_dir=os.path.join(out, "radiosity"), solver="gauss_seidel", max_edge=1.0, compare=False)
     with open(os.path.join(out, "radiosity", "radiosity_report.json")) as f:
         rep = json.load(f)
     assert rep["chart"] is None and rep["patches"] > 10 and not glob.glob(os.path.join(out, "radiosity", "*.png"))
@@ -99,7 +100,7 @@ CHECK = textwrap.dedent("""
     press(ops.build_shadow_scene)
     st = bpy.context.scene.illumination.shadows
     st.methods = {"planar", "shadowmap", "volume_zpass", "volume_zfail"}
-    st.shadowmap_size, st.output = 64, os.path.join(out, "shadows")
+    st.shadowmap_size, st.output_dir = 64, os.path.join(out, "shadows")
     press(ops.run_shadow_comparison)
     assert os.path.isfile(st.last_report), st.last_report
 

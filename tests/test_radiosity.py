@@ -102,7 +102,8 @@ def test_script_errors_and_help(script, tmp_path):
     assert bad.returncode == 2 and "--max-edge" in bad.stderr.strip().splitlines()[-1]
     bad = script("radiosity.py", "--scene", "kitchen", "--out", tmp_path)
     assert bad.returncode == 2
-    for kwargs, option in ((dict(tol=0.0), "--tol"), (dict(adaptive=-1), "--adaptive")):
+    for kwargs, option in ((dict(tol=0.0), "tolerance must be greater than 0"),
+                           (dict(adaptive=-1), "adaptive rounds must be between 0 and")):
         with pytest.raises(InputError, match=option):     # refused before any scene is built
             L.run(str(tmp_path), cornell=True, **kwargs)
     assert "IL Cornell" not in bpy.data.scenes
@@ -121,7 +122,7 @@ def test_operators(tmp_path):
     assert bpy.ops.illumination.build_cornell_box() == {"FINISHED"}
     sc = bpy.data.scenes["IL Cornell"]
     with bpy.context.temp_override(scene=sc):
-        assert bpy.ops.illumination.radiosity(out_dir=str(tmp_path), max_edge=1.0, samples=0) == {"FINISHED"}
+        assert bpy.ops.illumination.radiosity(output_dir=str(tmp_path), max_edge=1.0, compare=False) == {"FINISHED"}
     assert (tmp_path / "radiosity_report.json").exists()
     assert "IL Radiosity" in bpy.data.collections
 

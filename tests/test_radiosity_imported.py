@@ -312,7 +312,7 @@ def test_operator_refuses_a_patch_size_that_does_not_fit(tmp_path):
     assert bpy.ops.illumination.build_cornell_box() == {"FINISHED"}
     sc = bpy.data.scenes["IL Cornell"]
     with bpy.context.temp_override(scene=sc), pytest.raises(RuntimeError, match="smallest edge that fits"):
-        bpy.ops.illumination.radiosity(out_dir=str(tmp_path / "o"), max_edge=0.001, samples=0)
+        bpy.ops.illumination.radiosity(output_dir=str(tmp_path / "o"), max_edge=0.001, compare=False)
     assert not (tmp_path / "o").exists()
     cost, best = L.estimate(sc, 0.001)                   # the dialog's line comes from the same estimate
     assert cost.patches > 1e7 and 0.01 < best < 1.0

@@ -153,7 +153,7 @@ def test_eevee_virtual_shadow_maps_match_the_reference(tmp_path):
 def test_panel_operators_build_a_scene_and_write_the_report(tmp_path):
     user = bpy.context.scene
     st = user.illumination.shadows
-    st.scene_name, st.resolution, st.output = "plate", 48, str(tmp_path)
+    st.scene_name, st.resolution, st.output_dir = "plate", 48, str(tmp_path)
     st.methods = {"shadowmap", "volume_zfail"}
     st.shadowmap_size = 256
     assert bpy.ops.illumination.build_shadow_scene() == {"FINISHED"}

@@ -51,8 +51,6 @@ def test_script_bad_input_exit_2_with_one_line(script, tmp_path):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--methods", "gtao,ssdo"], "unknown SSAO method 'ssdo'"),
-    (["--methods", ","], "no SSAO method given"),
     (["--scene", "attic"], "unknown SSAO scene 'attic'"),
     (["--resolution", "2048", "--reference-samples", "65536"], "the largest reference samples that fits is"),
 ])
@@ -60,6 +58,18 @@ def test_script_rejects_bad_input_before_rendering(args, message):
     mod = _script_module("ssao")
     with pytest.raises(InputError, match=message):
         mod._validate(mod.build_parser().parse_args(args))
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--methods", "gtao,ssdo"], "unknown SSAO method 'ssdo'"),
+    (["--methods", ","], "no SSAO method given"),
+])
+def test_script_rejects_unknown_methods_at_parse_time(args, message, capsys):
+    mod = _script_module("ssao")
+    with pytest.raises(SystemExit) as e:
+        mod.build_parser().parse_args(args)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert e.value.code == 2 and len(err) == 1 and message in err[0]
 
 
 @pytest.mark.parametrize("args, option", [

@@ -1,91 +1,74 @@
-"""Bake options: one dataclass shared by the operator, scripts/bake.py and other tools."""
+"""Bake options: the one declaration the operator, its panel, scripts/bake.py and other tools build from."""
 import dataclasses
 
 from ..core.errors import InputError
 from ..core.io.files import check_output_dir as check_out_dir  # noqa: F401  (one home: core.io.files)
 from ..core.lightmap import MAX_RESOLUTION
+from ..core.options import Options, option
 
-MAPS = ("ao", "irradiance")
-TARGETS = ("image", "vertex")
+MAP_CHOICES = (("ao", "Ambient Occlusion", "k_A (1 = open)"), ("irradiance", "Irradiance", "E in W/m² (RGB)"))
+MAPS = tuple(m[0] for m in MAP_CHOICES)
+TARGET_CHOICES = (("image", "Image", "EXR map + PNG preview per object"),
+                  ("vertex", "Vertex Colors", "A colour attribute per map"))
+TARGETS = tuple(t[0] for t in TARGET_CHOICES)
 
 
 @dataclasses.dataclass
-class BakeOptions:
-    """Everything a bake needs besides the objects, the maps and the output folder.
+class BakeOptions(Options):
+    """Everything a bake needs besides the objects and the output folder (see each field's help).
 
-    resolution      square map side in texels (ignored when texel_density is set)
-    texel_density   texels per metre; the side is then T √(area / UV coverage), capped
-    max_resolution  the cap for texel_density
-    samples         Cycles samples (ignored when target_error is set)
-    target_error    wanted RMS Monte Carlo error over the covered texels (k_A units for AO, W/m² for
-                    irradiance); the samples then come from pilot bakes (pipeline._bake_to_error)
-    pilot_samples   samples per texel of the pilot pair of bakes (half each)
-    max_samples     upper bound of the samples (pilots included) target_error may spend
-    ao_distance     AO ray length in metres (World > Light Settings > Distance)
-    bounces         diffuse bounces of the irradiance bake (0 = direct light only)
-    margin          dilation in texels beyond the covered texels
-    denoise         run Blender's denoiser (OpenImageDenoise, compositor) on image maps
-    uv_layer        an existing UV layer used as it is; None generates "Lightmap"
-    target          "image" (EXR + PNG per map) or "vertex" (a colour attribute per map)
-    atlas           bake every object into one shared map ("atlas_<map>.exr")
-    overwrite       replace existing output files
-    keep_products   leave the generated "Lightmap" UV layer / vertex colour attributes on the meshes
-    seed            Cycles seed of the (first) bake
-    sizes           {object name: (width, height)} of its image map, overriding resolution and
-                    texel_density for that object (a UV layout made for a given image size, e.g. a
-                    radiosity patch atlas); image target without atlas only
+    The side of a map is ``resolution`` unless ``texel_density`` is set: then T √(area / UV coverage),
+    capped at ``max_resolution``. With ``target_error`` the samples come from a pilot pair of bakes
+    (pipeline._bake_to_error) of ``pilot_samples``, at most ``max_samples``. ``sizes`` is
+    {object name: (width, height)} overriding the side for that object (a UV layout made for a given
+    image size, e.g. a radiosity patch atlas; image target without atlas only).
     """
-    resolution: int = 256
-    texel_density: float = None
-    max_resolution: int = 4096
-    samples: int = 64
-    target_error: float = None
-    pilot_samples: int = 8
-    max_samples: int = 4096
-    ao_distance: float = 10.0
-    bounces: int = 3
-    margin: int = 4
-    denoise: bool = False
-    uv_layer: str = None
-    target: str = "image"
-    atlas: bool = False
-    overwrite: bool = False
-    keep_products: bool = True
-    seed: int = 0
+    maps: list = option(["ao"], "Maps", "maps to bake", kind=str, choices=MAP_CHOICES, multiple=True,
+                        item="map")
+    resolution: int = option(256, "Resolution", "map side in texels (the machine's memory may allow less, see "
+                             "README)", minimum=1, maximum=MAX_RESOLUTION, group="size", subtype="PIXEL")
+    texel_density: float = option(None, "Texels/m", "texels per metre of surface (side capped)", kind=float,
+                                  above=0, soft_max=1024.0, metavar="T", group="size", ui_default=32.0)
+    max_resolution: int = option(4096, "Max Resolution", "cap of the side chosen from the texel density",
+                                 minimum=1, maximum=MAX_RESOLUTION, subtype="PIXEL")
+    samples: int = option(64, "Samples", "Cycles samples", minimum=1, maximum=1 << 20, group="quality")
+    target_error: float = option(None, "Target Error", "RMS Monte Carlo error wanted (k_A units for AO, W/m² "
+                                 "for irradiance); samples chosen from a pilot bake's variance", kind=float,
+                                 above=0, metavar="E", group="quality", ui_default=0.01)
+    pilot_samples: int = option(8, "Pilot Samples", "samples per texel of the pilot pair of bakes", minimum=2,
+                                cli=False, ui=False)
+    max_samples: int = option(4096, "Max Samples", "most samples (pilots included) a target error may spend",
+                              minimum=2, cli=False, ui=False)
+    ao_distance: float = option(10.0, "AO Distance", "AO ray length in m (World > Light Settings > Distance)",
+                                above=0, metavar="D", unit="LENGTH")
+    bounces: int = option(3, "Bounces", "diffuse bounces of the irradiance bake (0 = direct light only)",
+                          minimum=0, maximum=1024, metavar="K")
+    margin: int = option(4, "Margin", "dilation beyond the covered texels, in texels", minimum=0, maximum=1024,
+                         metavar="PX", subtype="PIXEL")
+    denoise: bool = option(False, "Denoise", "Blender's denoiser (OpenImageDenoise) on the image maps")
+    uv_layer: str = option(None, "UV Layer", "existing UV layer used as it is (default: generate 'Lightmap')",
+                           kind=str, metavar="NAME")
+    target: str = option("image", "Target", "image maps or vertex colours", choices=TARGET_CHOICES)
+    atlas: bool = option(False, "Shared Atlas", "one shared map for all objects")
+    seed: int = option(0, "Seed", "Cycles seed of the (first) bake", minimum=0, maximum=2 ** 31 - 1, ui=False)
+    overwrite: bool = option(False, "Overwrite", "replace existing output files")
+    keep_products: bool = option(True, "Keep Products", "leave the generated 'Lightmap' UV layer / vertex "
+                                 "colour attributes on the meshes", cli=False, ui=False)
     sizes: dict = None
 
-    def validate(self):
-        """Raise InputError for any value out of range (before anything is touched)."""
+    def check(self):
         if self.texel_density is None:
-            if not 1 <= int(self.resolution) <= MAX_RESOLUTION:
-                raise InputError(f"resolution must be between 1 and {MAX_RESOLUTION}, got {self.resolution}")
-        elif not self.texel_density > 0:
-            raise InputError(f"texel density must be positive, got {self.texel_density}")
-        if not 1 <= int(self.max_resolution) <= MAX_RESOLUTION:
-            raise InputError(f"maximum resolution must be between 1 and {MAX_RESOLUTION}, got {self.max_resolution}")
-        if self.target_error is None:
-            if int(self.samples) < 1:
-                raise InputError(f"samples must be at least 1, got {self.samples}")
-        elif not self.target_error > 0:
-            raise InputError(f"target error must be positive, got {self.target_error}")
-        if int(self.pilot_samples) < 2 or int(self.max_samples) < int(self.pilot_samples):
+            self.resolution = int(self.resolution)
+        if int(self.max_samples) < int(self.pilot_samples):
             raise InputError(f"pilot samples must be at least 2 and maximum samples at least the pilot samples, "
                              f"got {self.pilot_samples} and {self.max_samples}")
-        if not self.ao_distance > 0:
-            raise InputError(f"AO distance must be positive, got {self.ao_distance}")
-        if not 0 <= int(self.bounces) <= 1024:
-            raise InputError(f"bounces must be between 0 and 1024, got {self.bounces}")
-        if not 0 <= int(self.margin) <= 1024:
-            raise InputError(f"margin must be between 0 and 1024 texels, got {self.margin}")
-        if self.target not in TARGETS:
-            raise InputError(f"target must be one of {', '.join(TARGETS)}, got {self.target!r}")
+        self.uv_layer = self.uv_layer or None
         if self.sizes:
             if self.target != "image" or self.atlas:
                 raise InputError("per-object map sizes need the image target without a shared atlas")
             for name, (w, h) in self.sizes.items():
                 if not (1 <= int(w) <= MAX_RESOLUTION and 1 <= int(h) <= MAX_RESOLUTION):
                     raise InputError(f"map size of '{name}' must be between 1 and {MAX_RESOLUTION}, got {w}x{h}")
-        return self
 
 
 def article(word):

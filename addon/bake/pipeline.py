@@ -15,6 +15,7 @@ from ..core.io import png as io_png
 from ..core.io import exr
 from ..core.errors import ILError, InputError
 from ..core.io.files import write_json
+from ..core.result import JobResult
 from ..blender.progress import Progress
 from ..blender import materials, scene as sc
 from . import cost, orientation, uv as uvmod
@@ -181,7 +182,8 @@ def output_files(objects, maps, out, options):
 # ------------------------------------------------------------------ public entry point
 
 def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
-    """Bake ``maps`` ("ao", "irradiance") of mesh ``objects`` into folder ``out``; return the report dict.
+    """Bake ``maps`` ("ao", "irradiance"; None: ``options.maps``) of mesh ``objects`` into folder ``out``;
+    return a :class:`core.result.JobResult` (reads as the report, ``path`` is bake_report.json).
 
     Writes ``<out>/<object>_<map>.exr`` (+ ``.png`` preview) per object (``atlas_<map>``
     with ``options.atlas``), or ``<object>_<map>_vertex.exr`` for the vertex target, and
@@ -259,8 +261,7 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
             state.keep |= {(o.data.name, uvmod.LIGHTMAP) for o in objects}
             state.keep |= {(o.data.name, ATTRIBUTE[m]) for o in objects for m in maps}
     report["seconds"] = time.perf_counter() - t_all
-    report["report"] = report_path
-    return report
+    return JobResult(report, report_path, summary(report))
 
 
 def summary(report):
@@ -756,7 +757,6 @@ def _merge_report(path, report):
         merged = {"objects": objects, "seconds": round(report["seconds"], 4),
                   "blender_version": bpy.app.version_string}
         write_json(path, merged)
-    report["report"] = path
 
 
 def _aside(path):

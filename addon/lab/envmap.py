@@ -17,6 +17,8 @@ from ..core.envmap import latlong
 from ..core.envmap import sh9 as env_sh9
 from ..core.io import png as io_png
 from ..core.io import exr
+from ..core.result import JobResult
+from .options import EnvmapOptions
 from ..core.errors import ILError, InputError
 from ..core.io.files import write_json
 from ..nodes import groups
@@ -104,21 +106,21 @@ def write_outputs(out, emap, coeffs, method, seconds, source):
                   {"il:quantity": "irradiance E(n) for the normal n of each lat-long direction",
                    "il:units": "W/m^2", "il:method": method, "il:layout": "Blender equirectangular, top row = +Z",
                    "il:source": source, "il:blender_version": bpy.app.version_string})
-    report = os.path.join(out, REPORT)
-    write_json(report, {"method": method, "seconds": round(seconds, 6), "source": source,
-                        "width": int(emap.shape[1]), "height": int(emap.shape[0]),
-                        "sh9": [[float(v) for v in row] for row in coeffs]})
+    report = {"method": method, "seconds": round(seconds, 6), "source": source,
+              "width": int(emap.shape[1]), "height": int(emap.shape[0]),
+              "sh9": [[float(v) for v in row] for row in coeffs]}
+    write_json(os.path.join(out, REPORT), report)
     return path, report
 
 
-def run(out, scene=None, env_file=None, method="sh9", width=64):
-    """Environment from ``env_file`` or the scene's world -> files in ``out``; returns a summary dict.
+def run(out, scene=None, env_file=None, method=EnvmapOptions.method, width=EnvmapOptions.width):
+    """Environment from ``env_file`` or the scene's world -> files in ``out``; returns a core.result.JobResult
+    (reads as envmap_report.json plus "file", the EXR; ``arrays`` holds "map" and "sh9").
 
     Refused before any work: an odd or too large ``width`` (memory, and for ``brute`` time), negative
     radiance, and an environment so bright that E(n) leaves the EXR's float range.
     """
-    if width < 4 or width % 2:
-        raise InputError(f"width must be an even number >= 4, got {width}")
+    EnvmapOptions(method=method, width=width).validate()
     env_irradiance.check_cost(width, "sh9")
     if env_file:
         env, source = latlong.read_latlong(env_file), os.path.abspath(env_file)
@@ -135,7 +137,8 @@ def run(out, scene=None, env_file=None, method="sh9", width=64):
         raise InputError(f"{source}: the environment is too bright (radiance up to {np.max(env):.3g}): E(n) leaves "
                          f"the EXR float range ({exr.FLOAT32_MAX:.3g} W/m²); scale the radiance down")
     path, report = write_outputs(out, emap, coeffs, method, seconds, source)
-    return {"file": path, "report": report, "seconds": seconds, "map": emap, "sh9": coeffs, "source": source}
+    return JobResult(dict(report, file=path), os.path.join(out, REPORT),
+                     f"Wrote {path} ({seconds * 1e3:.1f} ms)", arrays={"map": emap, "sh9": coeffs})
 
 
 # ----------------------------------------------------------------------------- node group

@@ -27,6 +27,7 @@ from ..core.io.files import check_output_dir, write_json
 from ..blender import interrupt
 from ..blender.progress import Progress
 from ..blender import materials, scene as scn
+from .options import RadiosityOptions
 
 COLLECTION = "IL Radiosity"
 ATTRIBUTE = "IL Radiosity E"
@@ -657,22 +658,10 @@ def compare_with_cycles(patches, F, B, near, visible, Hf, front, Hc, Hc_texels):
     return out, Hx, Hx_mean
 
 
-def check_options(solver="jacobi", max_edge=0.25, adaptive=0, samples=64, tol=1e-5):
-    """InputError for options out of range (the script's parser checks the same at parse time)."""
-    if solver not in rad_solvers.SOLVERS:
-        raise InputError(f"unknown solver {solver!r}; choose from {', '.join(rad_solvers.SOLVERS)}")
-    if not (isinstance(max_edge, (int, float)) and np.isfinite(max_edge) and max_edge > 0):
-        raise InputError(f"--max-edge must be a positive number, got {max_edge}")
-    if not (isinstance(samples, int) and 1 <= samples <= MAX_SAMPLES):
-        raise InputError(f"--samples must be 1..{MAX_SAMPLES}, got {samples}")
-    if not (np.isfinite(tol) and 0 < tol < 1):
-        raise InputError(f"--tol must be between 0 and 1, got {tol}")
-    if not (isinstance(adaptive, int) and 0 <= adaptive <= MAX_ADAPTIVE):
-        raise InputError(f"--adaptive must be 0..{MAX_ADAPTIVE}, got {adaptive}")
-
-
-MAX_SAMPLES = 65536
-MAX_ADAPTIVE = 8
+def check_options(solver=RadiosityOptions.solver, max_edge=RadiosityOptions.max_edge,
+                  adaptive=RadiosityOptions.adaptive, samples=RadiosityOptions.samples, tol=RadiosityOptions.tol):
+    """InputError for options out of range (lab.options.RadiosityOptions, the script's parser checks the same)."""
+    RadiosityOptions(solver=solver, max_edge=max_edge, adaptive=adaptive, samples=samples, tol=tol).validate()
 
 
 def estimate(scene, max_edge):
@@ -688,8 +677,9 @@ def estimate(scene, max_edge):
     return cost, best
 
 
-def run(out, scene=None, cornell=False, solver="jacobi", max_edge=0.25, adaptive=0, samples=64,
-        compare=True, tol=1e-5, chart=True, memory=None):
+def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge=RadiosityOptions.max_edge,
+        adaptive=RadiosityOptions.adaptive, samples=RadiosityOptions.samples, compare=RadiosityOptions.compare,
+        tol=RadiosityOptions.tol, chart=True, memory=None):
     """The whole job of scripts/radiosity.py; returns the report dict (also written to ``out``).
 
     Order: options, output folder, scene, emitters and the cost estimate are all checked before the

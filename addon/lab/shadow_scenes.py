@@ -15,8 +15,9 @@ from mathutils import Vector
 
 from ..core.errors import InputError
 from ..blender import scene as sc
+from .options import SHADOW_SCENE_CHOICES
 
-SCENES = ("sphere", "stairs", "acne", "plate", "inside")
+SCENES = tuple(c[0] for c in SHADOW_SCENE_CHOICES)
 LIGHT_KINDS = ("sun", "point", "spot")
 LIGHT_NAME = "Light"
 

@@ -7,7 +7,7 @@ agree, red false shadow, blue false light; see core.shadow.metrics.COLOURS) and
 ``<out>/shadows_report.json`` (DESIGN.md). The bench (lab/bench/shadows.py) and the demo
 (lab/demo/job.py) call it.
 """
-import math
+import dataclasses
 import os
 import time
 
@@ -21,16 +21,14 @@ from ..core.shadow import depth_map
 from ..core.shadow import planar as shadow_planar
 from ..core.errors import ILError, InputError, warn
 from ..core.io.files import write_json
+from ..core.result import JobResult
 from ..blender.progress import Progress
 from ..blender import scene as sc
 from . import shadow_scenes
+from .options import SHADOW_METHOD_CHOICES, ShadowOptions
 from .shadow_session import Session
 
-METHODS = ("raytraced", "planar", "shadowmap", "volume_zpass", "volume_zfail", "eevee", "workbench")
-
-#: Defaults shared by the script, the panel and the sweeps.
-DEFAULTS = {"resolution": 128, "shadowmap_size": 1024, "bias": 0.01, "slope_bias": 2.0, "pcf": 1,
-            "offset": 1e-3, "samples": 1, "receiver": None}
+METHODS = tuple(m[0] for m in SHADOW_METHOD_CHOICES)
 
 
 def parse_methods(methods):
@@ -39,19 +37,9 @@ def parse_methods(methods):
 
 
 def check_params(params):
-    """Merge with DEFAULTS and validate the numbers (finite, in range); return the merged dict."""
-    p = dict(DEFAULTS, **{k: v for k, v in params.items() if v is not None})
-    depth_map.check_pcf(p["pcf"])
-    for key in ("bias", "slope_bias", "offset"):
-        if not (isinstance(p[key], (int, float)) and math.isfinite(p[key]) and p[key] >= 0):
-            raise InputError(f"{key.replace('_', ' ')} must be a finite number >= 0, got {p[key]}")
-    if not 2 <= p["shadowmap_size"] <= depth_map.MAX_SIZE:
-        raise InputError(f"shadow-map size must be between 2 and {depth_map.MAX_SIZE}, got {p['shadowmap_size']}")
-    if not 8 <= p["resolution"] <= depth_map.MAX_RESOLUTION:
-        raise InputError(f"resolution must be between 8 and {depth_map.MAX_RESOLUTION}, got {p['resolution']}")
-    if not 1 <= p["samples"] <= 4096:
-        raise InputError(f"samples must be between 1 and 4096, got {p['samples']}")
-    return p
+    """``params`` (None: the default) over lab.options.ShadowOptions, validated; returned as a dict."""
+    o = ShadowOptions(**{k: v for k, v in params.items() if v is not None and k != "methods"}).validate()
+    return dataclasses.asdict(o)
 
 
 def check_cost(session, methods, p):
@@ -202,7 +190,8 @@ def compare(scene, light, methods, out, **params):
     for name, pixels in images.items():
         png.write_png(os.path.join(out, name), pixels)
     write_json(report["report"], report)
-    return report
+    return JobResult(report, report["report"], "  ".join(
+        f"{m} {e['error']:.2%}" for m, e in report["methods"].items() if m != "raytraced"))
 
 
 def compare_builtin(name, light_kind, methods, out, keep=False, **params):

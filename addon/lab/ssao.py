@@ -35,9 +35,11 @@ from ..core.io import png
 from ..core.io import exr
 from ..core.errors import ILError, InputError
 from ..core.io.files import atomic_path, write_json
+from ..core.result import JobResult
 from ..blender.progress import Progress
 from ..blender import scene as sc
 from . import render, ssao_scenes
+from .options import SSAOOptions
 
 #: Bumped when the reference render changes meaning (invalidates caches).
 REFERENCE_VERSION = 1
@@ -53,17 +55,10 @@ def parse_methods(methods):
 
 
 def check_params(samples=16, radius=1.0, reference_samples=1024, resolution=None):
-    """Raise InputError for sample counts, radius or resolution out of range (core.ssao's MAX_* limits)."""
-    if not (isinstance(samples, (int, np.integer)) and 0 < samples <= ssao_limits.MAX_SAMPLES):
-        raise InputError(f"samples must be an integer in [1, {ssao_limits.MAX_SAMPLES}], got {samples}")
-    if not (np.isfinite(radius) and radius > 0):
-        raise InputError(f"radius must be positive, got {radius}")
-    if not (isinstance(reference_samples, (int, np.integer)) and 0 < reference_samples <= ssao_limits.MAX_REFERENCE_SAMPLES):
-        raise InputError(f"reference samples must be an integer in [1, {ssao_limits.MAX_REFERENCE_SAMPLES}], "
-                         f"got {reference_samples}")
-    if resolution is not None and not (isinstance(resolution, (int, np.integer))
-                                       and 8 <= resolution <= ssao_limits.MAX_RESOLUTION):
-        raise InputError(f"resolution must be an integer in [8, {ssao_limits.MAX_RESOLUTION}], got {resolution}")
+    """InputError for values out of range (lab.options.SSAOOptions' limits; ``resolution`` None keeps the
+    scene's)."""
+    SSAOOptions(samples=samples, radius=radius, reference_samples=reference_samples,
+                resolution=SSAOOptions.resolution if resolution is None else resolution).validate()
 
 
 def frame_size(scene, resolution=None):
@@ -351,9 +346,11 @@ def run_methods(gb, methods, samples, radius, blur=False, seed=0, scene=None, pa
     return out
 
 
-def compare(scene, methods, out=None, samples=16, radius=1.0, reference_samples=1024, resolution=None,
-            cache_dir=None, blur=False, seed=0, method_params=None):
-    """Run the comparison on ``scene`` (its camera); write files to ``out`` (if given); return the report.
+def compare(scene, methods, out=None, samples=SSAOOptions.samples, radius=SSAOOptions.radius,
+            reference_samples=SSAOOptions.reference_samples, resolution=None, cache_dir=None, blur=SSAOOptions.blur,
+            seed=SSAOOptions.seed, method_params=None):
+    """Run the comparison on ``scene`` (its camera); write files to ``out`` (if given); return a
+    core.result.JobResult (reads as the report; ``path`` is ssao_report.json when ``out`` is given).
 
     Report (DESIGN.md): {"reference": {"samples", "seconds", ...}, "methods": {m: {"rmse", "bias",
     "mean", "seconds", "params"}}} over geometry pixels (G-buffer mask) only.
@@ -412,7 +409,8 @@ def compare(scene, methods, out=None, samples=16, radius=1.0, reference_samples=
             report["methods"][m]["error_image"] = f"{m}_error.png"
         report["reference"]["file"] = "reference_ao.exr"
         write_json(os.path.join(out, "ssao_report.json"), report)
-    return report
+    return JobResult(report, os.path.join(out, "ssao_report.json") if out is not None else None,
+                     "; ".join(summary_lines(report)), arrays={m: r[0] for m, r in results.items()})
 
 
 def frame(scene, radius, reference_samples, resolution=None, cache_dir=None):
@@ -433,13 +431,13 @@ def blender_method(scene, method, radius, samples, resolution=None):
         return (render_eevee if method == "eevee" else render_workbench)(scene, radius, samples)
 
 
-def run_builtin(name, methods, out=None, resolution=128, **kwargs):
+def run_builtin(name, methods, out=None, resolution=SSAOOptions.resolution, **kwargs):
     """Build the built-in scene ``name``, compare, remove the scene again; return the report."""
     ssao_limits.check_scene(name)
     methods = parse_methods(methods)
-    check_params(kwargs.get("samples", 16), kwargs.get("radius", 1.0), kwargs.get("reference_samples", 1024),
-                 resolution)
-    scene = ssao_scenes.build_scene(name, resolution, kwargs.get("radius", 1.0))
+    check_params(kwargs.get("samples", SSAOOptions.samples), kwargs.get("radius", SSAOOptions.radius),
+                 kwargs.get("reference_samples", SSAOOptions.reference_samples), resolution)
+    scene = ssao_scenes.build_scene(name, resolution, kwargs.get("radius", SSAOOptions.radius))
     try:
         return compare(scene, methods, out, resolution=resolution, **kwargs)
     finally:

@@ -1,22 +1,25 @@
 """Panel section "Environment & radiosity": irradiance environment maps and radiosity (issue 7)."""
+import os
 
 import bpy
-from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
+from bpy.props import StringProperty
 
 from ..blender import compat
 from ..core.errors import InputError
-from . import common, polls
+from ..core.result import JobResult
+from ..lab.options import EnvmapOptions, RadiosityOptions
+from .panel import Sidebar
+from . import polls, props
+from .operator import BuildSceneOperator, JobOperator
 
 
-def _output_folder_ok(op):
-    """False (and an error report) when ``op.out_dir`` is relative to a file never saved."""
-    if op.out_dir.startswith("//") and not bpy.data.filepath:
-        op.report({"ERROR"}, "Save the file first, or choose an absolute output folder")
-        return False
-    return True
+def _output_folder_ok(path):
+    """InputError when ``path`` is relative to a file never saved."""
+    if path.startswith("//") and not bpy.data.filepath:
+        raise InputError("Save the file first, or choose an absolute output folder")
 
 
-class IL_OT_envmap_irradiance(bpy.types.Operator):
+class IL_OT_envmap_irradiance(JobOperator, bpy.types.Operator):
     """Write the irradiance map E(n) of the world's environment texture (or a file) as EXR and build the node
     group "IL Irradiance Env" that looks it up by the normal"""
 
@@ -24,13 +27,12 @@ class IL_OT_envmap_irradiance(bpy.types.Operator):
     bl_label = "Irradiance Environment Map"
     bl_options = {"REGISTER", "UNDO"}
 
-    env_file: StringProperty(name="Environment", subtype="FILE_PATH", options=compat.BLEND_RELATIVE_PATH,
-                             description="Lat-long .exr/.hdr; empty = the world's Environment Texture")
-    out_dir: StringProperty(name="Output", subtype="DIR_PATH", default="//irradiance",
-                            options=compat.BLEND_RELATIVE_PATH)
-    method: EnumProperty(name="Method", items=(("sh9", "Nine SH", "Ramamoorthi & Hanrahan 2001"),
-                                               ("brute", "Brute force", "Full cosine convolution")))
-    width: IntProperty(name="Width", default=64, min=4, max=1024)
+    __annotations__ = {
+        "env_file": StringProperty(name="Environment", subtype="FILE_PATH", options=compat.BLEND_RELATIVE_PATH,
+                                   description="Lat-long .exr/.hdr; empty = the world's Environment Texture"),
+        "output_dir": props.output_dir("//irradiance", "Folder for irradiance_latlong.exr and envmap_report.json"),
+        **props.properties(EnvmapOptions),
+    }
 
     @classmethod
     def poll(cls, context):
@@ -39,31 +41,24 @@ class IL_OT_envmap_irradiance(bpy.types.Operator):
     def invoke(self, context, event):
         return context.window_manager.invoke_props_dialog(self, width=400)
 
-    def execute(self, context):
+    def job(self, context):
         from ..lab import envmap
-        if not _output_folder_ok(self):
-            return {"CANCELLED"}
-
-        def job():
-            try:
-                s = envmap.run(bpy.path.abspath(self.out_dir), scene=context.scene,
-                               env_file=bpy.path.abspath(self.env_file) if self.env_file else None,
-                               method=self.method, width=self.width + self.width % 2)
-            except InputError as e:
-                if self.env_file:
-                    raise
-                raise InputError(f"{e} (or choose an Environment file in this button's dialog)") from None
-            envmap.ensure_node_group(envmap.load_irradiance_image(s["file"]))
-            return s
-
-        ok, s = common.run_job(self, job)
-        if not ok:
-            return {"CANCELLED"}
-        self.report({"INFO"}, f"Wrote {s['file']} ({s['seconds'] * 1e3:.1f} ms); node group '{envmap.GROUP}' ready")
-        return {"FINISHED"}
+        _output_folder_ok(self.output_dir)
+        o = props.options(EnvmapOptions, self, width=self.width + self.width % 2)
+        try:
+            result = envmap.run(bpy.path.abspath(self.output_dir), scene=context.scene,
+                                env_file=bpy.path.abspath(self.env_file) if self.env_file else None,
+                                method=o.method, width=o.width)
+        except InputError as e:
+            if self.env_file:
+                raise
+            raise InputError(f"{e} (or choose an Environment file in this button's dialog)") from None
+        envmap.ensure_node_group(envmap.load_irradiance_image(result["file"]))
+        result.summary += f"; node group '{envmap.GROUP}' ready"
+        return result
 
 
-class IL_OT_radiosity(bpy.types.Operator):
+class IL_OT_radiosity(JobOperator, bpy.types.Operator):
     """Solve radiosity for the scene's meshes: new objects with vertex colours and light maps, optionally
     compared with a Cycles irradiance bake"""
 
@@ -71,17 +66,10 @@ class IL_OT_radiosity(bpy.types.Operator):
     bl_label = "Radiosity"
     bl_options = {"REGISTER", "UNDO"}
 
-    out_dir: StringProperty(name="Output", subtype="DIR_PATH", default="//radiosity",
-                            options=compat.BLEND_RELATIVE_PATH)
-    solver: EnumProperty(name="Solver", items=(("jacobi", "Jacobi", ""), ("gauss_seidel", "Gauss-Seidel", ""),
-                                               ("progressive", "Progressive refinement", "")))
-    max_edge: FloatProperty(name="Patch size", default=0.25, min=0.001, unit="LENGTH",
-                            description="Longest patch edge; a size whose N² solve would not fit in the available "
-                                        "memory or would take more than an hour is refused (the dialog shows "
-                                        "the estimate and the smallest size that fits)")
-    adaptive: IntProperty(name="Adaptive rounds", default=0, min=0, max=4)
-    samples: IntProperty(name="Cycles samples", default=32, min=0, max=4096,
-                         description="Samples of the comparison bake (0 = no comparison)")
+    __annotations__ = {
+        "output_dir": props.output_dir("//radiosity", "Folder for the light maps, the chart and radiosity_report.json"),
+        **props.properties(RadiosityOptions),
+    }
 
     @classmethod
     def poll(cls, context):
@@ -92,27 +80,25 @@ class IL_OT_radiosity(bpy.types.Operator):
 
     def draw(self, context):
         layout = self.layout
-        for name in ("out_dir", "solver", "max_edge", "adaptive", "samples"):
-            layout.prop(self, name)
+        layout.prop(self, "output_dir")
+        props.draw(layout, self, [n for n in self.__annotations__ if n != "output_dir"])
         layout.label(text=_estimate_line(context.scene, self.max_edge))
 
-    def execute(self, context):
+    def job(self, context):
         from ..core import charts
         from ..lab import radiosity
-        if not _output_folder_ok(self):
-            return {"CANCELLED"}
+        _output_folder_ok(self.output_dir)
+        o = props.options(RadiosityOptions, self)
         chart = charts.available()
         if not chart:
             self.report({"WARNING"}, charts.MISSING)
-        ok, r = common.run_job(self, lambda: radiosity.run(
-            bpy.path.abspath(self.out_dir), scene=context.scene, solver=self.solver, max_edge=self.max_edge,
-            adaptive=self.adaptive, samples=max(self.samples, 1), compare=self.samples > 0, chart=chart))
-        if not ok:
-            return {"CANCELLED"}
+        r = radiosity.run(bpy.path.abspath(self.output_dir), scene=context.scene, solver=o.solver,
+                          max_edge=o.max_edge, adaptive=o.adaptive, samples=o.samples, compare=o.compare,
+                          chart=chart)
         rep = r["report"]
         extra = "" if rep["rms_vs_cycles"] is None else f", RMS vs Cycles {rep['rms_vs_cycles']:.3g} W/m²"
-        self.report({"INFO"}, f"{rep['patches']} patches, {rep['iterations']} iterations{extra}")
-        return {"FINISHED"}
+        return JobResult(rep, os.path.join(bpy.path.abspath(self.output_dir), radiosity.REPORT),
+                         f"{rep['patches']} patches, {rep['iterations']} iterations{extra}")
 
 
 _ESTIMATES = {}
@@ -135,24 +121,20 @@ def _estimate_line(scene, max_edge):
     return _ESTIMATES[key]
 
 
-class IL_OT_build_cornell(bpy.types.Operator):
+class IL_OT_build_cornell(BuildSceneOperator, bpy.types.Operator):
     """Build the Cornell-box-like radiosity scene as a new scene"""
 
     bl_idname = "illumination.build_cornell_box"
     bl_label = "Build Cornell Box"
-    bl_options = {"REGISTER", "UNDO"}
 
-    def execute(self, context):
+    def build(self, context):
         from ..lab import radiosity
-        return common.open_built_scene(self, context, radiosity.build_cornell_scene)[0]
+        return radiosity.build_cornell_scene()
 
 
-class IL_PT_envmap(bpy.types.Panel):
+class IL_PT_envmap(Sidebar, bpy.types.Panel):
     bl_idname = "IL_PT_envmap"
     bl_label = "Environment & radiosity"
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "Illumination"
     bl_parent_id = "IL_PT_main"
     bl_options = {"DEFAULT_CLOSED"}
     bl_order = 25

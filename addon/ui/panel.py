@@ -2,41 +2,42 @@
 import bpy
 
 from ..lab.demo import scene as demo
-from . import common, polls
+from . import polls
+from .operator import BuildSceneOperator
 
 
-class IL_OT_build_demo_scene(bpy.types.Operator):
+class Sidebar:
+    """Where every panel of the add-on lives: the 3D viewport's sidebar, tab "Illumination"."""
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Illumination"
+
+
+class IL_OT_build_demo_scene(BuildSceneOperator, bpy.types.Operator):
     """Build the embedded demo scene as a new scene (the current one is left untouched)"""
 
     bl_idname = "illumination.build_demo_scene"
     bl_label = "Build Demo Scene"
-    bl_options = {"REGISTER", "UNDO"}
 
     @classmethod
     def poll(cls, context):
         return polls.object_mode(cls, context)
 
-    def execute(self, context):
-        return common.open_built_scene(self, context, lambda: demo.build_demo_scene(new_scene=True))[0]
+    def build(self, context):
+        return demo.build_demo_scene(new_scene=True)
 
 
-class IL_PT_main(bpy.types.Panel):
+class IL_PT_main(Sidebar, bpy.types.Panel):
     bl_idname = "IL_PT_main"
     bl_label = "Illumination"
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "Illumination"
 
     def draw(self, context):
         self.layout.operator(IL_OT_build_demo_scene.bl_idname, icon="SCENE_DATA")
 
 
-class IL_PT_comparisons(bpy.types.Panel):
+class IL_PT_comparisons(Sidebar, bpy.types.Panel):
     bl_idname = "IL_PT_comparisons"
     bl_label = "Comparisons"
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "Illumination"
     bl_parent_id = "IL_PT_main"
     bl_options = {"DEFAULT_CLOSED"}
     bl_order = 30

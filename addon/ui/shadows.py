@@ -1,69 +1,52 @@
 """Comparisons > Shadows: shadow scenes against ray-traced shadows (issue: shadow lab)."""
 import bpy
-from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
+from bpy.props import EnumProperty, StringProperty
 
-from ..blender import compat
-from ..core.shadow import depth_map
-from . import common, polls
-
-_METHOD_ITEMS = [
-    ("planar", "Planar", "Projected shadows onto the receiver plane"),
-    ("shadowmap", "Shadow map", "Depth map from the light, numpy lookup with bias and PCF"),
-    ("volume_zpass", "Volume z-pass", "Shadow volumes, stencil counted in front of the surface"),
-    ("volume_zfail", "Volume z-fail", "Shadow volumes with caps, stencil counted behind the surface"),
-    ("eevee", "EEVEE", "EEVEE's virtual shadow maps"),
-    ("workbench", "Workbench", "Workbench stencil shadows (sun lights only)"),
-]
+from ..core.errors import InputError
+from ..lab.options import LIGHT_TYPE_CHOICES, SHADOW_SCENE_CHOICES, ShadowOptions
+from .panel import Sidebar
+from . import polls, props
+from .operator import BuildSceneOperator, JobOperator
 
 
 class IL_PG_shadows(bpy.types.PropertyGroup):
-    """Shadow-lab settings, stored at ``scene.illumination.shadows``."""
-    scene_name: EnumProperty(name="Scene", items=[
-        ("sphere", "Sphere", "A sphere over a floor"), ("stairs", "Stairs", "A sphere over steps (non-planar receiver)"),
-        ("acne", "Acne", "A box under a grazing sun"), ("plate", "Plate", "A thin plate just above the floor"),
-        ("inside", "Inside", "The camera stands inside a shadow volume")], default="sphere")
-    light_type: EnumProperty(name="Light", items=[("sun", "Sun", ""), ("point", "Point", ""), ("spot", "Spot", "")],
-                             default="sun")
-    light: StringProperty(name="Light Object", description="Light to test (empty: the scene's first light)")
-    receiver: StringProperty(name="Receiver", description="Plane object for planar shadows (empty: Floor)")
-    methods: EnumProperty(name="Methods", items=_METHOD_ITEMS, options={"ENUM_FLAG"},
-                          default={"planar", "shadowmap", "volume_zpass", "volume_zfail"})
-    resolution: IntProperty(name="Resolution", default=128, min=8, max=depth_map.MAX_RESOLUTION,
-                            description="Render width in pixels (memory is checked before rendering)")
-    shadowmap_size: IntProperty(name="Shadow Map Size", default=1024, min=2, max=depth_map.MAX_SIZE,
-                                description="N x N texels per map (memory is checked before rendering)")
-    bias: FloatProperty(name="Bias", default=0.01, min=0.0, precision=4, unit="LENGTH")
-    slope_bias: FloatProperty(name="Slope Bias", default=2.0, min=0.0, description="In texels x tan(theta)")
-    pcf: IntProperty(name="PCF", default=1, min=1, max=15, step=2, description="Odd kernel size")
-    output: StringProperty(name="Output", subtype="DIR_PATH", default="//shadows",
-                           options=compat.BLEND_RELATIVE_PATH)
-    last_report: StringProperty(name="Report", default="")
-    last_summary: StringProperty(default="")
+    """Shadow-lab settings, stored at ``scene.illumination.shadows`` (lab.options.ShadowOptions; the
+    reference is always run, so the panel's method list leaves it out)."""
+    __annotations__ = {
+        "scene_name": EnumProperty(name="Scene", items=SHADOW_SCENE_CHOICES, default="sphere"),
+        "light_type": EnumProperty(name="Light", items=LIGHT_TYPE_CHOICES, default="sun"),
+        "light": StringProperty(name="Light Object", description="Light to test (empty: the scene's first light)"),
+        **props.properties(ShadowOptions, bias={"precision": 4}, pcf={"step": 2}, methods={
+            "items": [c for c in ShadowOptions.__dataclass_fields__["methods"].metadata["spec"].choices
+                      if c[0] != "raytraced"],
+            "default": {"planar", "shadowmap", "volume_zpass", "volume_zfail"}}),
+        "output_dir": props.output_dir("//shadows", "Folder for the masks, error images and shadows_report.json"),
+        "last_report": StringProperty(name="Report", default=""),
+        "last_summary": StringProperty(default=""),
+    }
 
 
-class IL_OT_build_shadow_scene(bpy.types.Operator):
+class IL_OT_build_shadow_scene(BuildSceneOperator, bpy.types.Operator):
     """Add a built-in minimal shadow scene as a new scene (your scenes stay as they are)"""
     bl_idname = "illumination.build_shadow_scene"
     bl_label = "Build Shadow Scene"
-    bl_options = {"REGISTER", "UNDO"}
 
     @classmethod
     def poll(cls, context):
         return polls.object_mode(cls, context)
 
-    def execute(self, context):
+    def build(self, context):
         from ..lab import shadow_scenes
         st = context.scene.illumination.shadows
-        result, scene = common.open_built_scene(
-            self, context, lambda: shadow_scenes.build(st.scene_name, st.light_type, (st.resolution, st.resolution)))
-        if scene is not None:
-            new = scene.illumination.shadows
-            new.light = scene["il_shadow_light"]
-            new.receiver = scene["il_shadow_receiver"]
-        return result
+        return shadow_scenes.build(st.scene_name, st.light_type, (st.resolution, st.resolution))
+
+    def built(self, context, scene):
+        new = scene.illumination.shadows
+        new.light = scene["il_shadow_light"]
+        new.receiver = scene["il_shadow_receiver"]
 
 
-class IL_OT_run_shadow_comparison(bpy.types.Operator):
+class IL_OT_run_shadow_comparison(JobOperator, bpy.types.Operator):
     """Render the ray-traced reference and every chosen method on the same pixels; write masks and a report"""
     bl_idname = "illumination.run_shadow_comparison"
     bl_label = "Run Shadow Comparison"
@@ -72,34 +55,31 @@ class IL_OT_run_shadow_comparison(bpy.types.Operator):
     def poll(cls, context):
         if not (polls.has_scene(cls, context) and polls.object_mode(cls, context)):
             return False
-        return polls.saved_or_absolute(cls, context.scene.illumination.shadows.output)
+        return polls.saved_or_absolute(cls, context.scene.illumination.shadows.output_dir)
 
-    def execute(self, context):
+    def job(self, context):
         from ..lab import shadows
         scene = context.scene
         st = scene.illumination.shadows
         light = st.light or next((o.name for o in scene.objects if o.type == "LIGHT"), "")
         if not light:
-            self.report({"ERROR"}, f"scene '{scene.name}' has no light: add one (or Build Shadow Scene)")
-            return {"CANCELLED"}
-        ok, report = common.run_job(self, lambda: shadows.compare(
-            scene, light, ["raytraced", *sorted(st.methods)], bpy.path.abspath(st.output),
-            resolution=st.resolution, shadowmap_size=st.shadowmap_size, bias=st.bias,
-            slope_bias=st.slope_bias, pcf=st.pcf, receiver=st.receiver or None))
-        if not ok:
-            return {"CANCELLED"}
-        st.last_report = report["report"]
-        st.last_summary = "  ".join(f"{m} {e['error']:.2%}" for m, e in report["methods"].items() if m != "raytraced")
-        self.report({"INFO"}, f"Shadow report: {report['report']}")
-        return {"FINISHED"}
+            raise InputError(f"scene '{scene.name}' has no light: add one (or Build Shadow Scene)")
+        o = props.options(ShadowOptions, st, methods=["raytraced", *sorted(st.methods)])
+        result = shadows.compare(scene, light, o.methods, bpy.path.abspath(st.output_dir), resolution=o.resolution,
+                                 shadowmap_size=o.shadowmap_size, bias=o.bias, slope_bias=o.slope_bias, pcf=o.pcf,
+                                 receiver=o.receiver, samples=o.samples)
+        return result
+
+    def finished(self, context, result):
+        st = context.scene.illumination.shadows
+        st.last_report = result.path
+        st.last_summary = result.summary
+        result.summary = f"Shadow report: {result.path}"
 
 
-class IL_PT_shadows(bpy.types.Panel):
+class IL_PT_shadows(Sidebar, bpy.types.Panel):
     bl_idname = "IL_PT_shadows"
     bl_label = "Shadows"
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "Illumination"
     bl_parent_id = "IL_PT_comparisons"
     bl_order = 10
 
@@ -119,7 +99,7 @@ class IL_PT_shadows(bpy.types.Panel):
         col.prop(st, "bias")
         col.prop(st, "slope_bias")
         col.prop(st, "pcf")
-        layout.prop(st, "output")
+        layout.prop(st, "output_dir")
         layout.operator(IL_OT_run_shadow_comparison.bl_idname, icon="RENDER_STILL")
         if st.last_report:
             box = layout.box()

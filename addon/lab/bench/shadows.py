@@ -49,7 +49,7 @@ def run(output_dir, quick=False):
     pcfs = [1, 3, 5] if quick else [1, 3, 5, 7, 9]
     segs = [(16, 8), (32, 16), (64, 32)] if quick else [(16, 8), (32, 16), (64, 32), (128, 64), (256, 128)]
     tables, chart_paths, figures = {}, [], {}
-    base = dict(lab.DEFAULTS)
+    base = lab.check_params({})
     with Progress("shadow sweeps", 6) as progress:
         progress.step("shadow-map resolution")
         rows, pcf_rows = [], []

@@ -12,6 +12,7 @@ from ...core.io import png as io_png
 from ...core.ssao import methods as ssao_methods
 from ...core.errors import InputError
 from ...core.io.files import write_json
+from ...core.result import JobResult
 from ...nodes import groups, material
 from ...blender.progress import Progress
 from .. import render, shadows, ssao as ssao_lab
@@ -79,7 +80,7 @@ def lightmaps_step(scene, output_dir, quick=False):
                 "mean": float(v[cov].mean()) if cov.any() else None,
                 "units": "1" if kind == "ao" else "W/m^2"}
             files += [e["file"], e["preview"]]
-    files.append(report["report"])
+    files.append(report.path)
     return {"seconds": time.perf_counter() - t, "resolution": res, "samples": samples, "maps": maps, "files": files}
 
 
@@ -88,7 +89,7 @@ def shadows_step(output_dir, quick=True):
     methods = ["raytraced", "planar", "shadowmap", "volume_zpass", "volume_zfail"]
     rep = shadows.compare_builtin("sphere", "sun", methods, os.path.join(output_dir, "shadows"),
                                   resolution=96 if quick else 256, shadowmap_size=512 if quick else 2048)
-    return {"report": rep["report"], "files": [rep["report"]],
+    return {"report": rep.path, "files": [rep.path],
             "methods": {m: {"error": e["error"], "seconds": e["seconds"]} for m, e in rep["methods"].items()}}
 
 
@@ -100,7 +101,7 @@ def ssao_step(output_dir, quick=False):
     """
     report = ssao_lab.run_builtin("corner", list(ssao_methods.METHODS), output_dir, resolution=64 if quick else 128,
                                   samples=16, radius=1.0, reference_samples=256 if quick else 1024)
-    path = os.path.join(output_dir, "ssao_report.json")
+    path = report.path
     return {"report": path, "files": [path],
             "figures": {m: {k: r[k] for k in ("rmse", "bias", "seconds")} for m, r in report["methods"].items()},
             "reference": {k: report["reference"][k] for k in ("samples", "seconds", "noise_rms")},
@@ -114,7 +115,8 @@ def _report(output_dir):
 
 
 def run(out, quick=False, samples=32):
-    """Build the demo scene, run every tool on it, write ``out/demo_report.json``; return a summary."""
+    """Build the demo scene, run every tool on it, write ``out/demo_report.json``; return a
+    core.result.JobResult whose summary is one line per step."""
     if samples <= 0:
         raise InputError(f"--samples must be positive, got {samples}")
     os.makedirs(out, exist_ok=True)
@@ -146,4 +148,4 @@ def run(out, quick=False, samples=32):
     lines.append(f"demo report: {path}")
     if "report" in report["steps"]:
         lines.append(f"speed-against-accuracy report: {report['steps']['report']['report']}")
-    return {"out": out, "lines": lines}
+    return JobResult(report, path, "\n".join(lines))

@@ -1,4 +1,10 @@
-"""Small helpers shared by the panel sections (no classes to register)."""
+"""The operator boundary, in one place (as glTF-Blender-IO does it): a job runs, its ILWarnings become
+WARNING reports, a domain error, a full disk or running out of memory one ERROR report and CANCELLED.
+
+``class IL_OT_x(JobOperator, bpy.types.Operator)`` implements ``job(context)`` (returns a
+core.result.JobResult, whose ``summary`` is reported) and may implement ``finished(context, result)``
+(store figures for the panel). Operators that build a scene call :func:`open_built_scene`.
+"""
 import warnings
 
 from ..core.errors import ILError, ILWarning
@@ -42,6 +48,44 @@ def _copy_group(a, b):
                 setattr(b, key, getattr(a, key))
             else:
                 b.property_unset(key)
+
+
+class JobOperator:
+    """Mixin for the operators that run a job (see the module docstring)."""
+
+    def job(self, context):
+        raise NotImplementedError
+
+    def finished(self, context, result):
+        """Called after a successful job (the panel's figures); nothing by default."""
+
+    def execute(self, context):
+        ok, result = run_job(self, lambda: self.job(context))
+        if not ok:
+            return {"CANCELLED"}
+        self.finished(context, result)
+        if result is not None and result.summary:
+            self.report({"INFO"}, result.summary)
+        return {"FINISHED"}
+
+
+class BuildSceneOperator:
+    """Mixin for the operators that add a built-in scene: ``build(context)`` returns the new scene, which
+    gets the user's settings and is shown (:func:`open_built_scene`); ``built(context, scene)`` may adjust
+    it. The user's own scenes are not touched."""
+    bl_options = {"REGISTER", "UNDO"}
+
+    def build(self, context):
+        raise NotImplementedError
+
+    def built(self, context, scene):
+        """Called with the new scene; nothing by default."""
+
+    def execute(self, context):
+        result, scene = open_built_scene(self, context, lambda: self.build(context))
+        if scene is not None:
+            self.built(context, scene)
+        return result
 
 
 def run_job(op, job):

@@ -1,0 +1,125 @@
+"""The comparison labs' options, each declared once: the shadow lab, the SSAO lab, the irradiance
+environment map and radiosity. Their scripts' parsers, the operators' properties and the panels are
+built from these classes (scripts/_cli.add_options, ui/props.py); ``validate()`` is the one range check.
+No bpy here, so ``--help`` starts fast.
+"""
+import dataclasses
+
+from ..core.errors import InputError
+from ..core.options import Options, option
+from ..core.radiosity.solvers import SOLVERS
+from ..core.shadow import depth_map
+from ..core.ssao import limits as ssao_limits
+from ..core.ssao import methods as ssao_methods
+
+SHADOW_METHOD_CHOICES = (
+    ("raytraced", "Ray traced", "Cycles with a radius-0 light: the reference"),
+    ("planar", "Planar", "Projected shadows onto the receiver plane"),
+    ("shadowmap", "Shadow map", "Depth map from the light, numpy lookup with bias and PCF"),
+    ("volume_zpass", "Volume z-pass", "Shadow volumes, stencil counted in front of the surface"),
+    ("volume_zfail", "Volume z-fail", "Shadow volumes with caps, stencil counted behind the surface"),
+    ("eevee", "EEVEE", "EEVEE's virtual shadow maps"),
+    ("workbench", "Workbench", "Workbench stencil shadows (sun lights only)"),
+)
+SHADOW_SCENE_CHOICES = (
+    ("sphere", "Sphere", "A sphere over a floor"), ("stairs", "Stairs", "A sphere over steps (non-planar receiver)"),
+    ("acne", "Acne", "A box under a grazing sun"), ("plate", "Plate", "A thin plate just above the floor"),
+    ("inside", "Inside", "The camera stands inside a shadow volume"))
+LIGHT_TYPE_CHOICES = (("sun", "Sun", ""), ("point", "Point", ""), ("spot", "Spot", ""))
+
+
+@dataclasses.dataclass
+class ShadowOptions(Options):
+    """One shadow comparison: which methods, at which resolution, with which shadow-map settings."""
+    methods: list = option(["raytraced", "planar", "shadowmap", "volume_zpass", "volume_zfail"], "Methods",
+                           "comma-separated methods compared with the ray-traced reference", kind=str,
+                           choices=SHADOW_METHOD_CHOICES, multiple=True, separator=",", item="shadow method")
+    resolution: int = option(128, "Resolution", "render width in pixels (memory is checked first)", minimum=8,
+                             maximum=depth_map.MAX_RESOLUTION)
+    shadowmap_size: int = option(1024, "Shadow Map Size", "shadow-map size N (N x N texels; memory is checked "
+                                 "first)", minimum=2, maximum=depth_map.MAX_SIZE)
+    bias: float = option(0.01, "Bias", "constant shadow-map bias in metres", minimum=0.0, unit="LENGTH")
+    slope_bias: float = option(2.0, "Slope Bias", "slope-scaled bias in texels: adds B x texel size x "
+                               "tan(theta)", minimum=0.0)
+    pcf: int = option(1, "PCF", "PCF kernel size K, odd (1 = no filtering)", minimum=1, maximum=15)
+    receiver: str = option(None, "Receiver", "plane object for planar shadows (default: Floor)", kind=str)
+    samples: int = option(1, "Samples", "Cycles samples of the reference", minimum=1, maximum=4096)
+    offset: float = option(1e-3, "Offset", "ray and volume offset along the normal, metres", minimum=0.0,
+                           cli=False, ui=False)
+
+    def check(self):
+        depth_map.check_pcf(self.pcf)
+
+
+_SSAO_METHOD_LABELS = {
+    "crytek": ("Crytek", "Sphere kernel (seed 000)"),
+    "hemisphere": ("Hemisphere", "Normal-oriented hemisphere with bias and range check"),
+    "hbao": ("HBAO", "Horizon-based AO (Bavoil 2008)"),
+    "gtao": ("GTAO", "Ground-truth AO, cosine-weighted slices (Jimenez 2016)"),
+    "eevee": ("EEVEE", "EEVEE's AO pass (first render compiles shaders: about a minute)"),
+    "workbench": ("Workbench", "Workbench world-space cavity")}
+SSAO_METHOD_CHOICES = tuple((m, *_SSAO_METHOD_LABELS[m]) for m in ssao_methods.ALL_METHODS)
+_SSAO_SCENE_LABELS = {
+    "plane": ("Plane", "One open plane: k_A = 1 (the sphere kernel reads 0.5)"),
+    "corner": ("Box in a Corner", "A box in a room corner (closed forms away from the box)"),
+    "thin": ("Thin Occluders", "A thin pole and a thin plate over a floor"),
+    "edge": ("Screen Edge", "A box cut by the screen edge"),
+    "discontinuity": ("Depth Discontinuity", "A ball floating in front of a wall (halos)")}
+SSAO_SCENE_CHOICES = tuple((s, *_SSAO_SCENE_LABELS[s]) for s in ssao_limits.SCENES)
+
+
+@dataclasses.dataclass
+class SSAOOptions(Options):
+    """One SSAO comparison: methods, frame, samples, radius (= the reference's AO distance)."""
+    methods: list = option(list(ssao_methods.METHODS), "Methods", "comma-separated methods "
+                           "compared with Cycles' ray-traced AO", kind=str, choices=SSAO_METHOD_CHOICES,
+                           multiple=True, separator=",", item="SSAO method")
+    resolution: int = option(128, "Resolution", "frame width in pixels (height keeps the scene's aspect; a "
+                             ".blend keeps its own unless given; memory and time are checked first)", minimum=8,
+                             maximum=ssao_limits.MAX_RESOLUTION)
+    samples: int = option(16, "Samples", "depth-buffer samples per pixel", minimum=1,
+                          maximum=ssao_limits.MAX_SAMPLES)
+    radius: float = option(1.0, "Radius", "SSAO radius in metres = the reference's AO distance", above=0,
+                           soft_max=10.0, unit="LENGTH")
+    reference_samples: int = option(1024, "Reference Samples", "Cycles AO samples per pixel of the reference "
+                                    "(1024: noise <= 0.016)", minimum=1, maximum=ssao_limits.MAX_REFERENCE_SAMPLES)
+    blur: bool = option(False, "Depth-Aware Blur", "depth-aware blur after each numpy method")
+    seed: int = option(0, "Seed", "random seed of the numpy methods", minimum=0, maximum=2 ** 32 - 1, ui=False)
+
+
+ENVMAP_METHOD_CHOICES = (("sh9", "Nine SH", "nine spherical harmonics, Ramamoorthi & Hanrahan 2001"),
+                         ("brute", "Brute force", "full cosine convolution"))
+
+
+@dataclasses.dataclass
+class EnvmapOptions(Options):
+    """The irradiance environment map E(n): method and size."""
+    method: str = option("sh9", "Method", "nine spherical harmonics or brute-force convolution",
+                         choices=ENVMAP_METHOD_CHOICES)
+    width: int = option(64, "Width", "width of the irradiance map, even (height = width/2; memory and time are "
+                        "checked first)", minimum=4)
+
+    def check(self):
+        if self.width % 2:
+            raise InputError(f"width must be an even number >= 4, got {self.width}")
+
+
+RADIOSITY_SOLVER_CHOICES = tuple((s, label, "") for s, label in zip(
+    SOLVERS, ("Jacobi", "Gauss-Seidel", "Progressive refinement")))
+MAX_ADAPTIVE = 8
+MAX_SAMPLES = 65536
+
+
+@dataclasses.dataclass
+class RadiosityOptions(Options):
+    """One radiosity solve and its Cycles comparison."""
+    solver: str = option("jacobi", "Solver", "iterative solver", choices=RADIOSITY_SOLVER_CHOICES)
+    max_edge: float = option(0.25, "Patch Size", "longest patch edge in metres; refused up front when the N² "
+                             "solve would not fit in the available memory or would take more than an hour",
+                             above=0, unit="LENGTH")
+    adaptive: int = option(0, "Adaptive Rounds", "rounds of adaptive subdivision", minimum=0, maximum=MAX_ADAPTIVE)
+    samples: int = option(64, "Cycles Samples", "Cycles samples of the comparison bake", minimum=1,
+                          maximum=MAX_SAMPLES)
+    tol: float = option(1e-5, "Tolerance", "relative residual to stop at", above=0, maximum=0.5, ui=False)
+    compare: bool = option(True, "Compare with Cycles", "bake the same objects with Cycles and report the "
+                           "difference", flag="--no-compare")
