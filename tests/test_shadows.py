@@ -9,15 +9,16 @@ import pytest
 from addon.core.io import png
 from addon.core.shadow import metrics
 from addon.core.errors import InputError
-from addon.lab import shadow_scenes, shadows
-from addon.lab.shadow_session import Session
+from addon.lab import shadows
+from addon.lab.shadows import scenes as shadow_scenes
+from addon.lab.shadows.frame import ShadowFrame
 
 RES = 80
 
 
 def _session(name, light="sun", res=RES):
     scene = shadow_scenes.build(name, light, (res, res))
-    return scene, Session(scene, scene["il_shadow_light"], res)
+    return scene, ShadowFrame(scene, scene["il_shadow_light"], res)
 
 
 def _score(s, mask):
@@ -125,7 +126,7 @@ def test_bias_sweep_shows_acne_then_peter_panning():
 def test_volumes_skip_open_meshes_and_fail_without_a_closed_one():
     scene = shadow_scenes.build("sphere", "sun", (32, 32))
     bpy.data.objects.remove(scene.objects["Sphere"])
-    with Session(scene, scene["il_shadow_light"], 32) as s:
+    with ShadowFrame(scene, scene["il_shadow_light"], 32) as s:
         s.render_reference()
         with pytest.raises(InputError, match="closed mesh"):
             shadows.volume_inputs(s)

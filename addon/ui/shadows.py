@@ -52,7 +52,7 @@ class IL_OT_build_shadow_scene(bpy.types.Operator):
         return polls.object_mode(cls, context)
 
     def execute(self, context):
-        from ..lab import shadow_scenes
+        from ..lab.shadows import scenes as shadow_scenes
         st = context.scene.illumination.shadows
         result, scene = common.open_built_scene(
             self, context, lambda: shadow_scenes.build(st.scene_name, st.light_type, (st.resolution, st.resolution)))

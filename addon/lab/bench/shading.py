@@ -16,7 +16,7 @@ from ...core.errors import InputError
 from ...nodes import groups, material
 from ...blender.progress import Progress
 from ...blender import materials, scene as sc
-from .. import render
+from ...blender import render
 from .result import BenchResult
 
 KEY = "shading"

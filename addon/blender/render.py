@@ -5,7 +5,7 @@ import tempfile
 import bpy
 import numpy as np
 
-from ..blender import compat, interrupt
+from . import compat, interrupt
 from ..core.io import exr
 from ..core.errors import ILError
 

@@ -13,8 +13,8 @@ import math
 
 from mathutils import Vector
 
-from ..core.errors import InputError
-from ..blender import scene as sc
+from ...core.errors import InputError
+from ...blender import scene as sc
 
 SCENES = ("sphere", "stairs", "acne", "plate", "inside")
 LIGHT_KINDS = ("sun", "point", "spot")

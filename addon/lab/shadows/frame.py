@@ -13,13 +13,12 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from ..blender import compat
-from ..core import camera as cam
-from ..core.shadow import metrics
-from ..core.shadow import depth_map
-from ..core.errors import ILError, InputError
-from ..blender import materials, scene as sc
-from . import render
+from ...blender import compat
+from ...core import camera as cam
+from ...core.shadow import metrics
+from ...core.shadow import depth_map
+from ...core.errors import ILError, InputError
+from ...blender import materials, render, scene as sc
 
 #: Object types Cycles renders as a surface that Blender evaluates to a mesh (triangulated for the
 #: planar and volume methods); other renderable types are listed as skipped.
@@ -76,8 +75,8 @@ class LightInfo:
         return ok
 
 
-class Session:
-    """``with Session(scene, "Light", 128) as s:`` -- the reference and every method's inputs."""
+class ShadowFrame:
+    """``with ShadowFrame(scene, "Light", 128) as s:`` -- the reference and every method's inputs."""
 
     def __init__(self, scene, light_name, resolution=128, samples=1):
         if light_name not in scene.objects:

@@ -23,21 +23,21 @@ import time
 import bpy
 import numpy as np
 
-from ..blender import compat
-from ..core import choices
-from ..core.ssao import figures
-from ..core import camera as core_camera
-from ..core.ssao import gbuffer as ssao_gbuffer
-from ..core.ssao import limits as ssao_limits
-from ..core.ssao import methods as ssao_methods
-from ..core.ssao import metrics
-from ..core.io import png
-from ..core.io import exr
-from ..core.errors import ILError, InputError
-from ..core.io.files import atomic_path, write_json
-from ..blender.progress import Progress
-from ..blender import scene as sc
-from . import render, ssao_scenes
+from ...blender import compat
+from ...core import choices
+from ...core.ssao import figures
+from ...core import camera as core_camera
+from ...core.ssao import gbuffer as ssao_gbuffer
+from ...core.ssao import limits as ssao_limits
+from ...core.ssao import methods as ssao_methods
+from ...core.ssao import metrics
+from ...core.io import png
+from ...core.io import exr
+from ...core.errors import ILError, InputError
+from ...core.io.files import atomic_path, write_json
+from ...blender.progress import Progress
+from ...blender import render, scene as sc
+from . import scenes
 
 #: Bumped when the reference render changes meaning (invalidates caches).
 REFERENCE_VERSION = 1
@@ -397,7 +397,7 @@ def compare(scene, methods, out=None, samples=16, radius=1.0, reference_samples=
         report["methods"][m] = {"rmse": e["rmse"], "bias": e["bias"], "mean": e["mean"], "seconds": seconds,
                                 "params": params}
     if report["scene"] == "corner":
-        closed = ssao_scenes.corner_closed_form(world, radius)
+        closed = scenes.corner_closed_form(world, radius)
         ok = np.isfinite(closed) & mask
         if ok.any():
             report["reference"]["closed_form"] = metrics.error_metrics(ref["k"], closed, ok)
@@ -439,7 +439,7 @@ def run_builtin(name, methods, out=None, resolution=128, **kwargs):
     methods = parse_methods(methods)
     check_params(kwargs.get("samples", 16), kwargs.get("radius", 1.0), kwargs.get("reference_samples", 1024),
                  resolution)
-    scene = ssao_scenes.build_scene(name, resolution, kwargs.get("radius", 1.0))
+    scene = scenes.build_scene(name, resolution, kwargs.get("radius", 1.0))
     try:
         return compare(scene, methods, out, resolution=resolution, **kwargs)
     finally:
