@@ -199,3 +199,24 @@ def test_script_writes_masks_and_report(script, tmp_path):
         img = png.decode_png((tmp_path / f"{m}_mask.png").read_bytes())
         assert img.shape == (48, 48) and set(np.unique(img)) <= {0, 255}
         assert (tmp_path / f"{m}_error.png").exists()
+
+
+def test_the_light_gets_its_settings_back_after_a_run_and_an_error(tmp_path):
+    scene = shadow_scenes.build("sphere", "spot", (32, 32))
+    data = scene.objects[scene["il_shadow_light"]].data
+    data.shadow_soft_size, data.spot_blend, data.use_shadow = 0.3, 0.4, False
+    shadows.compare(scene, scene["il_shadow_light"], "raytraced,planar", tmp_path, resolution=32)
+    assert (data.shadow_soft_size, data.spot_blend, data.use_shadow) == (pytest.approx(0.3), pytest.approx(0.4), False)
+    with pytest.raises(InputError, match="sun"):                   # refused after the light was set up
+        shadows.compare(scene, scene["il_shadow_light"], "raytraced,workbench", tmp_path, resolution=32)
+    assert (data.shadow_soft_size, data.spot_blend, data.use_shadow) == (pytest.approx(0.3), pytest.approx(0.4), False)
+    assert set(bpy.data.scenes) == {bpy.context.scene, scene}     # the private scene is gone
+
+
+@pytest.mark.eevee
+def test_eevee_gives_the_light_its_shadow_jitter_back(tmp_path):
+    scene = shadow_scenes.build("sphere", "point", (32, 32))
+    data = scene.objects[scene["il_shadow_light"]].data
+    data.use_shadow_jitter, data.shadow_soft_size = True, 0.2
+    shadows.compare(scene, scene["il_shadow_light"], "raytraced,eevee", tmp_path, resolution=32)
+    assert data.use_shadow_jitter and data.shadow_soft_size == pytest.approx(0.2)
