@@ -3,8 +3,8 @@ depth maps, EEVEE and Workbench masks, and the occluders' triangles -- all on on
 
 The user's scene is never rendered or edited directly: a temporary scene links the same objects
 (minus every other light), gets its own camera settings, passes and a white diffuse material
-override, and is removed afterwards. The light's radius, spot blend and shadow switch are set
-for the lab and restored on exit, also after an error.
+override, and is removed afterwards. The light's own settings (LIGHT_SETTINGS) are set for the lab
+and put back on exit by blender.state.SavedState, also after an error.
 """
 import contextlib
 import math

@@ -13,7 +13,7 @@ Pipeline (one scene, one camera):
    geometry), ``<method>_error.png``, ``ssao_report.json``.
 
 The scene's settings (engine, passes, resolution, world, display) are
-restored afterwards, also after an error.
+restored afterwards, also after an error (:func:`preserved`, blender.state).
 """
 import contextlib
 import hashlib
