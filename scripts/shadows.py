@@ -17,7 +17,8 @@ from addon.lab.options import SHADOW_SCENE_CHOICES, ShadowOptions  # noqa: E402 
 def main(args):
     import bpy
     from addon.core.errors import InputError
-    from addon.lab import shadow_scenes, shadows
+    from addon.lab import shadows
+    from addon.lab.shadows import scenes as shadow_scenes
     out = os.path.abspath(args.out)
     if args.sweeps:
         from addon.lab.bench import shadows as bench_shadows

@@ -12,7 +12,7 @@ from addon.core.envmap import latlong
 from addon.core.io import exr
 from addon.core.errors import InputError
 from addon.lab import envmap as L
-from addon.lab import render
+from addon.blender import render
 from addon.blender import scene as S
 
 

@@ -17,7 +17,7 @@ from addon.core.io import hdr as io_hdr
 from addon.core.io import png
 from addon.core.io import exr
 from addon.lab import ssao as ssao_lab
-from addon.lab import ssao_scenes
+from addon.lab.ssao import scenes as ssao_scenes
 from addon.blender.scene import remove_scene
 
 from conftest import ROOT

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from addon.core import camera as cam
-from addon.lab import render
+from addon.blender import render
 from addon.blender import scene as sc
 
 pytestmark = pytest.mark.both_versions

@@ -6,7 +6,7 @@ from mathutils import Vector
 
 from addon.blender import compat
 from addon.core import brdf, lights as twin_lights
-from addon.lab import render
+from addon.blender import render
 from addon.blender import scene as sc
 from addon.nodes import groups, material
 

@@ -5,7 +5,7 @@ import pytest
 
 from addon.blender import compat
 from addon.core import brdf
-from addon.lab import render
+from addon.blender import render
 from addon.lab.bench import shading as sb
 from addon.blender import scene as sc
 from addon.nodes import material

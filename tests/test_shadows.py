@@ -9,15 +9,16 @@ import pytest
 from addon.core.io import png
 from addon.core.shadow import metrics
 from addon.core.errors import InputError
-from addon.lab import shadow_scenes, shadows
-from addon.lab.shadow_session import Session
+from addon.lab import shadows
+from addon.lab.shadows import scenes as shadow_scenes
+from addon.lab.shadows.frame import ShadowFrame
 
 RES = 80
 
 
 def _session(name, light="sun", res=RES):
     scene = shadow_scenes.build(name, light, (res, res))
-    return scene, Session(scene, scene["il_shadow_light"], res)
+    return scene, ShadowFrame(scene, scene["il_shadow_light"], res)
 
 
 def _score(s, mask):
@@ -125,7 +126,7 @@ def test_bias_sweep_shows_acne_then_peter_panning():
 def test_volumes_skip_open_meshes_and_fail_without_a_closed_one():
     scene = shadow_scenes.build("sphere", "sun", (32, 32))
     bpy.data.objects.remove(scene.objects["Sphere"])
-    with Session(scene, scene["il_shadow_light"], 32) as s:
+    with ShadowFrame(scene, scene["il_shadow_light"], 32) as s:
         s.render_reference()
         with pytest.raises(InputError, match="closed mesh"):
             shadows.volume_inputs(s)
@@ -198,3 +199,24 @@ def test_script_writes_masks_and_report(script, tmp_path):
         img = png.decode_png((tmp_path / f"{m}_mask.png").read_bytes())
         assert img.shape == (48, 48) and set(np.unique(img)) <= {0, 255}
         assert (tmp_path / f"{m}_error.png").exists()
+
+
+def test_the_light_gets_its_settings_back_after_a_run_and_an_error(tmp_path):
+    scene = shadow_scenes.build("sphere", "spot", (32, 32))
+    data = scene.objects[scene["il_shadow_light"]].data
+    data.shadow_soft_size, data.spot_blend, data.use_shadow = 0.3, 0.4, False
+    shadows.compare(scene, scene["il_shadow_light"], "raytraced,planar", tmp_path, resolution=32)
+    assert (data.shadow_soft_size, data.spot_blend, data.use_shadow) == (pytest.approx(0.3), pytest.approx(0.4), False)
+    with pytest.raises(InputError, match="sun"):                   # refused after the light was set up
+        shadows.compare(scene, scene["il_shadow_light"], "raytraced,workbench", tmp_path, resolution=32)
+    assert (data.shadow_soft_size, data.spot_blend, data.use_shadow) == (pytest.approx(0.3), pytest.approx(0.4), False)
+    assert set(bpy.data.scenes) == {bpy.context.scene, scene}     # the private scene is gone
+
+
+@pytest.mark.eevee
+def test_eevee_gives_the_light_its_shadow_jitter_back(tmp_path):
+    scene = shadow_scenes.build("sphere", "point", (32, 32))
+    data = scene.objects[scene["il_shadow_light"]].data
+    data.use_shadow_jitter, data.shadow_soft_size = True, 0.2
+    shadows.compare(scene, scene["il_shadow_light"], "raytraced,eevee", tmp_path, resolution=32)
+    assert data.use_shadow_jitter and data.shadow_soft_size == pytest.approx(0.2)

@@ -10,7 +10,7 @@ from addon.core.ssao import limits
 from addon.core.io import exr
 from addon.core.errors import ILError, InputError
 from addon.lab import ssao as lab
-from addon.lab import ssao_scenes
+from addon.lab.ssao import scenes as ssao_scenes
 from addon.blender.scene import remove_scene
 
 

@@ -17,10 +17,10 @@ from ..core.errors import ILError, InputError
 from ..core.io.files import write_json
 from ..core.result import JobResult
 from ..blender.progress import Progress
-from ..blender import materials, scene as sc
+from ..blender import materials, render, scene as sc
+from ..blender.state import SavedState, rna_settings, world_settings
 from . import cost, orientation, uv as uvmod
 from .options import BakeOptions, article, check_out_dir, validate_maps
-from .state import SavedState
 
 REPORT = "bake_report.json"
 ATLAS = "atlas"
@@ -210,7 +210,7 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     steps = (1 if options.target == "image" else 0) + len(groups) * len(maps)
     report = {"objects": {}, "skipped": dict(skipped)}
     report_path = os.path.join(out, REPORT)
-    with Progress("bake", steps) as progress, SavedState(scene, objects) as state:
+    with Progress("bake", steps) as progress, SavedState(scene, objects, _settings(scene)) as state:
         def step(message):
             progress.step(message)
             if on_step:
@@ -344,21 +344,19 @@ def _map_size(group, layers, sides, options):
     return res, res
 
 
-def _setup_render(scene, options, state):
-    """Cycles on the CPU, no denoising, adaptive sampling or sample clamping (Blender clamps indirect light at
-    10 by default: a biased E where light is trapped, e.g. under a lamp near a ceiling), fixed seed, AO
-    distance; a black world if none."""
-    scene.render.engine = compat.CYCLES
+def _settings(scene):
+    """What a bake may change besides its objects, saved and put back by SavedState: the Cycles setup, every
+    bounce limit, the bake settings, the world and its AO distance."""
     cy = scene.cycles
-    cy.device = "CPU"
-    cy.use_denoising = False
-    cy.use_adaptive_sampling = False
-    cy.sample_clamp_direct = cy.sample_clamp_indirect = 0.0
-    if hasattr(cy, "use_animated_seed"):
-        cy.use_animated_seed = False
-    if scene.world is None:
-        scene.world = state.track(bpy.data.worlds, sc.black_world())
-    scene.world.light_settings.distance = float(options.ao_distance)
+    bounces = [(cy, a) for a in ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces",
+                                 "volume_bounces", "transparent_max_bounces", "sample_offset") if hasattr(cy, a)]
+    return render.settings(scene) + bounces + rna_settings(scene.render.bake) + world_settings(scene)
+
+
+def _setup_render(scene, options, state):
+    """Cycles on the CPU (each bake call sets the rest, :func:`_bake_once`), the AO distance; a black world if none."""
+    render.use_cycles_cpu(scene)
+    state.world(sc.black_world).light_settings.distance = float(options.ao_distance)
 
 
 class TemporaryMaterials:
@@ -587,10 +585,12 @@ def _set_bounces(cy, kind, options):
 
 
 def _bake_once(scene, group, kind, samples, seed, image, uv_name, options):
-    """One Cycles bake call; returns (values, mask, seconds inside the call) with E already multiplied by π."""
-    cy = scene.cycles
-    cy.samples, cy.seed = int(samples), int(seed)
-    _set_bounces(cy, kind, options)
+    """One Cycles bake call; returns (values, mask, seconds inside the call) with E already multiplied by π.
+
+    Cycles: ``samples`` and ``seed``, no denoising, adaptive sampling or sample clamping (Blender clamps
+    indirect light at 10 by default: a biased E where light is trapped, e.g. under a lamp near a ceiling)."""
+    render.cycles_cpu(scene, samples, seed, clamp=0.0)
+    _set_bounces(scene.cycles, kind, options)
     vl = scene.view_layers[0]
     for o in filter(None, vl.objects):
         want = o in group

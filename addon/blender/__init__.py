@@ -1,1 +1,3 @@
-"""Blender helpers shared by bake, lab and ui: scene building blocks and materials (bpy, no core logic)."""
+"""Blender helpers shared by bake, lab and ui (bpy, no core logic): state (leave the user's file as it was),
+render (the one Cycles / EEVEE setup, passes to numpy), scene building blocks, materials, compat, progress,
+interrupt."""

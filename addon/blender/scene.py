@@ -6,7 +6,7 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from . import compat
+from . import compat, render
 
 
 def new_scene(name, resolution=(256, 256)):
@@ -14,8 +14,7 @@ def new_scene(name, resolution=(256, 256)):
     scene = bpy.data.scenes.new(name)
     scene.render.resolution_x, scene.render.resolution_y = resolution
     scene.render.resolution_percentage = 100
-    scene.render.engine = compat.CYCLES
-    scene.cycles.device = "CPU"
+    render.use_cycles_cpu(scene)
     scene.view_settings.view_transform = "Standard"
     scene.view_settings.look = "None"
     return scene

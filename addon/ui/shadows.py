@@ -36,7 +36,7 @@ class IL_OT_build_shadow_scene(BuildSceneOperator, bpy.types.Operator):
         return polls.object_mode(cls, context)
 
     def build(self, context):
-        from ..lab import shadow_scenes
+        from ..lab.shadows import scenes as shadow_scenes
         st = context.scene.illumination.shadows
         return shadow_scenes.build(st.scene_name, st.light_type, (st.resolution, st.resolution))
 

@@ -33,7 +33,7 @@ class IL_OT_ssao_build_scene(BuildSceneOperator, bpy.types.Operator):
         return polls.has_scene(cls, context) and polls.object_mode(cls, context)
 
     def build(self, context):
-        from ..lab import ssao_scenes
+        from ..lab.ssao import scenes as ssao_scenes
         settings = context.scene.illumination.ssao
         return ssao_scenes.build_scene(settings.scene_kind, settings.resolution, settings.radius)
 

@@ -3,7 +3,7 @@ from .. import budget
 from ..errors import InputError
 
 
-#: The lab's built-in scenes (built by addon/lab/ssao_scenes.py).
+#: The lab's built-in scenes (built by addon/lab/ssao/scenes.py).
 SCENES = ("plane", "corner", "thin", "edge", "discontinuity")
 
 #: Limits shared by the script, the panel and the lab: frame width, samples per pixel of a

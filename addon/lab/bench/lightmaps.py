@@ -16,7 +16,9 @@ from ...core import charts
 from ...core.io import exr
 from ...core import lightmap as lm
 from ..demo import scene as demo
+from ...blender import render
 from ...blender.materials import white_lambert
+from ...blender.state import SavedState
 from ...blender.scene import remove_scene
 from ...bake.options import BakeOptions
 from ...bake.pipeline import bake_lightmaps
@@ -93,40 +95,28 @@ def _bare_bake(scene, floor, res, samples):
     samples, seed, no adaptive sampling, no bounces), a white Lambert carrying the image node, and Blender's
     own 4-texel margin in place of the pipeline's dilation. Material, image and settings are prepared
     beforehand and put back afterwards."""
-    img = bpy.data.images.new("IL bench", res, res, float_buffer=True, alpha=True)
-    mat = white_lambert("IL bench")
-    nt = mat.node_tree
-    tex = nt.nodes.new("ShaderNodeTexImage")
-    tex.image = img
-    nt.nodes.active = tex
-    floor.data.materials.append(mat)
     cy = scene.cycles
-    saved = {k: getattr(cy, k) for k in ("device", "samples", "seed", "use_adaptive_sampling", "use_denoising",
-                                         "max_bounces", "diffuse_bounces")}
-    engine = scene.render.engine
-    scene.render.engine = "CYCLES"
-    cy.device, cy.samples, cy.seed = "CPU", samples, 0
-    cy.use_adaptive_sampling = cy.use_denoising = False
-    cy.max_bounces = cy.diffuse_bounces = 0
-    scene.world.light_settings.distance = 10.0
-    vl = scene.view_layers[0]
-    for o in vl.objects:
-        o.select_set(o == floor, view_layer=vl)
-    vl.objects.active = floor
-    try:
+    with SavedState(scene, [floor], render.settings(scene) + [(cy, "max_bounces"), (cy, "diffuse_bounces")]) as state:
+        img = state.track(bpy.data.images, bpy.data.images.new("IL bench", res, res, float_buffer=True, alpha=True))
+        mat = state.track(bpy.data.materials, white_lambert("IL bench"))
+        nt = mat.node_tree
+        tex = nt.nodes.new("ShaderNodeTexImage")
+        tex.image = img
+        nt.nodes.active = tex
+        floor.data.materials.append(mat)
+        render.cycles_cpu(scene, samples)
+        cy.max_bounces = cy.diffuse_bounces = 0
+        scene.world.light_settings.distance = 10.0
+        vl = scene.view_layers[0]
+        for o in vl.objects:
+            o.select_set(o == floor, view_layer=vl)
+        vl.objects.active = floor
         t = time.perf_counter()
         with bpy.context.temp_override(scene=scene, view_layer=vl, active_object=floor, object=floor,
                                        selected_objects=[floor], selected_editable_objects=[floor]):
             bpy.ops.object.bake(type="AO", margin=4, target="IMAGE_TEXTURES", uv_layer=PLANAR,
                                 save_mode="INTERNAL")
         return time.perf_counter() - t
-    finally:
-        for k, v in saved.items():
-            setattr(cy, k, v)
-        scene.render.engine = engine
-        floor.data.materials.clear()
-        bpy.data.materials.remove(mat)
-        bpy.data.images.remove(img)
 
 
 def _pipeline(scene, floor, out, kind="ao", **kw):

@@ -16,7 +16,7 @@ from ...core.errors import InputError
 from ...nodes import groups, material
 from ...blender.progress import Progress
 from ...blender import materials, scene as sc
-from .. import render
+from ...blender import render
 from .result import BenchResult
 
 KEY = "shading"
@@ -95,8 +95,7 @@ def assign(obj, mat):
 def render_pixels(scene, samples=1, seed=0, bounces=0):
     """Render (direct light only by default: the models are local); return per-object pixel data
     {pass_index: {"n", "p", "L"}} (background dropped)."""
-    render.cycles_cpu(scene, samples=samples, seed=seed)
-    scene.cycles.filter_width = 0.01
+    render.cycles_cpu(scene, samples, seed=seed, pixel_filter=0.01)
     scene.cycles.max_bounces = bounces
     # drivers of a scene that is not the window's scene are not evaluated by the render itself
     scene.view_layers[0].update()

@@ -14,8 +14,9 @@ from ...core.shadow import metrics as shadow_metrics
 from ...core.io.files import write_json
 from ...blender.progress import Progress
 from ...blender import scene as sc
-from .. import shadow_scenes, shadows as lab
-from ..shadow_session import Session
+from .. import shadows as lab
+from ..shadows import scenes as shadow_scenes
+from ..shadows.frame import ShadowFrame
 from .result import BenchResult
 
 KEY = "shadows"
@@ -28,11 +29,11 @@ def _score(s, mask):
 
 @contextlib.contextmanager
 def _reference(name, res, **kw):
-    """A built-in scene under a sun, an open :class:`Session` with its reference rendered; the scene
+    """A built-in scene under a sun, an open :class:`ShadowFrame` with its reference rendered; the scene
     is removed afterwards."""
     scene = shadow_scenes.build(name, "sun", (res, res), **kw)
     try:
-        with Session(scene, scene["il_shadow_light"], res) as s:
+        with ShadowFrame(scene, scene["il_shadow_light"], res) as s:
             s.render_reference()
             yield s
     finally:
@@ -178,7 +179,7 @@ def speed(resolution=512, map_size=2048):
     shadow_map.check_cost(res, res, map_size, 1)
     scene = shadow_scenes.build("sphere", "sun", (res, res), segments=102, rings=50)   # 10 000 triangles
     try:
-        with Session(scene, scene["il_shadow_light"], res) as s:
+        with ShadowFrame(scene, scene["il_shadow_light"], res) as s:
             s.render_reference()
             maps, render_s = s.depth_maps(map_size)
             r = s.receiver

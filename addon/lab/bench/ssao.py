@@ -17,7 +17,7 @@ from ...core.io.files import write_json
 from ...blender.progress import Progress
 from .. import ssao as lab
 from ...blender import scene as sc
-from .. import ssao_scenes
+from ..ssao import scenes as ssao_scenes
 from .result import BenchResult
 
 KEY = "ssao"

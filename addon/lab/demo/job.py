@@ -15,7 +15,8 @@ from ...core.io.files import write_json
 from ...core.result import JobResult
 from ...nodes import groups, material
 from ...blender.progress import Progress
-from .. import render, shadows, ssao as ssao_lab
+from ...blender import render
+from .. import shadows, ssao as ssao_lab
 from ..bench import report as bench_report
 from . import scene as demo
 

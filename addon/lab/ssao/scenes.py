@@ -18,12 +18,12 @@ exists, a control: the same kind of pixels where the method's assumption holds
 import bmesh
 import numpy as np
 
-from ..core.errors import InputError
-from ..core import analytic
-from ..core.ssao import limits
-from ..core.ssao import metrics
-from ..core.ssao.limits import SCENES
-from ..blender import scene as sc
+from ...core.errors import InputError
+from ...core import analytic
+from ...core.ssao import limits
+from ...core.ssao import metrics
+from ...core.ssao.limits import SCENES
+from ...blender import scene as sc
 
 #: Geometry of the corner scene (metres): floor [0, ROOM]², walls x = 0 and y = 0 of height WALL.
 ROOM, WALL = 8.0, 3.0

@@ -1,49 +1,58 @@
-"""Save what a bake touches and put it back, also after an error or an interruption.
+"""Leave the user's file as it was: save what a job touches and put it back, also after an error or Ctrl-C.
 
 Usage::
 
-    with SavedState(scene, objects) as state:
+    with SavedState(scene, objects, settings=[(scene.render, "engine"), ...]) as state:
+        state.world(sc.black_world)         # a world while the job runs, when the scene has none
         state.track(bpy.data.images, img)   # temporary data-blocks removed on exit
         ...
 
-On exit (normal, exception or KeyboardInterrupt) the render engine, Cycles sampling settings and bake
-settings, the world and its AO distance, selection, active object, material slots, active UV layer /
-render UV layer, active colour attributes and the mode are restored; every temporary data-block
-registered with ``track`` is removed, meshes flipped with ``flip_normals`` are flipped back, and so are UV layers / colour attributes registered with
-``created_uv`` / ``created_attribute``, and layers saved with ``save_uv`` get their UVs back, unless
-their (mesh name, name) is in ``keep`` (the products of a successful bake).
+The one implementation: the bake, the SSAO lab, the shadow lab (its light) and render.render_layers use it.
+On exit (normal, exception or KeyboardInterrupt):
+
+- always: the selection and the active object of the scene's first view layer are put back;
+- ``settings``, (owner, attribute) RNA values saved on entry (render, Cycles, EEVEE, display, passes, a
+  light's data, ...), are put back in order, and those refused once (an image format's media type before
+  its file format) again at the end;
+- ``objects``: their mode, material slots, viewport / render visibility, and their meshes' materials,
+  active / render UV layer and active colour attributes are put back; UV layers / colour attributes
+  registered with ``created_uv`` / ``created_attribute`` are removed, layers saved with ``save_uv`` get their
+  UVs back and meshes flipped with ``flip_normals`` are flipped back, unless their (mesh name, name) is in
+  ``keep`` (the products of a successful bake);
+- every data-block registered with ``track`` (or added by ``world``) is removed.
 """
 import bpy
 import numpy as np
 
-_CYCLES = ("device", "samples", "seed", "use_denoising", "use_adaptive_sampling", "max_bounces",
-           "diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces",
-           "transparent_max_bounces", "use_animated_seed", "sample_offset", "sample_clamp_direct",
-           "sample_clamp_indirect")
+_ERRORS = (AttributeError, TypeError, ValueError, ReferenceError)
 
 
-def _rna_values(struct):
-    out = {}
+def rna_settings(struct):
+    """(struct, identifier) of every plain writable RNA property of ``struct`` (no pointers, collections)."""
+    out = []
     for prop in struct.bl_rna.properties:
         if prop.identifier == "rna_type" or prop.is_readonly or prop.type in {"POINTER", "COLLECTION"}:
             continue
-        try:
-            value = getattr(struct, prop.identifier)
-        except AttributeError:
-            continue
-        if hasattr(value, "__len__") and not isinstance(value, str):
-            value = tuple(value) if prop.type != "ENUM" else set(value)
-        out[prop.identifier] = value
+        if hasattr(struct, prop.identifier):
+            out.append((struct, prop.identifier))
     return out
 
 
-def _set_rna_values(struct, values):
-    for key, value in values.items():
-        try:
-            if getattr(struct, key) != value:
-                setattr(struct, key, value)
-        except (AttributeError, TypeError, ValueError):
-            pass
+def world_settings(scene):
+    """The scene's world pointer and, when it has a world, that world's AO distance."""
+    items = [(scene, "world")]
+    if scene.world is not None:
+        items.append((scene.world.light_settings, "distance"))
+    return items
+
+
+def _snapshot(value):
+    """A copy of an RNA value that later reads compare with (arrays as tuples, enum flags as sets)."""
+    if isinstance(value, (set, frozenset)):
+        return set(value)
+    if hasattr(value, "__len__") and not isinstance(value, str):
+        return tuple(value)
+    return value
 
 
 def _hidden(obj, view_layer):
@@ -55,11 +64,12 @@ def _hidden(obj, view_layer):
 
 
 class SavedState:
-    """Context manager: the state of ``scene`` and of ``objects`` (and their meshes) as the user left it."""
+    """Context manager: ``scene``'s selection, ``settings`` and ``objects`` (and their meshes) as the user left them."""
 
-    def __init__(self, scene, objects):
+    def __init__(self, scene, objects=(), settings=()):
         self.scene = scene
         self.objects = list(objects)
+        self.settings = list(settings)
         self.temp = []            # (collection, id) removed on exit
         self.uv_created = []      # (mesh, layer name) removed on exit unless kept
         self.attr_created = []    # (mesh, attribute name) removed on exit unless kept
@@ -70,16 +80,16 @@ class SavedState:
 
     # ---- save
     def __enter__(self):
-        sc, r = self.scene, self.scene.render
-        vl = sc.view_layers[0]
-        self.engine = r.engine
-        self.cycles = {k: getattr(sc.cycles, k) for k in _CYCLES if hasattr(sc.cycles, k)}
-        self.bake = _rna_values(r.bake)
-        self.world = sc.world
-        self.ao_distance = sc.world.light_settings.distance if sc.world else None
+        vl = self.scene.view_layers[0]
+        self.saved = []
+        for owner, attr in self.settings:
+            try:
+                self.saved.append((owner, attr, _snapshot(getattr(owner, attr))))
+            except AttributeError:
+                pass
         self.selection = {o.name: o.select_get(view_layer=vl) for o in vl.objects}
-        self.visibility = {o.name: (o, _hidden(o, vl), o.hide_viewport, o.hide_render) for o in self.objects}
         self.active = vl.objects.active
+        self.visibility = {o.name: (o, _hidden(o, vl), o.hide_viewport, o.hide_render) for o in self.objects}
         self.slots = {}
         self.meshes = {}
         for o in self.objects:
@@ -94,6 +104,12 @@ class SavedState:
                 "attr_active": me.attributes.active.name if me.attributes.active else None,
             }
         return self
+
+    def world(self, make):
+        """The scene's world; when it has none, ``make()``'s world, assigned until exit and then removed."""
+        if self.scene.world is None:
+            self.scene.world = self.track(bpy.data.worlds, make())
+        return self.scene.world
 
     def unhide(self, obj, render=False):
         """Show ``obj`` in the viewport (and to Cycles rays with ``render``) until exit."""
@@ -180,22 +196,12 @@ class SavedState:
                 me.color_attributes.render_color_index = m["color_render"]
             if m["attr_active"] is not None and m["attr_active"] in me.attributes:
                 me.attributes.active = me.attributes[m["attr_active"]]
+        self._restore_settings()
         for collection, idblock in reversed(self.temp):
             try:
                 collection.remove(idblock)
             except (ReferenceError, RuntimeError):
                 pass
-        r = sc.render
-        if r.engine != self.engine:
-            r.engine = self.engine
-        for k, v in self.cycles.items():
-            if getattr(sc.cycles, k) != v:
-                setattr(sc.cycles, k, v)
-        _set_rna_values(r.bake, self.bake)
-        if sc.world != self.world:
-            sc.world = self.world
-        if self.world is not None and self.world.light_settings.distance != self.ao_distance:
-            self.world.light_settings.distance = self.ao_distance
         for obj, hidden, viewport, render in self.visibility.values():
             try:
                 if obj.hide_render != render:
@@ -216,3 +222,17 @@ class SavedState:
             me.flip_normals()
         self.flipped = []
         return False
+
+    def _restore_settings(self):
+        refused = []
+        for owner, attr, value in self.saved:
+            try:
+                if _snapshot(getattr(owner, attr)) != value:
+                    setattr(owner, attr, value)
+            except _ERRORS:
+                refused.append((owner, attr, value))
+        for owner, attr, value in refused:      # order-dependent ones (media type before file format)
+            try:
+                setattr(owner, attr, value)
+            except _ERRORS:
+                pass

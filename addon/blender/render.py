@@ -1,24 +1,65 @@
-"""Render a scene and hand its passes to numpy (through a temporary multilayer EXR)."""
+"""The one Cycles setup (CPU, fixed samples and seed, no denoising, pixel filter), EEVEE's, and renders handed
+to numpy (through a temporary multilayer EXR, the scene's output settings left as they were)."""
 import os
 import tempfile
 
 import bpy
 import numpy as np
 
-from ..blender import compat, interrupt
+from . import compat, interrupt
+from .state import SavedState
 from ..core.io import exr
 from ..core.errors import ILError
 
 
-def cycles_cpu(scene, samples, seed=0, adaptive=False):
-    """Cycles on the CPU with a fixed sample count and no denoising."""
+def use_cycles_cpu(scene):
+    """Cycles on the CPU: the engine and device every tool renders and bakes with (a new scene's default)."""
     scene.render.engine = compat.CYCLES
+    scene.cycles.device = "CPU"
+
+
+def cycles_cpu(scene, samples, seed=0, adaptive=False, pixel_filter=None, clamp=None):
+    """The reproducible Cycles setup of every render and bake: CPU, ``samples`` per pixel, a fixed ``seed``
+    (not animated), no denoising, adaptive sampling only with ``adaptive``.
+
+    ``pixel_filter``: pixel filter width in pixels (0.01: every sample through the pixel centre, no jitter);
+    ``clamp``: direct and indirect sample clamp (0: none, unbiased). None leaves the scene's value.
+    """
+    use_cycles_cpu(scene)
     cy = scene.cycles
-    cy.device = "CPU"
     cy.samples = int(samples)
+    cy.seed = int(seed)
+    if hasattr(cy, "use_animated_seed"):
+        cy.use_animated_seed = False
     cy.use_adaptive_sampling = bool(adaptive)
     cy.use_denoising = False
-    cy.seed = int(seed)
+    if pixel_filter is not None:
+        cy.filter_width = float(pixel_filter)
+    if clamp is not None:
+        cy.sample_clamp_direct = cy.sample_clamp_indirect = float(clamp)
+
+
+def eevee(scene, samples, pixel_filter):
+    """EEVEE with ``samples`` render samples and a ``pixel_filter`` pixels wide filter (<= 0.01: no jitter)."""
+    scene.render.engine = compat.EEVEE
+    scene.eevee.taa_render_samples = int(samples)
+    scene.render.filter_size = float(pixel_filter)
+
+
+def settings(scene):
+    """(owner, attribute) of every setting :func:`cycles_cpu` and :func:`eevee` write, to save them (blender.state)."""
+    cy = scene.cycles
+    return ([(scene.render, "engine"), (scene.render, "filter_size"), (scene.eevee, "taa_render_samples")]
+            + [(cy, a) for a in ("device", "samples", "seed", "use_animated_seed", "use_adaptive_sampling",
+                                 "use_denoising", "filter_width", "sample_clamp_direct", "sample_clamp_indirect")
+               if hasattr(cy, a)])
+
+
+def output_settings(scene):
+    """(owner, attribute) of the output path and image format :func:`render_layers` sets for its render."""
+    r, im = scene.render, scene.render.image_settings
+    return ([(r, "filepath"), (r, "use_file_extension")] + ([(im, "media_type")] if hasattr(im, "media_type") else [])
+            + [(im, "file_format"), (im, "color_mode"), (im, "color_depth"), (im, "exr_codec")])
 
 
 def render_layers(scene, camera=None):
@@ -33,20 +74,18 @@ def render_layers(scene, camera=None):
     if scene.camera is None:
         raise ILError(f"scene '{scene.name}' has no camera")
     r = scene.render
-    saved = (r.filepath, r.use_file_extension)
-    settings = r.image_settings
     had_result = _render_results()
     with tempfile.TemporaryDirectory(prefix="il_render_") as tmp:
         path = os.path.join(tmp, "passes.exr")
         try:
-            compat.set_multilayer_exr(settings)
-            r.filepath = path
-            r.use_file_extension = False
-            scene.view_layers[0].update()  # drivers of a scene that is not the window's are stale otherwise
-            with interrupt.blender_call():
-                bpy.ops.render.render(write_still=True, scene=scene.name)
+            with SavedState(scene, settings=output_settings(scene)):
+                compat.set_multilayer_exr(r.image_settings)
+                r.filepath = path
+                r.use_file_extension = False
+                scene.view_layers[0].update()  # drivers of a scene that is not the window's are stale otherwise
+                with interrupt.blender_call():
+                    bpy.ops.render.render(write_still=True, scene=scene.name)
         finally:
-            r.filepath, r.use_file_extension = saved
             if not had_result:
                 for image in _render_results():
                     bpy.data.images.remove(image)

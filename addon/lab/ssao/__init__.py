@@ -13,7 +13,7 @@ Pipeline (one scene, one camera):
    geometry), ``<method>_error.png``, ``ssao_report.json``.
 
 The scene's settings (engine, passes, resolution, world, display) are
-restored afterwards, also after an error.
+restored afterwards, also after an error (:func:`preserved`, blender.state).
 """
 import contextlib
 import hashlib
@@ -23,23 +23,24 @@ import time
 import bpy
 import numpy as np
 
-from ..blender import compat
-from ..core import choices
-from ..core.ssao import figures
-from ..core import camera as core_camera
-from ..core.ssao import gbuffer as ssao_gbuffer
-from ..core.ssao import limits as ssao_limits
-from ..core.ssao import methods as ssao_methods
-from ..core.ssao import metrics
-from ..core.io import png
-from ..core.io import exr
-from ..core.errors import ILError, InputError
-from ..core.io.files import atomic_path, write_json
-from ..core.result import JobResult
-from ..blender.progress import Progress
-from ..blender import scene as sc
-from . import render, ssao_scenes
-from .options import SSAOOptions
+from ...blender import compat
+from ...core import choices
+from ...core.ssao import figures
+from ...core import camera as core_camera
+from ...core.ssao import gbuffer as ssao_gbuffer
+from ...core.ssao import limits as ssao_limits
+from ...core.ssao import methods as ssao_methods
+from ...core.ssao import metrics
+from ...core.io import png
+from ...core.io import exr
+from ...core.errors import ILError, InputError
+from ...core.io.files import atomic_path, write_json
+from ...core.result import JobResult
+from ...blender.progress import Progress
+from ...blender.state import SavedState, world_settings
+from ...blender import render, scene as sc
+from ..options import SSAOOptions
+from . import scenes
 
 #: Bumped when the reference render changes meaning (invalidates caches).
 REFERENCE_VERSION = 1
@@ -79,60 +80,28 @@ def check_cost(scene, methods, samples, reference_samples, resolution=None):
 # ---------------------------------------------------------------- scene state
 
 def _state_items(scene):
+    """(owner, attribute) of every render, pass, display and world setting the lab changes."""
     r, vl, d = scene.render, scene.view_layers[0], scene.display
-    items = [(r, "engine"), (r, "resolution_x"), (r, "resolution_y"), (r, "resolution_percentage"),
-             (r, "film_transparent"), (r, "filter_size"), (r, "filepath"), (r, "use_file_extension")]
-    im = r.image_settings
-    if hasattr(im, "media_type"):
-        items.append((im, "media_type"))
-    items += [(im, "file_format"), (im, "color_mode"), (im, "color_depth"), (im, "exr_codec")]
-    cy = scene.cycles
-    items += [(cy, a) for a in ("device", "samples", "use_adaptive_sampling", "use_denoising", "seed",
-                                "filter_width", "max_bounces")]
+    items = render.settings(scene) + [(r, "resolution_x"), (r, "resolution_y"), (r, "resolution_percentage"),
+                                      (r, "film_transparent"), (scene.cycles, "max_bounces")]
+    items += render.output_settings(scene)
     items += [(vl, a) for a in ("use_pass_z", "use_pass_normal", "use_pass_position",
                                 "use_pass_ambient_occlusion")]
-    items += [compat.eevee_ao_distance_owner(scene, vl), (scene.eevee, "taa_render_samples")]
+    items.append(compat.eevee_ao_distance_owner(scene, vl))
     items += [(d.shading, a) for a in ("light", "color_type", "single_color", "show_cavity", "cavity_type",
                                        "cavity_valley_factor", "cavity_ridge_factor")]
     items += [(d, a) for a in ("matcap_ssao_distance", "matcap_ssao_samples", "matcap_ssao_attenuation",
                                "render_aa")]
-    items.append((scene, "world"))
-    if scene.world is not None:
-        items.append((scene.world.light_settings, "distance"))
-    return items
+    return items + world_settings(scene)
 
 
 @contextlib.contextmanager
 def preserved(scene):
-    """Restore every render/display/world setting the lab touches; remove a world it had to add."""
-    items = _state_items(scene)
-    saved = []
-    for owner, attr in items:
-        value = getattr(owner, attr)
-        if hasattr(value, "__len__") and not isinstance(value, str):
-            value = tuple(value)
-        saved.append((owner, attr, value))
-    world_added = None
-    if scene.world is None:
-        world_added = bpy.data.worlds.new(f"{scene.name} SSAO World")
-        scene.world = world_added
-    try:
+    """Every setting the lab touches put back on exit (blender.state.SavedState); a world while it runs when
+    the scene has none, removed afterwards."""
+    with SavedState(scene, settings=_state_items(scene)) as state:
+        state.world(lambda: bpy.data.worlds.new(f"{scene.name} SSAO World"))
         yield scene
-    finally:
-        failed = []
-        for owner, attr, value in saved:
-            try:
-                if getattr(owner, attr) != value:
-                    setattr(owner, attr, value)
-            except (AttributeError, TypeError, ValueError):
-                failed.append((owner, attr, value))
-        for owner, attr, value in failed:      # order-dependent ones (media type before format)
-            with contextlib.suppress(AttributeError, TypeError, ValueError):
-                setattr(owner, attr, value)
-        if world_added is not None:
-            if scene.world == world_added:
-                scene.world = None
-            bpy.data.worlds.remove(world_added)
 
 
 def set_resolution(scene, resolution):
@@ -148,8 +117,7 @@ def set_resolution(scene, resolution):
 
 def _cycles(scene, samples):
     """Cycles on the CPU, ``samples`` per pixel, seed 0, every sample through the pixel centre, no sky."""
-    render.cycles_cpu(scene, samples=samples, seed=0)
-    scene.cycles.filter_width = FILTER_WIDTH
+    render.cycles_cpu(scene, samples, seed=0, pixel_filter=FILTER_WIDTH)
     scene.render.film_transparent = True
 
 
@@ -282,10 +250,8 @@ def _read_cache(path):
 def render_eevee(scene, radius, samples=16):
     """EEVEE's AO pass (horizon scan, distance = radius) -> (k_A image, seconds, params)."""
     t0 = time.perf_counter()
-    scene.render.engine = compat.EEVEE
+    render.eevee(scene, samples, pixel_filter=0.0)
     scene.render.film_transparent = True
-    scene.render.filter_size = 0.0
-    scene.eevee.taa_render_samples = int(samples)
     compat.set_eevee_ao_distance(scene, scene.view_layers[0], radius)
     _passes(scene, ao=True)
     p = render.render_layers(scene)
@@ -394,7 +360,7 @@ def compare(scene, methods, out=None, samples=SSAOOptions.samples, radius=SSAOOp
         report["methods"][m] = {"rmse": e["rmse"], "bias": e["bias"], "mean": e["mean"], "seconds": seconds,
                                 "params": params}
     if report["scene"] == "corner":
-        closed = ssao_scenes.corner_closed_form(world, radius)
+        closed = scenes.corner_closed_form(world, radius)
         ok = np.isfinite(closed) & mask
         if ok.any():
             report["reference"]["closed_form"] = metrics.error_metrics(ref["k"], closed, ok)
@@ -437,7 +403,7 @@ def run_builtin(name, methods, out=None, resolution=SSAOOptions.resolution, **kw
     methods = parse_methods(methods)
     check_params(kwargs.get("samples", SSAOOptions.samples), kwargs.get("radius", SSAOOptions.radius),
                  kwargs.get("reference_samples", SSAOOptions.reference_samples), resolution)
-    scene = ssao_scenes.build_scene(name, resolution, kwargs.get("radius", SSAOOptions.radius))
+    scene = scenes.build_scene(name, resolution, kwargs.get("radius", SSAOOptions.radius))
     try:
         return compare(scene, methods, out, resolution=resolution, **kwargs)
     finally:

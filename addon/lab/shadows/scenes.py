@@ -13,9 +13,9 @@ import math
 
 from mathutils import Vector
 
-from ..core.errors import InputError
-from ..blender import scene as sc
-from .options import SHADOW_SCENE_CHOICES
+from ...core.errors import InputError
+from ...blender import scene as sc
+from ..options import SHADOW_SCENE_CHOICES
 
 SCENES = tuple(c[0] for c in SHADOW_SCENE_CHOICES)
 LIGHT_KINDS = ("sun", "point", "spot")

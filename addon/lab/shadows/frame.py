@@ -3,9 +3,10 @@ depth maps, EEVEE and Workbench masks, and the occluders' triangles -- all on on
 
 The user's scene is never rendered or edited directly: a temporary scene links the same objects
 (minus every other light), gets its own camera settings, passes and a white diffuse material
-override, and is removed afterwards. The light's radius, spot blend and shadow switch are set
-for the lab and restored on exit, also after an error.
+override, and is removed afterwards. The light's own settings (LIGHT_SETTINGS) are set for the lab
+and put back on exit by blender.state.SavedState, also after an error.
 """
+import contextlib
 import math
 import time
 
@@ -13,13 +14,18 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from ..blender import compat
-from ..core import camera as cam
-from ..core.shadow import metrics
-from ..core.shadow import depth_map
-from ..core.errors import ILError, InputError
-from ..blender import materials, scene as sc
-from . import render
+from ...blender import compat
+from ...core import camera as cam
+from ...core.shadow import metrics
+from ...core.shadow import depth_map
+from ...core.errors import ILError, InputError
+from ...blender import materials, render, scene as sc
+from ...blender.state import SavedState
+
+#: The light's settings the lab changes (radius 0, no blend, shadows on, no EEVEE jitter), put back on exit.
+LIGHT_SETTINGS = ("shadow_soft_size", "angle", "spot_blend", "use_shadow", "use_shadow_jitter")
+#: Pixel filter width of every lab render (pixels): every sample through the pixel centre.
+FILTER_WIDTH = 0.01
 
 #: Object types Cycles renders as a surface that Blender evaluates to a mesh (triangulated for the
 #: planar and volume methods); other renderable types are listed as skipped.
@@ -76,8 +82,8 @@ class LightInfo:
         return ok
 
 
-class Session:
-    """``with Session(scene, "Light", 128) as s:`` -- the reference and every method's inputs."""
+class ShadowFrame:
+    """``with ShadowFrame(scene, "Light", 128) as s:`` -- the reference and every method's inputs."""
 
     def __init__(self, scene, light_name, resolution=128, samples=1):
         if light_name not in scene.objects:
@@ -98,7 +104,7 @@ class Session:
         self.skipped = []
         self.tmp = None
         self._made = []
-        self._saved_light = None
+        self._restore = contextlib.ExitStack()
 
     # -- set-up and tear-down -------------------------------------------------------------
     def __enter__(self):
@@ -115,8 +121,7 @@ class Session:
 
     def _open(self):
         user, data = self.user_scene, self.light.obj.data
-        self._saved_light = {k: getattr(data, k) for k in ("shadow_soft_size", "angle", "spot_blend",
-                                                            "use_shadow") if hasattr(data, k)}
+        self._restore.enter_context(SavedState(user, settings=[(data, k) for k in LIGHT_SETTINGS if hasattr(data, k)]))
         if data.type in {"POINT", "SPOT"}:
             data.shadow_soft_size = 0.0
         if data.type == "SUN":
@@ -151,15 +156,12 @@ class Session:
 
     def close(self):
         """Remove the private scene (the user's objects stay: they live in the user's scene too), the
-        lab's cameras and material, and give the light its settings back."""
+        lab's cameras and material, and give the light its settings back (blender.state.SavedState)."""
         if self.tmp is not None:
             sc.remove_scene(self.tmp, self._made)
             self.tmp = None
         self._made = []
-        if self._saved_light is not None:
-            for k, v in self._saved_light.items():
-                setattr(self.light.obj.data, k, v)
-            self._saved_light = None
+        self._restore.close()
 
     # -- renders ----------------------------------------------------------------------------
     def _render(self, engine, camera, width, height, passes):
@@ -181,8 +183,7 @@ class Session:
         """
         t = time.perf_counter()
         tmp = self.tmp
-        render.cycles_cpu(tmp, self.samples)
-        tmp.cycles.filter_width = 0.01
+        render.cycles_cpu(tmp, self.samples, pixel_filter=FILTER_WIDTH)
         tmp.cycles.max_bounces = 0
         p = self._render(compat.CYCLES, self.user_scene.camera, self.width, self.height,
                          {"use_pass_z", "use_pass_position", "use_pass_normal", "use_pass_diffuse_direct"})
@@ -254,8 +255,7 @@ class Session:
         cams = self.light_cameras()
         try:
             tmp = self.tmp
-            render.cycles_cpu(tmp, 1)
-            tmp.cycles.filter_width = 0.01
+            render.cycles_cpu(tmp, 1, pixel_filter=FILTER_WIDTH)
             tmp.cycles.max_bounces = 0
             for c in cams:
                 p = self._render(compat.CYCLES, c, size, size, {"use_pass_z"})
@@ -293,8 +293,7 @@ class Session:
         cam_obj = self.user_scene.camera
         if engine == "eevee":
             eng, passes = compat.EEVEE, {"use_pass_diffuse_direct"}
-            tmp.eevee.taa_render_samples = 1
-            tmp.render.filter_size = 0.01
+            render.eevee(tmp, 1, pixel_filter=FILTER_WIDTH)
             if hasattr(self.light.obj.data, "use_shadow_jitter"):
                 self.light.obj.data.use_shadow_jitter = False
             key = compat.DIFFUSE_DIRECT_PASS

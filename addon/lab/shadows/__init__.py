@@ -13,20 +13,20 @@ import time
 
 import numpy as np
 
-from ..core import choices
-from ..core.io import png
-from ..core.shadow import metrics
-from ..core.shadow import volume as shadow_volume
-from ..core.shadow import depth_map
-from ..core.shadow import planar as shadow_planar
-from ..core.errors import ILError, InputError, warn
-from ..core.io.files import write_json
-from ..core.result import JobResult
-from ..blender.progress import Progress
-from ..blender import scene as sc
-from . import shadow_scenes
-from .options import SHADOW_METHOD_CHOICES, ShadowOptions
-from .shadow_session import Session
+from ...core import choices
+from ...core.io import png
+from ...core.shadow import metrics
+from ...core.shadow import volume as shadow_volume
+from ...core.shadow import depth_map
+from ...core.shadow import planar as shadow_planar
+from ...core.errors import ILError, InputError, warn
+from ...core.io.files import write_json
+from ...core.result import JobResult
+from ...blender.progress import Progress
+from ...blender import scene as sc
+from ..options import SHADOW_METHOD_CHOICES, ShadowOptions
+from . import scenes
+from .frame import ShadowFrame
 
 METHODS = tuple(m[0] for m in SHADOW_METHOD_CHOICES)
 
@@ -42,10 +42,10 @@ def check_params(params):
     return dataclasses.asdict(o)
 
 
-def check_cost(session, methods, p):
-    """core.shadow.depth_map.check_cost for the session's frame and, with "shadowmap", its maps."""
-    faces = 6 if session.light.kind == "POINT" else 1
-    depth_map.check_cost(session.width, session.height, p["shadowmap_size"] if "shadowmap" in methods else None,
+def check_cost(frame, methods, p):
+    """core.shadow.depth_map.check_cost for the frame's size and, with "shadowmap", its maps."""
+    faces = 6 if frame.light.kind == "POINT" else 1
+    depth_map.check_cost(frame.width, frame.height, p["shadowmap_size"] if "shadowmap" in methods else None,
                           faces)
 
 
@@ -134,7 +134,7 @@ _RUN = {"planar": _planar, "shadowmap": _shadowmap, "volume_zpass": _volume("zpa
 
 
 def run_method(s, method, p):
-    """(mask, seconds, params) of one method in an open :class:`Session` with its reference rendered."""
+    """(mask, seconds, params) of one method in an open :class:`ShadowFrame` with its reference rendered."""
     if method == "raytraced":
         return s.reference, s.reference_seconds, {"samples": s.samples, "engine": "cycles", "light_radius": 0.0}
     t = time.perf_counter()
@@ -154,9 +154,9 @@ def compare(scene, light, methods, out, **params):
     p = check_params(params)
     report = {"scene": scene.name, "light": light, "reference": {}, "methods": {}}
     images = {}
-    session = Session(scene, light, p["resolution"], p["samples"])
-    check_cost(session, methods, p)
-    with Progress("shadows", len(methods) + 1) as progress, session as s:
+    frame = ShadowFrame(scene, light, p["resolution"], p["samples"])
+    check_cost(frame, methods, p)
+    with Progress("shadows", len(methods) + 1) as progress, frame as s:
         progress.step("ray-traced reference (Cycles, radius-0 light)")
         s.reference_seconds = s.render_reference()
         if not s.receiver.any():
@@ -200,7 +200,7 @@ def compare_builtin(name, light_kind, methods, out, keep=False, **params):
     p = check_params(params)
     depth_map.check_cost(p["resolution"], p["resolution"], p["shadowmap_size"] if "shadowmap" in methods else None,
                           6 if light_kind == "point" else 1)
-    scene = shadow_scenes.build(name, light_kind, (p["resolution"], p["resolution"]))
+    scene = scenes.build(name, light_kind, (p["resolution"], p["resolution"]))
     try:
         return compare(scene, scene["il_shadow_light"], methods, out, **params)
     finally:
