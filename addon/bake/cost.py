@@ -60,13 +60,6 @@ def panel_max_side(cap):
     return max(1, min(int(cap), largest_side(total_memory() or PANEL_FALLBACK_MEMORY)))
 
 
-def human(nbytes):
-    for unit, scale in (("GiB", 2 ** 30), ("MiB", 2 ** 20), ("KiB", 2 ** 10)):
-        if nbytes >= scale:
-            return f"{nbytes / scale:.3g} {unit}"
-    return f"{int(nbytes)} B"
-
-
 def check(width, height, maps, denoise=False, memory=None, what="resolution"):
     """None when a (width × height) bake of ``maps`` fits RESERVE × ``memory`` (default: the memory available
     now, ``core.budget.available_bytes``, the machine's one measure of it), else the one-line refusal naming the

@@ -10,7 +10,7 @@ import bpy
 import numpy as np
 
 from ..blender import compat, interrupt
-from ..core import errors, lightmap
+from ..core import budget, errors, lightmap
 from ..core.io import png as io_png
 from ..core.io import exr
 from ..core.errors import ILError, InputError
@@ -239,7 +239,8 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
             for m in maps:
                 estimate = ""
                 if size:
-                    estimate = (f" {size[0]}x{size[1]} (about {cost.human(cost.peak_bytes(size[0], size[1], [m], options.denoise))}, "
+                    peak = cost.peak_bytes(size[0], size[1], [m], options.denoise)
+                    estimate = (f" {size[0]}x{size[1]} (about {budget.format_bytes(peak)}, "
                                 f"{cost.seconds(size[0], size[1], [m], _planned_samples(options)):.2g} s)")
                 step(f"{name}: {m}" + (estimate or " (vertices)"))
                 t_map = time.perf_counter()

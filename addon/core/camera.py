@@ -25,6 +25,11 @@ def ndc_to_pixels(ndc_x, ndc_y, width, height):
     return (ndc_x + 1.0) * (0.5 * width) - 0.5, (1.0 - ndc_y) * (0.5 * height) - 0.5
 
 
+def pixels_to_ndc(x, y, width, height):
+    """Pixel x, y -> normalised device coordinates, the inverse of :func:`ndc_to_pixels`."""
+    return (x + 0.5) * (2.0 / width) - 1.0, 1.0 - (y + 0.5) * (2.0 / height)
+
+
 def world_to_pixels(points, world_to_view, proj, width, height):
     """(..., 3) world points -> (x, y) pixel coordinates (row 0 at the top) and view depth (> 0 in front)."""
     v = transform(world_to_view, points)
@@ -40,8 +45,7 @@ def pixel_rays(world_to_view, proj, width, height):
     view_to_world = np.linalg.inv(world_to_view)
     inv_proj = np.linalg.inv(proj)
     ys, xs = np.mgrid[0:height, 0:width].astype(np.float64)
-    ndc_x = (xs + 0.5) / width * 2.0 - 1.0
-    ndc_y = 1.0 - (ys + 0.5) / height * 2.0
+    ndc_x, ndc_y = pixels_to_ndc(xs, ys, width, height)
     near = np.stack([ndc_x, ndc_y, -np.ones_like(xs), np.ones_like(xs)], -1) @ inv_proj.T
     far = np.stack([ndc_x, ndc_y, np.ones_like(xs), np.ones_like(xs)], -1) @ inv_proj.T
     near = near[..., :3] / near[..., 3:4]

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..camera import SKY_DEPTH, ndc_to_pixels
+from ..camera import SKY_DEPTH, ndc_to_pixels, pixels_to_ndc
 
 
 @dataclass
@@ -153,8 +153,7 @@ def position_at(gb, x, y):
     """
     d, on = depth_at(gb, x, y)
     p = gb.proj
-    ndc_x = (x + 0.5) * (2.0 / gb.width) - 1.0
-    ndc_y = 1.0 - (y + 0.5) * (2.0 / gb.height)
+    ndc_x, ndc_y = pixels_to_ndc(x, y, gb.width, gb.height)
     if gb.perspective:
         px = d * ((ndc_x + p[0, 2]) / p[0, 0])
         py = d * ((ndc_y + p[1, 2]) / p[1, 1])
