@@ -86,27 +86,33 @@ def fine_patches(patches, recv, src, cell):
 
 
 class NearField:
-    """The element exchange of the near pairs (recv, src): ``cell``² texel elements per patch, (2 cell)² for
-    the ``fine`` ones, which exchange at that resolution with the patches they overlap (bounding spheres),
-    at the texel one with the rest; the pairs in groups by (receiver level, source level), each sorted by
-    receiver, with their :func:`element_form_factors`."""
+    """The element exchange of the near pairs (recv, src), in groups by (receiver level, source level), each
+    sorted by receiver, with their :func:`element_form_factors`. Levels: "texel" (``cell``² texel elements),
+    "fine" ((2 cell)² elements, the ``fine`` patches) and, for sources, "patch" (the whole patch at its mean
+    radiosity). Patches whose bounding spheres overlap (they touch, or one lies over the other) exchange
+    element to element, at the fine level where a side is fine; the other near pairs from the receiver's
+    texel centres to the whole source (its form factor still changes across the receiver, its radiosity
+    hardly matters at the source's scale)."""
 
     def __init__(self, patches, recv, src, cell, visible=None, fine=None):
         self.patches, self.cell = patches, int(cell)
         self.recv, self.src = np.asarray(recv, int), np.asarray(src, int)
         self.fine = np.zeros(len(patches), bool) if fine is None else np.asarray(fine, bool)
-        self.elements = {False: texel_elements(patches, cell)}
+        n = len(patches)
+        self.elements = {"texel": texel_elements(patches, cell),
+                         "patch": (patches.corners[:, None], patches.center[:, None], patches.area[:, None],
+                                   np.ones((n, 1), bool))}
         r, j = self.recv, self.src
-        overlap = (np.linalg.norm(patches.center[j] - patches.center[r], axis=1)
-                   < bounding_radius(patches)[r] + bounding_radius(patches)[j])
-        pair_fine = (self.fine[r] | self.fine[j]) & overlap
-        if pair_fine.any():
-            self.elements[True] = texel_elements(patches, 2 * cell)
+        rad = bounding_radius(patches)
+        overlap = np.linalg.norm(patches.center[j] - patches.center[r], axis=1) < rad[r] + rad[j]
+        lr = np.where(overlap & self.fine[r], "fine", "texel")
+        ls = np.where(overlap, np.where(self.fine[j], "fine", "texel"), "patch")
+        if (lr == "fine").any() or (ls == "fine").any():
+            self.elements["fine"] = texel_elements(patches, 2 * cell)
         self.groups = []
-        for fr in (False, True):
-            for fs in (False, True):
-                sel = ((pair_fine & self.fine[r]) == fr) & ((pair_fine & self.fine[j]) == fs)
-                idx = np.flatnonzero(sel)
+        for fr in ("texel", "fine"):
+            for fs in ("patch", "texel", "fine"):
+                idx = np.flatnonzero((lr == fr) & (ls == fs))
                 if not len(idx):
                     continue
                 idx = idx[np.argsort(r[idx], kind="stable")]
@@ -118,8 +124,8 @@ class NearField:
     def evaluations(self):
         return int(sum(K.size for *_, K in self.groups))
 
-    def weights(self, fine):
-        area = self.elements[fine][2]
+    def weights(self, level):
+        area = self.elements[level][2]
         return area / np.maximum(area.sum(axis=1, keepdims=True), 1e-300)
 
     def patch_form_factors(self):
@@ -133,7 +139,7 @@ class NearField:
     def box(self, values):
         """Fine element values (N, (2c)², C) to their texels' area-weighted means (N, c², C)."""
         n, c = len(self.patches), self.cell
-        a2 = self.elements[True][2].reshape(n, c, 2, c, 2)
+        a2 = self.elements["fine"][2].reshape(n, c, 2, c, 2)
         den = np.maximum(a2.sum(axis=(2, 4)), 1e-300).reshape(n, c * c, 1)
         return (values.reshape(n, c, 2, c, 2, -1) * a2[..., None]).sum(axis=(2, 4)).reshape(n, c * c, -1) / den
 
@@ -148,39 +154,40 @@ def near_field_gather(patches, F, B, near, tol=1e-5, max_iter=1000):
     """The two-level solution of the module docstring from the patch solution B (N, 3) of the system F
     (N, N) and a :class:`NearField` ``near`` whose pairs' F entries the element exchange replaces (F is
     restored on return). A fine patch's texel is the area-weighted mean of its 2 × 2 elements in it (the
-    texel's box average, as Cycles' bake jitters its samples over the texel). Returns a :class:`Gather`."""
+    texel's box average, as Cycles' bake jitters its samples over the texel); the light it gets from the
+    sources it does not overlap is taken at the texel's centre. Returns a :class:`Gather`."""
     recv, src = near.recv, near.src
-    n = len(patches)
-    has_fine = True in near.elements
-    fine = near.fine if has_fine else np.zeros(n, bool)
+    has_fine = "fine" in near.elements
+    fine = near.fine if has_fine else np.zeros(len(patches), bool)
     E, rho = patches.emission[:, None, :], patches.rho[:, None, :]
-    area, tmask = near.elements[False][2], near.elements[False][3]
-    w = near.weights(False)
+    area, tmask = near.elements["texel"][2], near.elements["texel"][3]
+    w = near.weights("texel")
     B0 = np.asarray(B, np.float64)[:, None, :]
-    Be = {False: np.where(tmask[..., None], B0, 0.0)}
+    Be = {"texel": np.where(tmask[..., None], B0, 0.0)}
     if has_fine:
-        fmask = near.elements[True][3]
-        Be[True] = np.where(fmask[..., None], B0, 0.0)
+        fmask = near.elements["fine"][3]
+        Be["fine"] = np.where(fmask[..., None], B0, 0.0)
     scale = max(float(np.abs(E).max()), 1e-300)
     saved = F[recv, src].copy()
     F[recv, src] = 0.0
     converged, it = False, 0
     try:
         for it in range(1, max_iter + 1):
-            far = F @ np.einsum("nm,nmc->nc", w, Be[False])
-            H = {f: np.zeros_like(Be[f]) for f in Be}
+            Be["patch"] = np.einsum("nm,nmc->nc", w, Be["texel"])[:, None, :]
+            far = F @ Be["patch"][:, 0]
+            H = {f: np.zeros_like(Be[f]) for f in ("texel", "fine") if f in Be}
             for fr, fs, idx, K in near.groups:
                 r = recv[idx]
                 first = np.flatnonzero(np.r_[True, r[1:] != r[:-1]])
                 H[fr][r[first]] += np.add.reduceat(np.matmul(K, Be[fs][src[idx]]), first, axis=0)
-            Ht = H[False] + far[:, None, :]
-            Bn = {False: np.where(tmask[..., None], E + rho * Ht, 0.0)}
+            Ht = H["texel"] + far[:, None, :]
+            Bn = {"texel": np.where(tmask[..., None], E + rho * Ht, 0.0)}
             if has_fine:
-                Hf = H[True] + near.spread(H[False]) + far[:, None, :]
-                Bn[True] = np.where(fmask[..., None], E + rho * Hf, 0.0)
-                Bn[False][fine] = near.box(Bn[True])[fine]
-            delta = max(float(np.abs(Bn[f] - Be[f]).max()) for f in Bn) / max(float(np.abs(Bn[False]).max()), scale)
-            Be = Bn
+                Hf = H["fine"] + near.spread(H["texel"]) + far[:, None, :]
+                Bn["fine"] = np.where(fmask[..., None], E + rho * Hf, 0.0)
+                Bn["texel"][fine] = near.box(Bn["fine"])[fine]
+            delta = max(float(np.abs(Bn[f] - Be[f]).max()) for f in Bn) / max(float(np.abs(Bn["texel"]).max()), scale)
+            Be.update(Bn)
             if delta < tol:
                 converged = True
                 break
@@ -188,5 +195,5 @@ def near_field_gather(patches, F, B, near, tol=1e-5, max_iter=1000):
         F[recv, src] = saved
     if has_fine:
         Ht[fine] = near.box(Hf)[fine]
-    return Gather(np.where(tmask[..., None], Ht, np.nan), np.where(tmask[..., None], Be[False], np.nan), area,
+    return Gather(np.where(tmask[..., None], Ht, np.nan), np.where(tmask[..., None], Be["texel"], np.nan), area,
                   tmask, it, converged)
