@@ -423,7 +423,9 @@ def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, th
 
     ``meshes`` may also be the patches of :func:`scene_patches`. The cost is checked before anything big is
     allocated (core.radiosity.cost.check_cost): a split that does not fit is refused, an adaptive round that would not fit
-    is skipped with a warning. Returns a dict: patches, F, V, solution, H (irradiance), timings, cost.
+    is skipped with a warning. The near pairs' F_ij come from their texel-element exchange
+    (core.radiosity.gather.NearField, returned as "near_field" for :func:`run`'s texel solution). Returns a dict:
+    patches, F, V, solution, H (irradiance of the patch solution), timings, cost, near, near_field.
     """
     t = {}
     t0 = time.perf_counter()
@@ -766,7 +768,9 @@ def run(out, scene=None, cornell=False, solver="jacobi", max_edge=0.25, adaptive
             report["relative_rms_vs_cycles"] = cmp["patch"]["relative_rms"]
             r["cycles_texels"], r["H_texels"], r["H_points"] = Hct, Hx, Hx_mean
             report["mean_irradiance"] = {"radiosity": float(np.mean(Hf[ok])), "cycles": float(np.mean(Hc[ok]))}
-            report["near_field"] = {"pairs": int(len(r["near"][0])), "evaluations": int(r["near_evals"])}
+            report["near_field"] = {"pairs": int(len(r["near"][0])), "evaluations": int(r["near_evals"]),
+                                    "fine_patches": int(r["near_field"].fine.sum()),
+                                    "texel_iterations": int(g.iterations)}
             report["cycles_seconds"] = round(secs, 4)
             report["cycles_samples"] = int(samples)
             report["cycles_maps"] = os.path.join(out, "cycles_bake")

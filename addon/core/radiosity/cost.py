@@ -19,11 +19,11 @@ OVERHEAD_BYTES = 600e6                  # Blender, numpy and the chunked tempora
 # Seconds per patch pair (visibility ray + form factor + the three solvers of the convergence chart),
 # measured on the 2-core reference machine (tests/test_radiosity.py states the run it comes from).
 SECONDS_PER_PAIR = 4e-6
-# The near field (:class:`core.radiosity.gather.NearField`): texel-element form factors of the near pairs, stored
-# as float32 (4 B each), a visibility ray per receiving element and source; made in chunks below NEAR_PEAK_BYTES.
-# Measured: 2,980 evaluations a patch on the imported Cornell box (1,453 patches, the light's back in 8 x 8
-# elements), 3,610 on the built-in one (1,156), 0.66 µs each with the rays; counted as below.
-NEAR_EVALS_PER_PATCH = 6000
+# The near field (:class:`core.radiosity.gather.NearField`): element form factors of the near pairs, stored as
+# float32 (4 B each), a visibility ray per receiving texel and source; made in chunks below NEAR_PEAK_BYTES.
+# Measured: 1,190 a patch on the imported Cornell box (1,453 patches, the light's back in 8 x 8 elements), 590 on
+# the built-in one (1,156), 1,770 on the corpus' emissive.blend (4,094); about 1 µs each with the rays.
+NEAR_EVALS_PER_PATCH = 3000
 SECONDS_PER_NEAR_EVAL = 1e-6
 MAX_SECONDS = 3600.0
 

@@ -3,9 +3,10 @@
 A patch-constant B cannot follow a field that changes within a patch: a ceiling 1 mm above a light's back
 side is lit through the gap with a step at the light's outline, and the light and the ceiling bounce light
 between them 1 / (1 − ρρ') times. Every patch is cut along its atlas cell's texel grid
-(:func:`core.radiosity.atlas.texel_elements`); the elements of the near pairs (the pairs whose form factor
-changes across the receiver, :func:`core.radiosity.form_factors.near_pairs`) exchange light element to element,
-the rest through the patch form factors F_ij and the patches' mean radiosity:
+(:func:`core.radiosity.atlas.texel_elements`). Near pairs (the pairs whose form factor changes across the
+receiver, :func:`core.radiosity.form_factors.near_pairs`) exchange light from each texel centre of the
+receiver, element to element where the two patches overlap, to the whole source elsewhere (:class:`NearField`);
+the other pairs through the patch form factors F_ij:
 
     B_a = E_i + ρ_i (Σ_{j far from i} F_ij B̄_j + Σ_{j near i} Σ_{b in j} F(dA_a -> A_b) V(a, j) B_b),   a in patch i
 
