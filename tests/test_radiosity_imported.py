@@ -99,9 +99,11 @@ Ks 0 0 0
 illum 1
 """
 LIGHT_DOWN, LIGHT_UP = "f 9 10 11 12", "f 12 11 10 9"
-# The solver's own relative RMS on the imported box at the defaults: its RMS against a 1024-sample Cycles bake,
-# 3.77 % (an upper bound: that bake's own noise, estimated as in the test below, is 1.7 % of it), rounded up.
-E_MODEL = 0.038
+# The solver's own relative RMS on the imported box at 0.1 m patches: its RMS against a 512-sample Cycles bake,
+# 5.89 % (an upper bound: that bake's own noise, estimated as in the test below, is 1.8 % of the mean), rounded
+# up. (At the defaults, 0.25 m: 3.77 % against a 1024-sample bake; per patch unweighted, so the finer rim counts
+# more at 0.1 m.)
+E_MODEL = 0.059
 
 
 def import_cornell(folder, light=LIGHT_DOWN):
@@ -127,26 +129,25 @@ def test_importer_gives_principled_emission_read_as_cycles_does(tmp_path):
 
 
 def test_imported_cornell_box_against_cycles_and_against_bake_py(tmp_path):
-    """At the script's defaults (0.25 m patches, 64 samples). Tolerances:
+    """0.1 m patches, 32 samples. Tolerances:
     - means are area-weighted (∫ H dA / A, the light on the surfaces; a per-patch mean would weight the
-      millimetre patches the subdivision puts around the light): measured (1024 samples) whole box 1.001, the
-      ceiling over the light (the 1 mm gap) 1.002, Room 1.003, ShortBlock 0.957, TallBlock 0.986 (the short
-      block at 0.25 m patches, one visibility ray a patch pair: 0.953 before the texel solution). The Cycles
-      noise of such a mean over thousands of texels is below 0.5 %; allowed: 4.5 %.
+      millimetre patches the subdivision puts around the light): measured (512 samples) whole box 0.999, the
+      ceiling over the light (the 1 mm gap) 1.001, Room 1.000, ShortBlock 0.992, TallBlock 0.991. The Cycles
+      noise of such a mean over thousands of texels is below 0.5 %; allowed: 4 %.
     - relative RMS per patch ("patch" comparison, the light map's texels against Cycles'): the solver's own
-      error E_MODEL (its RMS against a 1024-sample bake) plus this bake's Monte Carlo noise σ, estimated from
+      error E_MODEL (its RMS against a 512-sample bake) plus this bake's Monte Carlo noise σ, estimated from
       this bake itself: within a patch the texels' residuals against the solution scatter by the bake's
       per-texel noise (the solution is smooth at the texel scale but at the light's rim, which can only
       inflate the estimate), so a patch mean's noise variance is s²_k / n_k (sample variance of its n_k
-      residuals); σ² is their mean over patches and channels (measured: 4.6 % of the mean at 64 samples), and
-      E[RMS²] = E_MODEL² + σ². The RMS² of one bake scatters about that by √((2σ⁴ + 4 E_MODEL² σ²) / n_eff)
-      (n_eff = (Σ v_k)² / Σ v_k², v_k the patches' noise variances): allowed 3 of those. Measured 5.7 % (before
-      the texel solution the patch-constant radiosity gave 14.4 % here, all of it at the light's rim)."""
+      residuals); σ² is their mean over patches and channels, and E[RMS²] = E_MODEL² + σ². The RMS² of one
+      bake scatters about that by √((2σ⁴ + 4 E_MODEL² σ²) / n_eff) (n_eff = (Σ v_k)² / Σ v_k², v_k the
+      patches' noise variances): allowed 3 of those. Before the texel solution the patch-constant radiosity
+      gave 16.2 % here (95 % of the squared error within 5 mm of the light's outline)."""
     from addon.bake import BakeOptions, bake_lightmaps
     from addon.core.io import exr
     sc = import_cornell(str(tmp_path / "obj"))
     sc.world = L.scn.black_world()
-    r = L.run(str(tmp_path / "rad"), scene=sc)
+    r = L.run(str(tmp_path / "rad"), scene=sc, max_edge=0.1, samples=32)
     rep = r["report"]
     H, Hc = r["H_front"], r["cycles"]
     assert np.isfinite(Hc).all() and H.min() >= 0
@@ -162,7 +163,7 @@ def test_imported_cornell_box_against_cycles_and_against_bake_py(tmp_path):
     assert gap.sum() > 4
     figures = {"all": ratio(slice(None)), "gap": ratio(gap), "rms": rep["relative_rms_vs_cycles"]}
     figures.update({n: ratio(p.owner == k) for k, n in enumerate(p.names)})
-    assert all(abs(figures[k] - 1) < 0.045 for k in figures if k != "rms"), figures
+    assert all(abs(figures[k] - 1) < 0.04 for k in figures if k != "rms"), figures
     res = r["cycles_texels"] - r["H_texels"]                   # (patches, texels, RGB), NaN where not baked
     n = np.isfinite(res[..., 0]).sum(axis=1)
     s2 = np.nanvar(res, axis=1, ddof=1) / n[:, None]           # noise variance of each patch mean, per channel

@@ -22,7 +22,7 @@ SECONDS_PER_PAIR = 4e-6
 # The near field (:class:`core.radiosity.gather.NearField`): element form factors of the near pairs, stored as
 # float32 (4 B each), a visibility ray per receiving texel and source; made in chunks below NEAR_PEAK_BYTES.
 # Measured: 1,190 a patch on the imported Cornell box (1,453 patches, the light's back in 8 x 8 elements), 590 on
-# the built-in one (1,156), 1,770 on the corpus' emissive.blend (4,094); about 1 µs each with the rays.
+# the built-in one (1,156), 300 on the corpus' emissive.blend (4,094); about 1 µs each with the rays.
 NEAR_EVALS_PER_PATCH = 3000
 SECONDS_PER_NEAR_EVAL = 1e-6
 MAX_SECONDS = 3600.0
