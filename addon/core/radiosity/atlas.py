@@ -24,7 +24,6 @@ def texel_points(patches, cell):
     return pts, mask
 
 
-
 def texel_elements(patches, cell):
     """Each patch cut along its atlas cell's texel grid (the parametrisation of :func:`texel_points`): polygons
     (N, cell², 4, 3) wound as the patch (a triangle repeats its last corner), collocation points (N, cell², 3),
@@ -37,7 +36,7 @@ def texel_elements(patches, cell):
     v0, v1 = 1 - (yy + 1) / cell, 1 - yy / cell
     us = np.stack([u0, u1, u1, u0], -1)                      # (m, 4): the square's corners, counter-clockwise
     vs = np.stack([v0, v0, v1, v1], -1)
-    diag = xx + yy == cell - 1                               # squares the diagonal v = u cuts: keep (u0,v0),(u1,v0),(u1,v1)
+    diag = xx + yy == cell - 1           # squares the diagonal v = u cuts: keep (u0,v0), (u1,v0), (u1,v1)
     tri_us = np.where(diag[:, None], np.stack([u0, u1, u1, u1], -1), us)
     tri_vs = np.where(diag[:, None], np.stack([v0, v0, v1, v1], -1), vs)
     pu = np.where(diag, (u0 + 2 * u1) / 3, (u0 + u1) / 2)

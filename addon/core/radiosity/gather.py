@@ -8,7 +8,7 @@ receiver, :func:`core.radiosity.form_factors.near_pairs`) exchange light from ea
 receiver, element to element where the two patches overlap, to the whole source elsewhere (:class:`NearField`);
 the other pairs through the patch form factors F_ij:
 
-    B_a = E_i + ρ_i (Σ_{j far from i} F_ij B̄_j + Σ_{j near i} Σ_{b in j} F(dA_a -> A_b) V(a, j) B_b),   a in patch i
+    B_a = E_i + ρ_i (Σ_{j far from i} F_ij B̄_j + Σ_{j near i} Σ_{b in j} F(dA_a -> A_b) V(a, j) B_b),  a in i
 
 collocated at the elements' points (the texel centres a light-map bake samples), F(dA_a -> A_b) the exact
 point-to-polygon form factor, B̄_j the area-weighted mean of j's elements. Solved by Jacobi sweeps from the
