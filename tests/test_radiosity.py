@@ -42,10 +42,11 @@ def test_cornell_run_against_cycles_and_outputs(tmp_path):
     assert abs((H * a).sum() / (Hc * a).sum() - 1) < 0.06
     assert rep["relative_rms_vs_cycles"] < 0.2
     assert rep["comparison"]["lightmap"]["rms"] == pytest.approx(np.sqrt(np.mean((H[ok] - Hc[ok]) ** 2)))
-    Hp = r["H_points"]                     # the solution at the baked texel centres, averaged per patch
+    Hp = r["H_points"]                     # the light map's baked texels, averaged per patch
     assert rep["rms_vs_cycles"] == pytest.approx(np.sqrt(np.mean((Hp[ok] - Hc[ok]) ** 2)))
     assert bpy.data.objects["Floor radiosity"].hide_render      # results never shadow later renders of the file
-    # light map = the solution painted per patch; vertex colours on a new object
+    # light map = the texel solution; a patch's texels average to its H (the floor's texels have equal areas);
+    # vertex colours on a new object
     ch, hdr = exr.read_exr(tmp_path / "Floor_radiosity.exr")
     assert hdr["il:units"] == "W/m^2"
     front = r["patches"].take(r["front"])

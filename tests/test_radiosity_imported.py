@@ -99,6 +99,11 @@ Ks 0 0 0
 illum 1
 """
 LIGHT_DOWN, LIGHT_UP = "f 9 10 11 12", "f 12 11 10 9"
+# The solver's own relative RMS on the imported box at 0.1 m patches: its RMS against a 512-sample Cycles bake,
+# 5.89 % (an upper bound: that bake's own noise, estimated as in the test below, is 1.8 % of the mean), rounded
+# up. (At the defaults, 0.25 m: 3.77 % against a 1024-sample bake; per patch unweighted, so the finer rim counts
+# more at 0.1 m.)
+E_MODEL = 0.059
 
 
 def import_cornell(folder, light=LIGHT_DOWN):
@@ -124,16 +129,21 @@ def test_importer_gives_principled_emission_read_as_cycles_does(tmp_path):
 
 
 def test_imported_cornell_box_against_cycles_and_against_bake_py(tmp_path):
-    """Tolerances, from what was measured (0.1 m patches, 32 samples):
+    """0.1 m patches, 32 samples. Tolerances:
     - means are area-weighted (∫ H dA / A, the light on the surfaces; a per-patch mean would weight the
-      millimetre patches the subdivision puts around the light): whole box 0.988, the ceiling over the light
-      (the 1 mm gap) 0.987, each object within 1.6 %. The Cycles noise of such a mean over thousands of texels
-      is below 0.5 %; allowed: 4 %.
-    - relative RMS per patch ("patch" comparison): 16.2 % measured (the built-in box: 4.3 % at 0.25 m and 64
-      samples). Cycles' noise at 32 samples accounts for ~7 % (texel RMS 31 % against patch RMS 16 %: the
-      texels' own noise, over ~16 texels a patch) and the rim of the light 1 mm under the ceiling for the rest
-      (95 % of the squared error lies within 5 mm of the light's outline, where the field changes over ~1 mm
-      and patches stop at max-edge / 32 = 3 mm): √(4.3² + 7² + 14.7²) ≈ 17 %. Allowed: 20 %."""
+      millimetre patches the subdivision puts around the light): measured (512 samples) whole box 0.999, the
+      ceiling over the light (the 1 mm gap) 1.001, Room 1.000, ShortBlock 0.992, TallBlock 0.991. The Cycles
+      noise of such a mean over thousands of texels is below 0.5 %; allowed: 4 %.
+    - relative RMS per patch ("patch" comparison, the light map's texels against Cycles'): the solver's own
+      error E_MODEL (its RMS against a 512-sample bake) plus this bake's Monte Carlo noise σ, estimated from
+      this bake itself: within a patch the texels' residuals against the solution scatter by the bake's
+      per-texel noise (the solution is smooth at the texel scale but at the light's rim, which can only
+      inflate the estimate), so a patch mean's noise variance is s²_k / n_k (sample variance of its n_k
+      residuals); σ² is their mean over patches and channels, and E[RMS²] = E_MODEL² + σ². The RMS² of one
+      bake scatters about that by √((2σ⁴ + 4 E_MODEL² σ²) / n_eff) (n_eff = (Σ v_k)² / Σ v_k², v_k the
+      patches' noise variances): allowed 3 of those (measured 8.2 %, σ 6.5 %, allowed 9.5 %). Before the texel
+      solution the patch-constant radiosity gave 16.2 % here (95 % of the squared error within 5 mm of the
+      light's outline)."""
     from addon.bake import BakeOptions, bake_lightmaps
     from addon.core.io import exr
     sc = import_cornell(str(tmp_path / "obj"))
@@ -155,7 +165,16 @@ def test_imported_cornell_box_against_cycles_and_against_bake_py(tmp_path):
     figures = {"all": ratio(slice(None)), "gap": ratio(gap), "rms": rep["relative_rms_vs_cycles"]}
     figures.update({n: ratio(p.owner == k) for k, n in enumerate(p.names)})
     assert all(abs(figures[k] - 1) < 0.04 for k in figures if k != "rms"), figures
-    assert rep["relative_rms_vs_cycles"] < 0.20, figures
+    res = r["cycles_texels"] - r["H_texels"]                   # (patches, texels, RGB), NaN where not baked
+    n = np.isfinite(res[..., 0]).sum(axis=1)
+    s2 = np.nanvar(res, axis=1, ddof=1) / n[:, None]           # noise variance of each patch mean, per channel
+    ref = float(np.mean(Hc))                                   # the comparison's normaliser
+    sigma2, v = float(s2.mean()), s2.mean(axis=1)
+    n_eff = v.sum() ** 2 / (v ** 2).sum()
+    e2 = (E_MODEL * ref) ** 2
+    allowed = np.sqrt(e2 + sigma2 + 3 * np.sqrt((2 * sigma2 ** 2 + 4 * e2 * sigma2) / n_eff)) / ref
+    figures.update(noise=np.sqrt(sigma2) / ref, n_eff=n_eff, allowed=allowed)
+    assert rep["relative_rms_vs_cycles"] < allowed, figures
     # the comparison bake against bake.py's own irradiance bake of the imported objects themselves:
     # area-weighted mean irradiance per object, measured within 2.7 % (Room 0.998, ShortBlock 0.973, TallBlock
     # 1.005); the generated light-map UVs keep the faces' areas in proportion only approximately (islands

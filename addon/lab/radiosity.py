@@ -18,6 +18,7 @@ from ..core import analytic
 from ..core.radiosity import atlas as rad_atlas
 from ..core.radiosity import cost as rad_cost
 from ..core.radiosity import form_factors as rad_form_factors
+from ..core.radiosity import gather as rad_gather
 from ..core.radiosity import patches as rad_patches
 from ..core.radiosity import solvers as rad_solvers
 from ..core.radiosity import subdivision as rad_subdivision
@@ -423,7 +424,9 @@ def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, th
 
     ``meshes`` may also be the patches of :func:`scene_patches`. The cost is checked before anything big is
     allocated (core.radiosity.cost.check_cost): a split that does not fit is refused, an adaptive round that would not fit
-    is skipped with a warning. Returns a dict: patches, F, V, solution, H (irradiance), timings, cost.
+    is skipped with a warning. The near pairs' F_ij come from their texel-element exchange
+    (core.radiosity.gather.NearField, returned as "near_field" for :func:`run`'s texel solution). Returns a dict:
+    patches, F, V, solution, H (irradiance of the patch solution), timings, cost, near, near_field.
     """
     t = {}
     t0 = time.perf_counter()
@@ -446,7 +449,8 @@ def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, th
         tn = time.perf_counter()
         near = rad_visibility.near_candidate_pairs(patches)
         visible = visible_bvh(patches, bvh=bvh)
-        F[near], evals = rad_form_factors.near_field_form_factors(patches, *near, visible=visible)
+        nf = rad_gather.NearField(patches, *near, CELL, visible, fine=rad_gather.fine_patches(patches, *near, CELL))
+        F[near] = nf.patch_form_factors()
         t["near_field"] = t.get("near_field", 0) + time.perf_counter() - tn
         sol = rad_solvers.solve(F, patches.rho, patches.emission, patches.area, solver, tol)
         t["solve"] = t.get("solve", 0) + sol.seconds
@@ -468,7 +472,7 @@ def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, th
         patches, _ = rad_subdivision.split(patches, mask)
     t["total"] = time.perf_counter() - t0
     return {"patches": patches, "F": F, "solution": sol, "H": H, "timings": t, "cost": cost,
-            "near": near, "near_evals": evals, "visible": visible}
+            "near": near, "near_evals": nf.evaluations, "visible": visible, "near_field": nf}
 
 
 def convergence(F, patches, tol=1e-6):
@@ -560,7 +564,8 @@ def _finite(what, values):
 
 
 def write_lightmaps(out, results, patches, H):
-    """``<out>/<object>_radiosity.exr``: R, G, B = irradiance H in W/m² per patch cell, A = covered."""
+    """``<out>/<object>_radiosity.exr``: R, G, B = irradiance H in W/m² per texel (H (N, cell², 3), the texel
+    solution of core.radiosity.gather) or per patch cell (H (N, 3)), A = covered."""
     files = {}
     for name, (obj, sel, atlas) in results.items():
         img = rad_atlas.paint_atlas(atlas, H[sel], patches.is_tri[sel])
@@ -630,24 +635,23 @@ def rms(a, b):
 
 
 COMPARISONS = {
-    "patch": "per patch: the mean over the patch's baked texel centres of the radiosity solution's irradiance at "
-             "those points (H(x) = sum_j F(dA_x -> P_j) V(x, j) B_j, point form factors and rays for the near "
-             "pairs, the patch's F_ij for the others) against the mean of Cycles' texels there: the same points "
-             "on both sides",
-    "texel": "per texel: the solution's irradiance at the texel centre against Cycles' texel (adds the bake's "
-             "per-texel noise)",
-    "lightmap": "per patch: the light map's value (the patch-average irradiance radiosity solves for) against "
-                "the mean of Cycles' texels in the patch's cell (adds the cell's midpoint-rule error where the "
-                "irradiance changes inside a patch)",
+    "patch": "per patch: the mean over the patch's baked texel centres of the solution's irradiance there (the "
+             "texel solution of core.radiosity.gather: the light map's texels) against the mean of Cycles' "
+             "texels there: the same points on both sides",
+    "texel": "per texel: the light map's texel against Cycles' texel (adds the bake's per-texel noise)",
+    "lightmap": "per patch: the patch-average irradiance (area-weighted mean of the patch's texel elements; the "
+                "vertex colours) against the mean of Cycles' texels in the patch's cell (differs from 'patch' "
+                "where a triangle's diagonal half texels or unequal texel areas weigh in)",
 }
 
 
-def compare_with_cycles(patches, F, B, near, visible, Hf, front, Hc, Hc_texels):
+def compare_with_cycles(patches, H_texels, Hf, Hc, Hc_texels):
     """The three comparisons of COMPARISONS as a report dict {kind: {"rms", "relative_rms", "meaning"}}
-    (relative = RMS / Cycles' mean over the same items), plus the arrays: radiosity at the texels
-    (Nf, cell², 3) and their per-patch means (Nf, 3)."""
-    pts, mask = rad_atlas.texel_points(patches, CELL)
-    Hx = rad_form_factors.point_irradiance(patches, F, B, near[0], near[1], pts, mask, visible)[front]
+    (relative = RMS / Cycles' mean over the same items) of the front ``patches``' texel solution H_texels
+    (N, cell², 3) and patch averages Hf (N, 3), plus the arrays: the solution at the baked texels (N, cell²,
+    3, NaN elsewhere) and their per-patch means (N, 3)."""
+    _, mask = rad_atlas.texel_points(patches, CELL)
+    Hx = np.where(mask[..., None], H_texels, np.nan)
     Hx_mean = np.nanmean(Hx, axis=1)
     out = {}
     for kind, (a, b) in {"patch": (Hx_mean, Hc), "texel": (Hx, Hc_texels), "lightmap": (Hf, Hc)}.items():
@@ -707,10 +711,17 @@ def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge
         r = solve_scene(base, max_edge, solver, tol, adaptive, memory=memory)
         patches, F, sol, H = r["patches"], r["F"], r["solution"], r["H"]
         _finite("the radiosity solution", sol.B)
+        tg = time.perf_counter()
+        g = rad_gather.near_field_gather(patches, F, sol.B, r["near_field"], tol=tol)
+        r["timings"]["texel_gather"] = time.perf_counter() - tg
+        r["timings"]["total"] += r["timings"]["texel_gather"]
+        r["gather"] = g
+        H = g.patch_mean()
+        _finite("the texel solution", g.B[g.mask])
         p.step("all solvers for the convergence chart")
         sols = convergence(F, patches, tol)
         front = ~patches.back
-        pf, Hf = patches.take(front), H[front]
+        pf, Hf, Ht = patches.take(front), H[front], g.H[front]
         os.makedirs(out, exist_ok=True)
         if chart:
             chart = convergence_chart(os.path.join(out, "radiosity_convergence.png"), sols, len(patches))
@@ -721,7 +732,7 @@ def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge
                           for s, so in sols.items() for k, v in enumerate(so.residuals)])
         p.step("vertex colours and light maps")
         results = result_objects(scene, pf, Hf, meshes, sources=used)
-        files = write_lightmaps(out, results, pf, Hf)
+        files = write_lightmaps(out, results, pf, Ht)
         report = {"patches": len(patches), "front_patches": int(front.sum()), "back_patches": int((~front).sum()),
                   "solver": solver, "iterations": sol.iterations,
                   "seconds": round(r["timings"]["total"], 4),
@@ -741,13 +752,15 @@ def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge
             ok = np.isfinite(Hc).all(axis=1)
             if not ok.any():
                 raise ILError("the Cycles comparison bake covered no patch")
-            cmp, Hx, Hx_mean = compare_with_cycles(patches, F, sol.B, r["near"], r["visible"], Hf, front, Hc, Hct)
+            cmp, Hx, Hx_mean = compare_with_cycles(pf, Ht, Hf, Hc, Hct)
             report["comparison"] = cmp
             report["rms_vs_cycles"] = cmp["patch"]["rms"]                # the "patch" comparison (like with like)
             report["relative_rms_vs_cycles"] = cmp["patch"]["relative_rms"]
             r["cycles_texels"], r["H_texels"], r["H_points"] = Hct, Hx, Hx_mean
             report["mean_irradiance"] = {"radiosity": float(np.mean(Hf[ok])), "cycles": float(np.mean(Hc[ok]))}
-            report["near_field"] = {"pairs": int(len(r["near"][0])), "evaluations": int(r["near_evals"])}
+            report["near_field"] = {"pairs": int(len(r["near"][0])), "evaluations": int(r["near_evals"]),
+                                    "fine_patches": int(r["near_field"].fine.sum()),
+                                    "texel_iterations": int(g.iterations)}
             report["cycles_seconds"] = round(secs, 4)
             report["cycles_samples"] = int(samples)
             report["cycles_maps"] = os.path.join(out, "cycles_bake")

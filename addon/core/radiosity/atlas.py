@@ -4,7 +4,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .patches import bilinear, vertex_keys
+from .patches import bilinear, polygon_area_normal, vertex_keys
 
 
 def texel_points(patches, cell):
@@ -22,6 +22,40 @@ def texel_points(patches, cell):
     pts = np.where(patches.is_tri[:, None, None], tri, q)
     mask = np.where(patches.is_tri[:, None], (v < u)[None, :], True)
     return pts, mask
+
+
+def texel_elements(patches, cell):
+    """Each patch cut along its atlas cell's texel grid (the parametrisation of :func:`texel_points`): polygons
+    (N, cell², 4, 3) wound as the patch (a triangle repeats its last corner), collocation points (N, cell², 3),
+    areas (N, cell²) and a mask (N, cell²) of the elements that exist. Quads: the bilinear images of the cell²
+    texel squares, points = the texel centres. Triangles (u, v barycentric, the half v <= u): the squares below the
+    diagonal (points = texel centres, where Cycles bakes) and the half squares on it (points = their centroids,
+    texels Cycles leaves unbaked). The elements tile the patch exactly."""
+    yy, xx = (a.ravel() for a in np.mgrid[0:cell, 0:cell])
+    u0, u1 = xx / cell, (xx + 1) / cell
+    v0, v1 = 1 - (yy + 1) / cell, 1 - yy / cell
+    us = np.stack([u0, u1, u1, u0], -1)                      # (m, 4): the square's corners, counter-clockwise
+    vs = np.stack([v0, v0, v1, v1], -1)
+    diag = xx + yy == cell - 1           # squares the diagonal v = u cuts: keep (u0,v0), (u1,v0), (u1,v1)
+    tri_us = np.where(diag[:, None], np.stack([u0, u1, u1, u1], -1), us)
+    tri_vs = np.where(diag[:, None], np.stack([v0, v0, v1, v1], -1), vs)
+    pu = np.where(diag, (u0 + 2 * u1) / 3, (u0 + u1) / 2)
+    pv = np.where(diag, (2 * v0 + v1) / 3, (v0 + v1) / 2)
+    n, m = len(patches), len(xx)
+    c = patches.corners
+    quad, _ = bilinear(np.repeat(c, m * 4, axis=0), np.tile(us.ravel(), n), np.tile(vs.ravel(), n))
+    qpt, _ = bilinear(np.repeat(c, m, axis=0), np.tile((u0 + u1) / 2, n), np.tile((v0 + v1) / 2, n))
+    w0, w1, w2 = 1 - tri_us, tri_us - tri_vs, tri_vs                      # barycentric weights (m, 4)
+    tri = (w0[None, ..., None] * c[:, None, None, 0] + w1[None, ..., None] * c[:, None, None, 1]
+           + w2[None, ..., None] * c[:, None, None, 2])
+    tpt = ((1 - pu)[None, :, None] * c[:, None, 0] + (pu - pv)[None, :, None] * c[:, None, 1]
+           + pv[None, :, None] * c[:, None, 2])
+    is_tri = patches.is_tri
+    polys = np.where(is_tri[:, None, None, None], tri, quad.reshape(n, m, 4, 3))
+    pts = np.where(is_tri[:, None, None], tpt, qpt.reshape(n, m, 3))
+    mask = np.where(is_tri[:, None], (xx + yy >= cell - 1)[None, :], True)
+    area, _ = polygon_area_normal(polys)
+    return polys, pts, np.where(mask, area, 0.0), mask
 
 
 
@@ -106,17 +140,18 @@ def _cell_masks(atlas, diagonal=True):
 
 
 def paint_atlas(atlas, values, is_tri):
-    """Image (H, W, C) with every patch's cell filled with its value; A channel = coverage. Row 0 = top."""
+    """Image (H, W, C) with every patch's cell filled with its value (N, C) or its texels' values (N, cell², C),
+    row-major from the cell's top row as :func:`texel_points` orders them; A channel = coverage. Row 0 = top."""
     values = np.asarray(values, np.float64)
     w, h = atlas.size
-    img = np.zeros((h, w, values.shape[1] + 1), np.float32)
+    img = np.zeros((h, w, values.shape[-1] + 1), np.float32)
     quad_m, tri_m = _cell_masks(atlas)
     x0, y0 = atlas.origin(np.arange(atlas.count))
     c = atlas.cell
     for k in range(atlas.count):
         m = tri_m if is_tri[k] else quad_m
         block = img[y0[k]:y0[k] + c, x0[k]:x0[k] + c]
-        block[m, :-1] = values[k]
+        block[m, :-1] = values[k] if values.ndim == 2 else values[k].reshape(c, c, -1)[m]
         block[m, -1] = 1.0
     return img
 

@@ -5,6 +5,7 @@ import pytest
 from addon.core import analytic
 from addon.core.radiosity import atlas as rad_atlas
 from addon.core.radiosity import form_factors
+from addon.core.radiosity import gather
 from addon.core.radiosity import patches as rad_patches
 from addon.core.radiosity import solvers as rad_solvers
 from addon.core.radiosity import subdivision as rad_subdivision
@@ -213,3 +214,100 @@ def test_ceiling_over_a_lamp_edge_is_split_at_its_rim():
     assert rim.min() == pytest.approx(exact, rel=1e-6) and exact < 0.35 and inner.min() > 0.85
     mask = rad_subdivision.emitter_refine_mask(p)
     assert mask[1] and not mask[2]
+
+
+def _corner_rect(X, Y, h):
+    """F from a point h below the corner of an X × Y rectangle parallel to it (Howell B-3), signed by the
+    quadrant so that rectangles add and subtract (superposition)."""
+    a, b = np.abs(X), np.abs(Y)
+    A, B = np.hypot(a, h), np.hypot(b, h)
+    return np.sign(X) * np.sign(Y) * (a / A * np.arctan(b / A) + b / B * np.arctan(a / B)) / (2 * np.pi)
+
+
+def _square_over_floor(rho_floor=0.0, h=0.01, le=3.0):
+    """A 0.2 m emitting square (L_e) facing down at height h over a 0.5 m floor patch reaching past its edge."""
+    m = [{"name": "lamp", "vertices": np.array([(0, 0, h), (0, 0.2, h), (0.2, 0.2, h), (0.2, 0, h)]),
+          "faces": [(0, 1, 2, 3)], "rho": 0.0, "emission": le},
+         {"name": "floor", "vertices": np.array([(-0.1, -0.1, 0), (0.4, -0.1, 0), (0.4, 0.4, 0), (-0.1, 0.4, 0)]),
+          "faces": [(0, 1, 2, 3)], "rho": rho_floor, "emission": 0.0}]
+    return rad_patches.patches_from_meshes(m)
+
+
+def test_texel_elements_tile_the_patch_and_sit_on_the_baked_texels():
+    m = [{"name": "q", "vertices": np.array([(0, 0, 0), (1, 0, 0), (1.3, 1, 0), (0, 0.8, 0)]),
+          "faces": [(0, 1, 2, 3), (0, 1, 2)]}]
+    p = rad_patches.patches_from_meshes(m)
+    for cell in (2, 4, 8):
+        polys, pts, area, mask = rad_atlas.texel_elements(p, cell)
+        assert area.sum(axis=1) == pytest.approx(p.area, rel=1e-12)           # a partition: areas add up
+        tp, tm = rad_atlas.texel_points(p, cell)
+        assert np.allclose(pts[tm], tp[tm], rtol=0, atol=1e-12) and (tm <= mask).all()  # every baked texel is a point
+        assert mask[1].sum() == cell * (cell + 1) // 2                          # a triangle: squares + half squares
+        _, nrm = rad_patches.polygon_area_normal(polys[mask])
+        assert np.allclose(nrm, [0, 0, 1])                                       # wound as the patch
+    values = np.random.default_rng(1).random((len(p), 16, 3))
+    atlas = rad_atlas.make_atlas(len(p), cell=4)
+    img = rad_atlas.paint_atlas(atlas, values, p.is_tri)
+    got = rad_atlas.atlas_texels(atlas, img[..., :3], p.is_tri)
+    _, tm = rad_atlas.texel_points(p, 4)
+    assert np.allclose(got[tm], values[tm], atol=1e-6)                          # per-texel maps round-trip
+
+
+@pytest.mark.parametrize("h", [0.001, 0.01])
+def test_texel_gather_matches_point_irradiance_under_a_square(h):
+    """Direct light only (a black floor): H(x) = π L_e F(dA_x -> square) at every texel, the closed form of a
+    parallel rectangle by superposition of corner rectangles, down to a millimetre gap where the field
+    steps at the square's outline within a texel's size. The lamp's patches are fine (8 x 8 elements) at
+    1 mm (closer to the floor than its 4 x 4 elements are wide), not at 1 cm."""
+    le = 3.0
+    p = _square_over_floor(0.0, h, le)
+    p = rad_subdivision.subdivide_to_size(p, 0.126)            # floor in 4 x 4 patches, lamp 2 x 2
+    F = form_factors.form_factors(p)
+    B = p.emission                                             # E = π L_e (patches_from_meshes)
+    near = visibility.near_candidate_pairs(p)
+    fine = gather.fine_patches(p, *near, 4)
+    assert fine.sum() == (4 if h < 0.1 / 4 else 0) and not fine[p.owner == 1].any()
+    nf = gather.NearField(p, *near, 4, fine=fine)
+    g = gather.near_field_gather(p, F, B, nf)
+    floor = p.owner == 1
+    pts, mask = rad_atlas.texel_points(p, 4)
+    x, y = pts[floor][..., 0], pts[floor][..., 1]
+    exact = np.pi * le * (_corner_rect(0.2 - x, 0.2 - y, h) - _corner_rect(-x, 0.2 - y, h)
+                          - _corner_rect(0.2 - x, -y, h) + _corner_rect(-x, -y, h))
+    got = g.H[floor][..., 0]
+    assert g.converged and exact.max() > 0.95 * np.pi * le and exact.min() < 1e-3 * np.pi * le
+    # texels of patches near every lamp patch: exact up to K's float32 storage; the others take the far
+    # lamp patches' light from F_ij (the patch centre's form factor), within the near criterion's error
+    lamp = np.flatnonzero(p.owner == 0)
+    pairs = set(zip(*near))
+    all_near = np.array([all((i, j) in pairs for j in lamp) for i in np.flatnonzero(floor)])
+    ok = mask[floor] & all_near[:, None]
+    assert ok.sum() >= 32 and exact[ok].max() > 0.95 * np.pi * le
+    assert np.allclose(got[ok], exact[ok], rtol=1e-6, atol=1e-9)
+    assert np.allclose(got[mask[floor]], exact[mask[floor]], rtol=0, atol=1e-3 * np.pi * le)
+    assert F.sum() == pytest.approx(form_factors.form_factors(p).sum())       # F is given back unchanged
+
+
+def test_texel_gather_without_near_pairs_is_the_patch_solution():
+    p = _square_over_floor(0.5, 1.0)
+    F = form_factors.form_factors(p)
+    B = rad_solvers.solve_jacobi(F, p.rho, p.emission, tol=1e-12).B
+    none = np.zeros(0, int)
+    g = gather.near_field_gather(p, F, B, gather.NearField(p, none, none, 4), tol=1e-12)
+    assert np.allclose(g.patch_mean(), F @ B, rtol=1e-9) and np.allclose(g.B[g.mask], np.repeat(B, 16, 0), rtol=1e-9)
+
+
+def test_texel_gather_of_a_closed_room_is_e_over_one_minus_rho_everywhere():
+    """Every face of a closed cube emits E and reflects ρ: B = E / (1 − ρ) at every element when each
+    element's form factors sum to 1. The cube of side 2 in 2 x 2 patches a face: every pair is near, so each
+    element's row is an exact sum of point-to-polygon form factors over the other five faces (the float32
+    of K aside)."""
+    p = cube(2, rho=0.5, le=1.0)
+    near = visibility.near_candidate_pairs(p)
+    assert len(near[0]) == len(p) * (len(p) - 4)                  # every non-coplanar pair
+    F = form_factors.form_factors(p)
+    B = rad_solvers.solve_jacobi(F, p.rho, p.emission, tol=1e-10).B
+    want = np.pi * 1.0 / (1 - 0.5)
+    g = gather.near_field_gather(p, F, B, gather.NearField(p, *near, 4), tol=1e-9)
+    assert g.converged and np.allclose(g.B[g.mask], want, rtol=1e-6)
+    assert np.allclose(g.H[g.mask], want, rtol=1e-6)                 # H = (B − E) / ρ
