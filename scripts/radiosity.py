@@ -20,13 +20,13 @@ def main(args):
     o = _cli.options_from(RadiosityOptions, args)
     result = radiosity.run(os.path.abspath(args.out), cornell=args.scene == "cornell", solver=o.solver,
                            max_edge=o.max_edge, adaptive=o.adaptive, samples=o.samples, compare=o.compare, tol=o.tol)
-    rep = result["report"]
+    rep = result.report
     print(f"radiosity: {rep['patches']} patches ({rep['back_patches']} of them back sides), {rep['solver']} "
           f"{rep['iterations']} iterations, {rep['seconds']:.2f} s")
     if rep["rms_vs_cycles"] is not None:
         print(f"  vs Cycles ({rep['cycles_samples']} samples, {rep['cycles_seconds']:.2f} s): "
               f"RMS {rep['rms_vs_cycles']:.4g} W/m^2 ({100 * rep['relative_rms_vs_cycles']:.1f}% of the mean)")
-    print(f"  report: {os.path.join(os.path.abspath(args.out), radiosity.REPORT)}")
+    print(f"  report: {result.path}")
 
 
 def build_parser():

@@ -32,24 +32,24 @@ def test_bvh_visibility_equals_numpy_rays():
 def test_cornell_run_against_cycles_and_outputs(tmp_path):
     r = L.run(str(tmp_path), cornell=True, max_edge=0.5, samples=32, solver="gauss_seidel")
     rep = json.loads((tmp_path / "radiosity_report.json").read_text())
-    assert rep["patches"] == len(r["patches"]) and rep["solver"] == "gauss_seidel" and rep["iterations"] > 1
+    assert rep["patches"] == len(r.arrays["patches"]) and rep["solver"] == "gauss_seidel" and rep["iterations"] > 1
     # the bake and the solution agree on the area-weighted mean irradiance (∫ H dA / A) within 6 % and patch by
     # patch to an RMS of 20 % of the mean (constant 0.5 m patches against a 32-sample bake)
-    H, Hc = r["H_front"], r["cycles"]         # light maps and the bake hold the front side of every face
+    H, Hc = r.arrays["H_front"], r.arrays["cycles"]   # light maps and the bake hold the front side of every face
     ok = np.isfinite(Hc).all(axis=1)
     assert ok.all()                        # the bake pipeline bakes emitters (albedo 0) too
-    a = r["patches"].take(r["front"]).area[:, None]
+    a = r.arrays["patches"].take(r.arrays["front"]).area[:, None]
     assert abs((H * a).sum() / (Hc * a).sum() - 1) < 0.06
     assert rep["relative_rms_vs_cycles"] < 0.2
     assert rep["comparison"]["lightmap"]["rms"] == pytest.approx(np.sqrt(np.mean((H[ok] - Hc[ok]) ** 2)))
-    Hp = r["H_points"]                     # the light map's baked texels, averaged per patch
+    Hp = r.arrays["H_points"]              # the light map's baked texels, averaged per patch
     assert rep["rms_vs_cycles"] == pytest.approx(np.sqrt(np.mean((Hp[ok] - Hc[ok]) ** 2)))
     assert bpy.data.objects["Floor radiosity"].hide_render      # results never shadow later renders of the file
     # light map = the texel solution; a patch's texels average to its H (the floor's texels have equal areas);
     # vertex colours on a new object
     ch, hdr = exr.read_exr(tmp_path / "Floor_radiosity.exr")
     assert hdr["il:units"] == "W/m^2"
-    front = r["patches"].take(r["front"])
+    front = r.arrays["patches"].take(r.arrays["front"])
     floor = front.owner == front.names.index("Floor")
     img = np.stack([ch[c] for c in "RGB"], -1)
     atlas = rad_atlas.make_atlas(int(floor.sum()))
@@ -148,10 +148,10 @@ def test_triangle_patches_compare_on_the_texels_cycles_bakes(tmp_path):
     nt.links.new(em.outputs[0], nt.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
     lamp.data.materials.append(mat)
     r = L.run(str(tmp_path), scene=bpy.context.scene, max_edge=0.5, samples=16, chart=False)
-    p = r["patches"].take(r["front"])
+    p = r.arrays["patches"].take(r.arrays["front"])
     tri = p.is_tri & (p.owner == p.names.index(floor.name))
     assert tri.sum() >= 8
-    H, Hc, a = r["H_front"][tri], r["cycles"][tri], p.area[tri, None]
+    H, Hc, a = r.arrays["H_front"][tri], r.arrays["cycles"][tri], p.area[tri, None]
     assert abs((H * a).sum() / (Hc * a).sum() - 1) < 0.06, ((H * a).sum(), (Hc * a).sum())
     ch, _ = exr.read_exr(tmp_path / "cycles_bake" / f"{floor.name} radiosity_irradiance.exr")
     atlas = rad_atlas.make_atlas(int((p.owner == p.names.index(floor.name)).sum()))

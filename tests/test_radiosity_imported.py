@@ -149,10 +149,10 @@ def test_imported_cornell_box_against_cycles_and_against_bake_py(tmp_path):
     sc = import_cornell(str(tmp_path / "obj"))
     sc.world = L.scn.black_world()
     r = L.run(str(tmp_path / "rad"), scene=sc, max_edge=0.1, samples=32)
-    rep = r["report"]
-    H, Hc = r["H_front"], r["cycles"]
+    rep = r.report
+    H, Hc = r.arrays["H_front"], r.arrays["cycles"]
     assert np.isfinite(Hc).all() and H.min() >= 0
-    p = r["patches"].take(r["front"])
+    p = r.arrays["patches"].take(r.arrays["front"])
 
     def ratio(sel):
         w = p.area[sel, None]
@@ -165,7 +165,7 @@ def test_imported_cornell_box_against_cycles_and_against_bake_py(tmp_path):
     figures = {"all": ratio(slice(None)), "gap": ratio(gap), "rms": rep["relative_rms_vs_cycles"]}
     figures.update({n: ratio(p.owner == k) for k, n in enumerate(p.names)})
     assert all(abs(figures[k] - 1) < 0.04 for k in figures if k != "rms"), figures
-    res = r["cycles_texels"] - r["H_texels"]                   # (patches, texels, RGB), NaN where not baked
+    res = r.arrays["cycles_texels"] - r.arrays["H_texels"]       # (patches, texels, RGB), NaN where not baked
     n = np.isfinite(res[..., 0]).sum(axis=1)
     s2 = np.nanvar(res, axis=1, ddof=1) / n[:, None]           # noise variance of each patch mean, per channel
     ref = float(np.mean(Hc))                                   # the comparison's normaliser
@@ -211,9 +211,9 @@ def test_light_facing_the_ceiling_still_lights_the_room(tmp_path):
     floor = sol[0][0][:, 2] < 1e-6
     assert floor.sum() > 4 and sol[0][1][floor].mean() > 0.1
     order = [np.lexsort(c.T) for c, _ in sol]
-    # the near-field cubature lays its cells from the first corner, which the winding changes: equal within
-    # its tolerance (form_factors.NEAR_TOL in F; measured 4e-3 relative on the worst patch, 5e-5 of the largest value),
-    # not to rounding
+    # patches are split and their texel elements laid from the first corner, which the winding changes: equal
+    # within the discretisation (measured 4e-3 relative on the worst patch, 5e-5 of the largest value), not to
+    # rounding
     a, b = sol[0][1][order[0]], sol[1][1][order[1]]
     assert np.allclose(a, b, rtol=1e-2, atol=1e-4 * b.max())
 

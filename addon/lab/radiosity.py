@@ -29,6 +29,7 @@ from ..blender import interrupt
 from ..blender.progress import Progress
 from ..blender import materials, scene as scn
 from .options import RadiosityOptions
+from ..core.result import JobResult
 
 COLLECTION = "IL Radiosity"
 ATTRIBUTE = "IL Radiosity E"
@@ -356,7 +357,7 @@ def visibility_bvh(patches, offset=1e-4, bvh=None):
 
 
 def visible_bvh(patches, offset=1e-4, bvh=None):
-    """The ``visible(points, normals, src)`` callback of core.radiosity.form_factors.near_field_form_factors: 1 where the ray from
+    """The ``visible(points, normals, src)`` callback of core.radiosity.form_factors.seen_form_factors: 1 where the ray from
     the point (lifted ``offset`` along its normal) to the source patch's centre is free."""
     bvh = bvh or _bvh(patches)
 
@@ -684,7 +685,8 @@ def estimate(scene, max_edge):
 def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge=RadiosityOptions.max_edge,
         adaptive=RadiosityOptions.adaptive, samples=RadiosityOptions.samples, compare=RadiosityOptions.compare,
         tol=RadiosityOptions.tol, chart=True, memory=None):
-    """The whole job of scripts/radiosity.py; returns the report dict (also written to ``out``).
+    """The whole job of scripts/radiosity.py; returns a core.result.JobResult (reads as the report written to
+    ``out``; ``arrays`` holds the solve: patches, F, solution, H, front, H_front and the comparison's arrays).
 
     Order: options, output folder, scene, emitters and the cost estimate are all checked before the
     folder is created or anything big is allocated. ``chart=False`` skips the convergence chart (the UI
@@ -767,7 +769,9 @@ def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge
             _finite("the comparison with Cycles", [report["rms_vs_cycles"], report["relative_rms_vs_cycles"]])
             r["cycles"] = Hc
     write_json(os.path.join(out, REPORT), report)
-    r["report"] = report
     r["front"] = front
     r["H_front"] = Hf
-    return r
+    extra = "" if report["rms_vs_cycles"] is None else \
+        f", {100 * report['relative_rms_vs_cycles']:.1f} % relative RMS against Cycles"
+    return JobResult(report, os.path.join(out, REPORT),
+                     f"{report['patches']} patches, {report['iterations']} iterations{extra}", arrays=r)

@@ -1,12 +1,10 @@
 """Panel section "Environment & radiosity": irradiance environment maps and radiosity (issue 7)."""
-import os
 
 import bpy
 from bpy.props import StringProperty
 
 from ..blender import compat
 from ..core.errors import InputError
-from ..core.result import JobResult
 from ..lab.options import EnvmapOptions, RadiosityOptions
 from .panel import Sidebar
 from . import polls, props
@@ -92,13 +90,9 @@ class IL_OT_radiosity(JobOperator, bpy.types.Operator):
         chart = charts.available()
         if not chart:
             self.report({"WARNING"}, charts.MISSING)
-        r = radiosity.run(bpy.path.abspath(self.output_dir), scene=context.scene, solver=o.solver,
-                          max_edge=o.max_edge, adaptive=o.adaptive, samples=o.samples, compare=o.compare,
-                          chart=chart)
-        rep = r["report"]
-        extra = "" if rep["rms_vs_cycles"] is None else f", RMS vs Cycles {rep['rms_vs_cycles']:.3g} W/m²"
-        return JobResult(rep, os.path.join(bpy.path.abspath(self.output_dir), radiosity.REPORT),
-                         f"{rep['patches']} patches, {rep['iterations']} iterations{extra}")
+        return radiosity.run(bpy.path.abspath(self.output_dir), scene=context.scene, solver=o.solver,
+                             max_edge=o.max_edge, adaptive=o.adaptive, samples=o.samples, compare=o.compare,
+                             chart=chart)
 
 
 _ESTIMATES = {}

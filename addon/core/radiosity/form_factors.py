@@ -154,20 +154,13 @@ def form_factors(patches, visibility=None, quadrature=1):
     return F
 
 
-
 # A pair (receiver i, source j) is near when the gap between their bounding spheres is below NEAR_RATIO
 # times i's diameter: there F(dA_x -> P_j) changes over patch i by more than its centre value can stand for
 # (the midpoint rule's relative error grows as (diameter / distance)²; for touching or overlapping patches,
-# e.g. a light 1 mm under a ceiling, the integrand is a step). Those pairs get the patch average by adaptive
-# cubature (:func:`near_field_form_factors`), within NEAR_EVALS_PER_PATCH evaluations per patch on average.
+# e.g. a light 1 mm under a ceiling, the integrand is a step). Those pairs are gathered texel by texel
+# (core.radiosity.gather).
 NEAR_RATIO = 1.0
-NEAR_TOL = 2e-4            # absolute error in F allowed per cell before it is split in four
-NEAR_START = 2             # the first level: NEAR_START² cells per receiver
-NEAR_DEPTH = 6             # at most 6 halvings: cells down to 1/128 of the receiver's side
-NEAR_EVALS_PER_PATCH = 600
-NEAR_CHUNK = 5000          # pairs per chunk, at most NEAR_CHUNK_EVALS evaluations each: bounded memory
-NEAR_CHUNK_EVALS = 600_000
-NEAR_PEAK_BYTES = 400e6    # the arrays of one chunk's evaluations (about 600 B each)
+NEAR_PEAK_BYTES = 400e6    # the arrays of one chunk of element form factors
 
 
 def near_pairs(patches, i, j, ratio=NEAR_RATIO):
@@ -191,7 +184,7 @@ def pointwise_form_factors(points, normals, polys):
 
 def seen_form_factors(patches, points, normals, src, visible=None):
     """F(dA_m -> patch src_m) V(x_m, src_m) for matching rows: points (M, 3), normals (M, 3), source patch
-    indices (M,) -> (M,). ``visible(points, normals, src)`` (see :func:`near_field_form_factors`) is asked
+    indices (M,) -> (M,). ``visible(points, normals, src)`` (1 where the ray reaches the source) is asked
     only where the form factor is not 0; None: all visible."""
     v = pointwise_form_factors(points, normals, patches.corners[src])
     if visible is not None:
@@ -199,117 +192,3 @@ def seen_form_factors(patches, points, normals, src, visible=None):
         if hit.any():
             v[hit] = v[hit] * visible(points[hit], normals[hit], src[hit])
     return v
-
-
-def near_field_form_factors(patches, recv, src, visible=None, tol=NEAR_TOL, start=NEAR_START, depth=NEAR_DEPTH,
-                            budget=None):
-    """Patch-average form factors of the pairs (recv, src):
-
-        F_ij = (1 / A_i) ∫_{A_i} F(dA_x -> P_j) V(x, j) dA_x
-
-    with the inner integral exact (:func:`lambert_polygon`) and the outer one adaptive: the receiver's
-    parameter square starts as ``start``² cells; a cell whose four children's midpoint sum differs from its
-    own by more than ``tol`` is split, down to ``depth`` halvings (the children's sum is kept either way).
-    ``visible(points, normals, src) -> (M,)`` in [0, 1] is the visibility from each point to the source
-    (None: all visible). ``budget``: most evaluations (default NEAR_EVALS_PER_PATCH per patch of the scene);
-    the cells with the largest error are split first. Returns (F (P,), evaluations made).
-    """
-    recv, src = np.asarray(recv, int), np.asarray(src, int)
-    n_pairs = len(recv)
-    budget = NEAR_EVALS_PER_PATCH * len(patches) if budget is None else budget
-    out = np.zeros(n_pairs)
-    evals = 0
-    for s in range(0, n_pairs, NEAR_CHUNK):
-        sl = slice(s, min(s + NEAR_CHUNK, n_pairs))
-        share = min(int(budget * (sl.stop - sl.start) / max(n_pairs, 1)), NEAR_CHUNK_EVALS)
-        out[sl], e = _adaptive_chunk(patches, recv[sl], src[sl], visible, tol, start, depth, share)
-        evals += e
-    return out, evals
-
-
-def edge_distance(points, polys):
-    """Distance from each point (M, 3) to the nearest edge of its polygon (M, k, 3) (M,)."""
-    a, b = polys, np.roll(polys, -1, axis=1)
-    ab = b - a
-    ap = points[:, None, :] - a
-    t = np.clip(np.einsum("mkc,mkc->mk", ap, ab) / np.maximum(np.einsum("mkc,mkc->mk", ab, ab), 1e-300), 0, 1)
-    return np.linalg.norm(ap - t[..., None] * ab, axis=-1).min(axis=1)
-
-
-def _adaptive_chunk(patches, recv, src, visible, tol, start, depth, budget):
-    diam = 2 * bounding_radius(patches)
-
-    def f(pair, s, t, h):
-        i, j = recv[pair], src[pair]
-        x, jac = bilinear(patches.corners[i], s, t)
-        v = seen_form_factors(patches, x, patches.normal[i], j, visible)
-        return v * jac * h * h / patches.area[i], x
-
-    g = (np.arange(start) + 0.5) / start
-    gs, gt = (a.ravel() for a in np.meshgrid(g, g, indexing="ij"))
-    pair = np.repeat(np.arange(len(recv)), start * start)
-    s, t = np.tile(gs, len(recv)), np.tile(gt, len(recv))
-    h = np.full(len(pair), 1.0 / start)
-    val, x = f(pair, s, t, h)
-    evals = len(pair)
-    total = np.zeros(len(recv))
-    prio = np.full(len(pair), np.inf)
-    offs = np.array([(-1, -1), (1, -1), (1, 1), (-1, 1)]) / 4.0
-    for level in range(depth):
-        if not len(pair):
-            break
-        room = (budget - evals) // 4
-        if room < len(pair):                         # out of budget: split the most promising cells only
-            keep = np.argsort(-prio, kind="stable")[:max(room, 0)]
-            rest = np.ones(len(pair), bool)
-            rest[keep] = False
-            np.add.at(total, pair[rest], val[rest])
-            pair, s, t, h, val, x, prio = (a[keep] for a in (pair, s, t, h, val, x, prio))
-            if not len(pair):
-                break
-        cp = np.repeat(pair, 4)
-        cs = np.repeat(s, 4) + np.tile(offs[:, 0], len(pair)) * np.repeat(h, 4)
-        ct = np.repeat(t, 4) + np.tile(offs[:, 1], len(pair)) * np.repeat(h, 4)
-        ch = np.repeat(h / 2, 4)
-        cv, cx = f(cp, cs, ct, ch)
-        evals += len(cp)
-        est = cv.reshape(-1, 4).sum(axis=1)
-        err = np.abs(est - val)
-        # a step the children's centres straddle shows in err; one between them and the cell's border does not:
-        # cells closer to an edge of the source than their own size are split regardless (the step lies there)
-        near_edge = h * diam[recv[pair]] > edge_distance(x, patches.corners[src[pair]])
-        if level == depth - 1:
-            split = np.zeros(len(pair), bool)
-        else:
-            split = (err > tol) | near_edge
-        np.add.at(total, pair[~split], est[~split])
-        spread = np.ptp(cv.reshape(-1, 4), axis=1) * 4
-        prio = np.repeat(np.maximum(err, spread)[split] / 4, 4)
-        m = np.repeat(split, 4)
-        pair, s, t, h, val, x = cp[m], cs[m], ct[m], ch[m], cv[m], cx[m]
-    np.add.at(total, pair, val)
-    return total, evals
-
-
-def point_irradiance(patches, F, B, recv, src, points, mask, visible=None):
-    """Irradiance H(x) = Σ_j F(dA_x -> P_j) V(x, j) B_j at ``points`` (N, m, 3) of every patch (NaN where not
-    ``mask``): exact point form factors and per-point visibility for the near pairs (recv, src), the
-    patch's form factor F_ij for the others (whose variation over the patch is below the near criterion)."""
-    n, m = points.shape[:2]
-    saved = F[recv, src].copy()
-    F[recv, src] = 0.0
-    try:
-        H = np.repeat((F @ B)[:, None, :], m, axis=1)
-    finally:
-        F[recv, src] = saved
-    step = max(1, NEAR_CHUNK_EVALS // 4 // m)
-    for s in range(0, len(recv), step):
-        r, j = recv[s:s + step], src[s:s + step]
-        rr, tt = np.repeat(r, m), np.tile(np.arange(m), len(r))
-        ok = mask[rr, tt]
-        rr, tt, jj = rr[ok], tt[ok], np.repeat(j, m)[ok]
-        x = points[rr, tt]
-        v = seen_form_factors(patches, x, patches.normal[rr], jj, visible)
-        np.add.at(H, (rr, tt), v[:, None] * B[jj])
-    H[~mask] = np.nan
-    return H

@@ -48,7 +48,7 @@ def element_form_factors(patches, elements, recv, src, visible=None, chunk_evals
     element b of patch src_p (by the rules of :func:`polygon_form_factors`; 0 for elements that do not exist).
     ``elements`` is :func:`texel_elements`' (polys, points, area, mask), ``src_elements`` the sources' when
     they differ; ``visible(points, normals, src)`` as in
-    :func:`core.radiosity.form_factors.near_field_form_factors` (None: all visible)."""
+    :func:`core.radiosity.form_factors.seen_form_factors` (None: all visible)."""
     _, pts, _, mask = elements
     polys, _, _, smask = elements if src_elements is None else src_elements
     m, ms = pts.shape[1], polys.shape[1]

@@ -7,7 +7,7 @@ from .form_factors import NEAR_RATIO, near_pairs
 
 
 def visible_numpy(patches, offset=1e-6):
-    """A ``visible`` callback for :func:`core.radiosity.form_factors.near_field_form_factors` by brute-force numpy rays (small scenes,
+    """A ``visible`` callback for :func:`core.radiosity.form_factors.seen_form_factors` by brute-force numpy rays (small scenes,
     tests): 1 where the segment from the point to the source's centre crosses no patch."""
     tris = patch_triangles(patches)
 
