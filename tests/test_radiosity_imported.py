@@ -305,7 +305,7 @@ def test_cost_refused_up_front_with_the_largest_size_that_fits(script, tmp_path)
     assert rad_cost.solve_cost(rad_subdivision.planned_patches(base, best)).bytes <= 2e9
     over = rad_cost.solve_cost(rad_subdivision.planned_patches(base, best * 0.9))
     assert over.bytes > 2e9 or over.seconds > rad_cost.MAX_SECONDS
-    with pytest.raises(InputError, match="smallest edge that fits in 2 GB"):
+    with pytest.raises(InputError, match=r"smallest edge that fits in 1\.86 GiB"):
         rad_cost.check_cost(base, best / 4, memory=2e9)
 
 

@@ -87,6 +87,13 @@ def format_bytes(n):
         n /= 1024
 
 
+def format_count(n):
+    """2.1M style."""
+    for unit, f in (("", 1), ("k", 1e3), ("M", 1e6), ("G", 1e9), ("T", 1e12)):
+        if n < 1000 * f or unit == "T":
+            return f"{n / f:.3g}{unit}"
+
+
 def format_seconds(s):
     """90 -> '1.5 min'."""
     if s < 120:

@@ -12,6 +12,7 @@ import bpy
 import numpy as np
 
 from ..core import charts
+from ..core import budget
 from ..core.budget import memory_budget
 from ..core.io import exr
 from ..core import analytic
@@ -28,6 +29,7 @@ from ..core.io.files import check_output_dir, write_json
 from ..blender import interrupt
 from ..blender.progress import Progress
 from ..blender import materials, scene as scn
+from ..blender.state import SavedState, world_settings
 from .options import RadiosityOptions
 from ..core.result import JobResult
 
@@ -409,7 +411,7 @@ def refine_near_emitters(patches, max_edge, memory=None, timings=None):
         c = rad_cost.solve_cost(n_next)
         if (mem is not None and c.bytes > mem) or c.seconds > rad_cost.MAX_SECONDS:
             warn(f"subdivision near emitters stopped after {level} levels: {n_next} patches would need "
-                 f"{rad_cost.human_bytes(c.bytes)} and about {rad_cost.human_seconds(c.seconds)}")
+                 f"{budget.format_bytes(c.bytes)} and about {budget.format_seconds(c.seconds)}")
             break
         patches, _ = rad_subdivision.split(patches, mask)
         if room <= mask.sum():
@@ -467,7 +469,7 @@ def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, th
         if (mem is not None and c.bytes + rad_cost.BYTES_PER_PAIR * len(patches) ** 2 > mem) \
                 or c.seconds > rad_cost.MAX_SECONDS:
             warn(f"adaptive refinement stopped after {round_} rounds: {n_next} patches would need "
-                 f"{rad_cost.human_bytes(c.bytes)} and about {rad_cost.human_seconds(c.seconds)}")
+                 f"{budget.format_bytes(c.bytes)} and about {budget.format_seconds(c.seconds)}")
             break
         del F
         patches, _ = rad_subdivision.split(patches, mask)
@@ -596,26 +598,17 @@ def cycles_patch_irradiance(scene, results, patches, out, samples=64, bounces=32
     objs = [obj for obj, _, _ in results.values()]
     keep = set(objs)
     others = [o for o in scene.objects if o not in keep and not o.hide_render]
-    world = scene.world
     options = BakeOptions(samples=int(samples), bounces=int(bounces), seed=int(seed), margin=0, uv_layer=UV,
                           sizes={obj.name: atlas.size for obj, _, atlas in results.values()},
                           overwrite=True, keep_products=False)
-    black = None
-    try:
+    settings = [(o, "hide_render") for o in others + objs] + world_settings(scene)
+    with SavedState(scene, settings=settings) as state:
         for o in others:
             o.hide_render = True
         for o in objs:
             o.hide_render = False
-        black = scene.world = scn.black_world("IL radiosity black world")
+        scene.world = state.track(bpy.data.worlds, scn.black_world("IL radiosity black world"))
         report = bake_lightmaps(objs, ["irradiance"], out, options, scene=scene)
-    finally:
-        for o in others:
-            o.hide_render = False
-        for o in objs:
-            o.hide_render = True
-        scene.world = world
-        if black is not None:
-            bpy.data.worlds.remove(black)
     H = np.full((len(patches), 3), np.nan)
     texels = None
     for obj, sel, atlas in results.values():

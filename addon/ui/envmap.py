@@ -100,7 +100,7 @@ _ESTIMATES = {}
 
 def _estimate_line(scene, max_edge):
     """The dialog's cost line, from the same estimate that refuses a run (lab.radiosity.estimate)."""
-    from ..core.radiosity import cost as rad_cost
+    from ..core import budget
     from ..lab import radiosity
     key = (scene.name, round(max_edge, 9), bpy.data.is_dirty)
     if key not in _ESTIMATES:
@@ -108,8 +108,8 @@ def _estimate_line(scene, max_edge):
             cost, best = radiosity.estimate(scene, max_edge)
             fits = "" if best is None else f", smallest size that fits: {best:.2g} m"
             _ESTIMATES.clear()
-            _ESTIMATES[key] = (f"~{rad_cost.human_count(cost.patches)} patches, {rad_cost.human_bytes(cost.bytes)}, "
-                               f"about {rad_cost.human_seconds(cost.seconds)}{fits}")
+            _ESTIMATES[key] = (f"~{budget.format_count(cost.patches)} patches, {budget.format_bytes(cost.bytes)}, "
+                               f"about {budget.format_seconds(cost.seconds)}{fits}")
         except Exception as e:  # noqa: BLE001 - a label, never an error in a draw callback
             _ESTIMATES[key] = f"no estimate: {e}"[:120]
     return _ESTIMATES[key]

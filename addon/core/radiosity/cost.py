@@ -5,6 +5,7 @@ import numpy as np
 
 from ..budget import memory_budget
 from ..errors import InputError
+from ..budget import format_bytes, format_count, format_seconds
 from .form_factors import NEAR_PEAK_BYTES
 from .patches import longest_edge
 from .subdivision import MAX_LEVELS, planned_patches
@@ -44,32 +45,6 @@ def solve_cost(n):
                 SECONDS_PER_PAIR * n * n + SECONDS_PER_NEAR_EVAL * NEAR_EVALS_PER_PATCH * n)
 
 
-def human_bytes(b):
-    """1.2 GB style (powers of 1000)."""
-    for unit in ("B", "kB", "MB", "GB", "TB", "PB", "EB"):
-        if b < 1000 or unit == "EB":
-            return f"{b:.3g} {unit}" if unit != "B" else f"{b:.0f} B"
-        b /= 1000
-
-
-def human_count(n):
-    """2.1M style."""
-    for unit, f in (("", 1), ("k", 1e3), ("M", 1e6), ("G", 1e9), ("T", 1e12)):
-        if n < 1000 * f or unit == "T":
-            return f"{n / f:.3g}{unit}"
-
-
-def human_seconds(s):
-    """'40 s', '12 min', '3.1 h', '9.5 days'."""
-    if s < 120:
-        return f"{s:.0f} s"
-    if s < 7200:
-        return f"{s / 60:.0f} min"
-    if s < 172800:
-        return f"{s / 3600:.1f} h"
-    return f"{s / 86400:.3g} days"
-
-
 def smallest_edge_that_fits(patches, memory, max_seconds=MAX_SECONDS):
     """The smallest max_edge whose estimated solve fits in ``memory`` bytes and ``max_seconds`` (None when
     even the unsplit faces do not fit)."""
@@ -102,10 +77,10 @@ def check_cost(patches, max_edge, memory=None, max_seconds=MAX_SECONDS, option="
     mem = memory if memory is not None else float("inf")
     secs = max_seconds if max_seconds is not None else float("inf")
     best = smallest_edge_that_fits(patches, mem, secs)
-    limits = " and ".join(x for x in (f"{human_bytes(mem)} of usable memory" if memory is not None else "",
-                                      f"{human_seconds(secs)} (at {SECONDS_PER_PAIR * 1e6:g} µs a patch pair)"
+    limits = " and ".join(x for x in (f"{format_bytes(mem)} of usable memory" if memory is not None else "",
+                                      f"{format_seconds(secs)} (at {SECONDS_PER_PAIR * 1e6:g} µs a patch pair)"
                                       if max_seconds is not None else "") if x)
     hint = (f"the smallest edge that fits in {limits} is {best:.2g}" if best is not None
             else f"even the unsplit faces do not fit in {limits}: simplify the scene")
-    need = f"needing {human_bytes(cost.bytes)}" + (f" and about {human_seconds(cost.seconds)}" if over_time else "")
-    raise InputError(f"{option} {max_edge:g} gives ~{human_count(cost.patches)} patches {need}; {hint}")
+    need = f"needing {format_bytes(cost.bytes)}" + (f" and about {format_seconds(cost.seconds)}" if over_time else "")
+    raise InputError(f"{option} {max_edge:g} gives ~{format_count(cost.patches)} patches {need}; {hint}")
