@@ -251,3 +251,30 @@ def test_rasterised_shadow_map_matches_the_cycles_depth_render(light):
     assert seen > 96 * 96 // 4
     np.testing.assert_array_equal(masks[0], masks[1])
     assert 0.02 < 1 - masks[0][s.receiver].mean() < 0.98         # shadow and light both in the mask
+
+
+def test_rasterised_shadow_map_includes_collection_instances_as_cycles_does():
+    """A sphere that is only in the scene as a collection instance (an Empty) casts in both depth maps."""
+    scene = shadow_scenes.build("sphere", "sun", (48, 48))
+    sphere = scene.objects["Sphere"]
+    col = bpy.data.collections.new("Instanced")
+    col.objects.link(sphere)
+    for c in sphere.users_collection:
+        if c != col:
+            c.objects.unlink(sphere)
+    empty = bpy.data.objects.new("Sphere Instance", None)
+    empty.instance_type, empty.instance_collection = "COLLECTION", col
+    scene.collection.objects.link(empty)
+    p = shadows.check_params({})
+    with ShadowFrame(scene, scene["il_shadow_light"], 48) as s:
+        s.render_reference()
+        assert [o.name for o in s.casters] == [scene["il_shadow_receiver"]]
+        (raster,), _ = s.depth_maps(128, "raster")
+        (cycles,), _ = s.depth_maps(128, "cycles")
+        masks = [shadows.shadowmap_mask(s, [m], p)[0] for m in (raster, cycles)]
+        shadowed = 1 - s.reference[s.reach].mean()
+    sky = cycles.depth >= 0.5 * camera.SKY_DEPTH
+    np.testing.assert_array_equal(raster.depth >= 0.5 * camera.SKY_DEPTH, sky)
+    assert np.all(np.abs(raster.depth - cycles.depth)[~sky] <= 1e-5 * np.maximum(cycles.depth[~sky], 1.0))
+    np.testing.assert_array_equal(masks[0], masks[1])
+    assert shadowed > 0.02 and 1 - masks[0][s.reach].mean() > 0.02         # the instance's shadow is there

@@ -287,8 +287,20 @@ class ShadowFrame:
         return maps, time.perf_counter() - t
 
     def caster_triangles(self):
-        """(T, 3, 3) world-space triangles of every caster's evaluated mesh."""
-        parts = [v[t] for v, t in (self.triangles(o) for o in self.casters)]
+        """(T, 3, 3) world-space triangles of every surface the private scene renders: each evaluated
+        object and instance (collection instances, geometry-nodes instances) of a SURFACE_TYPES type,
+        as Cycles sees them."""
+        vl = self.tmp.view_layers[0]
+        vl.update()
+        dg = vl.depsgraph
+        parts = []
+        for inst in dg.object_instances:
+            if inst.object.type not in SURFACE_TYPES:
+                continue
+            v, t = sc.evaluated_triangles(inst.object, dg)
+            if len(t):
+                m = np.array(inst.matrix_world, np.float64)
+                parts.append((v @ m[:3, :3].T + m[:3, 3])[t])
         return np.concatenate(parts) if parts else np.zeros((0, 3, 3))
 
     def triangles(self, obj):
