@@ -61,7 +61,11 @@ def run(output_dir, quick=False):
             for n in sizes:
                 maps, render_s = s.depth_maps(n)
                 mask, lookup_s = lab.shadowmap_mask(s, maps, base)
-                rows.append(dict(size=n, **_score(s, mask), render_seconds=render_s, lookup_seconds=lookup_s))
+                cycles_maps, cycles_s = s.depth_maps(n, "cycles")
+                cycles_mask, _ = lab.shadowmap_mask(s, cycles_maps, base)
+                rows.append(dict(size=n, **_score(s, mask), render_seconds=render_s, cycles_seconds=cycles_s,
+                                 mask_pixels_unlike_cycles=int((mask != cycles_mask)[s.receiver].sum()),
+                                 lookup_seconds=lookup_s))
             progress.step("PCF kernel size")
             maps, _ = s.depth_maps(256 if quick else 512)
             for k in pcfs:
@@ -78,7 +82,8 @@ def run(output_dir, quick=False):
             "misclassified fraction of receiver pixels", logx=True))
         chart_paths.append(charts.line_chart(
             os.path.join(output_dir, "shadowmap_resolution_time.png"),
-            {"depth render (Cycles)": (x, [r["render_seconds"] for r in rows]),
+            {"depth map (numpy raster)": (x, [r["render_seconds"] for r in rows]),
+             "depth map (Cycles Depth pass)": (x, [r["cycles_seconds"] for r in rows]),
              "numpy lookup": (x, [r["lookup_seconds"] for r in rows])},
             "Shadow map: time against resolution", "shadow-map size N", "seconds", logx=True, logy=True))
         chart_paths.append(charts.line_chart(
