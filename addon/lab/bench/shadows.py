@@ -241,8 +241,18 @@ def _agreement(s, cycles_maps, raster_maps):
     for name, p in (("default bias 0.01 m, slope 2", base), ("bias 0, slope 0 (acne)", dict(base, bias=0.0, slope_bias=0.0))):
         ma, _ = lab.shadowmap_mask(s, cycles_maps, p)
         mb, _ = lab.shadowmap_mask(s, raster_maps, p)
-        rows.append((f"  masks differ, {name}: {int((ma != mb)[s.receiver].sum())} of {int(s.receiver.sum())} "
-                     f"receiver px (shadowed {int((~ma)[s.receiver].sum())})", None, None))
+        differ = (ma != mb) & s.receiver
+        gap = ""
+        if differ.any() and len(raster_maps) == 1:     # one nearest texel each: d - b lies between the two depths
+            m = raster_maps[0]
+            x, y, d = m.project(s.position[differ])
+            b = shadow_map.bias(d, s.normal[differ], s.to_light[differ], m.proj, m.size, p["bias"], p["slope_bias"])
+            tx = np.clip(np.rint(x).astype(int), 0, m.size - 1)
+            ty = np.clip(np.rint(y).astype(int), 0, m.size - 1)
+            gap = (f", |d - b - z| there <= {np.abs(d - b - m.depth[ty, tx]).max():.1g} m (d - b between the two "
+                   "depths)")
+        rows.append((f"  masks differ, {name}: {int(differ.sum())} of {int(s.receiver.sum())} "
+                     f"receiver px (shadowed {int((~ma)[s.receiver].sum())}){gap}", None, None))
     return rows
 
 
