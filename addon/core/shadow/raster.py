@@ -237,7 +237,7 @@ def rasterize_depth(tris, world_to_view, proj, width, height, near, far=np.inf, 
     x, y, _ = clip_to_pixels(np.concatenate([v, np.ones(v.shape[:-1] + (1,))], -1) @ proj.T, width, height)
     q = -v[..., 2] if ortho else -1.0 / v[..., 2]
     counts = {"triangles": len(v), "spans": 0, "fragments": 0}
-    for tri, row, lo, hi, qa, qb in _spans(x, y, q, width, height, chunk):
+    for row, lo, hi, qa, qb in _spans(x, y, q, width, height, chunk):
         _fill(depth, row * width + lo, hi - lo + 1, qa, qb, ortho, chunk)
         counts["spans"] += len(row)
         counts["fragments"] += int((hi - lo + 1).sum())
@@ -248,7 +248,7 @@ def rasterize_depth(tris, world_to_view, proj, width, height, near, far=np.inf, 
 
 
 def _spans(x, y, q, width, height, chunk):
-    """Yield (tri, row, lo, hi, q(lo), q(hi)): for each triangle and pixel row, the inclusive run of pixel
+    """Yield (row, lo, hi, q(lo), q(hi)): for each triangle and pixel row, the inclusive run of pixel
     centres inside it and the attribute ``q`` (affine in screen space) at both ends, clamped to the
     triangle's range of q. Inside: s E_k(x, y) >= -EDGE_EPS |edge k| for the three edge functions
     E_k = (x_b - x_a)(y - y_a) - (y_b - y_a)(x - x_a), s the sign of the area; on a row each is a half-line in x.
@@ -303,7 +303,7 @@ def _spans(x, y, q, width, height, chunk):
         base = q0[t] + qy[t] * (row - y0[t])
         qa = np.clip(base + qx[t] * (lo - x0[t]), qmin[t], qmax[t])
         qb = np.clip(base + qx[t] * (hi - x0[t]), qmin[t], qmax[t])
-        yield idx[t], row, lo, hi, qa, qb
+        yield row, lo, hi, qa, qb
         start = stop
 
 
