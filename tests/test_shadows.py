@@ -6,6 +6,7 @@ import bpy
 import numpy as np
 import pytest
 
+from addon.core import camera
 from addon.core.io import png
 from addon.core.shadow import metrics
 from addon.core.errors import InputError
@@ -67,6 +68,7 @@ def test_spot_light_perspective_map_volumes_and_planar_match_the_reference(tmp_p
     m = rep["methods"]
     assert rep["reference"]["light_type"] == "spot" and rep["reference"]["shadowed_fraction"] > 0.05
     assert m["shadowmap"]["params"]["projection"] == "perspective"
+    assert m["shadowmap"]["params"]["depth_source"] == "raster"                # the default
     assert m["planar"]["error"] <= 0.005 and m["volume_zfail"]["error"] <= 0.005
     assert m["shadowmap"]["error"] <= 0.01
     _assert_on_the_reference_grid(tmp_path, "shadowmap")
@@ -220,3 +222,59 @@ def test_eevee_gives_the_light_its_shadow_jitter_back(tmp_path):
     data.use_shadow_jitter, data.shadow_soft_size = True, 0.2
     shadows.compare(scene, scene["il_shadow_light"], "raytraced,eevee", tmp_path, resolution=32)
     assert data.use_shadow_jitter and data.shadow_soft_size == pytest.approx(0.2)
+
+
+@pytest.mark.both_versions
+@pytest.mark.parametrize("light", ["sun", "spot", "point"])
+def test_rasterised_shadow_map_matches_the_cycles_depth_render(light):
+    """The numpy depth map against Cycles' Depth pass of the same light cameras, texel by texel: the same
+    sky texels, depths within Cycles' float32 rounding (1e-5 × depth, at least 10 µm), and the same mask."""
+    scene, s = _session("sphere", light, res=48)
+    p = shadows.check_params({})
+    with s:
+        s.render_reference()
+        raster, _ = s.depth_maps(96, "raster")
+        cycles, _ = s.depth_maps(96, "cycles")
+        masks = [shadows.shadowmap_mask(s, maps, p)[0] for maps in (raster, cycles)]
+    assert len(raster) == len(cycles) == (6 if light == "point" else 1)
+    seen = 0
+    for a, b in zip(raster, cycles):
+        np.testing.assert_allclose(a.world_to_view, b.world_to_view)
+        np.testing.assert_allclose(a.proj, b.proj)
+        sky = b.depth >= 0.5 * camera.SKY_DEPTH
+        np.testing.assert_array_equal(a.depth >= 0.5 * camera.SKY_DEPTH, sky)
+        tol = 1e-5 * np.maximum(b.depth[~sky], 1.0)
+        assert np.all(np.abs(a.depth[~sky] - b.depth[~sky]) <= tol)
+        seen += int((~sky).sum())
+        if light != "point":
+            assert 0.1 < np.ptp(b.depth[~sky])                    # sphere and floor both in the map
+    assert seen > 96 * 96 // 4
+    np.testing.assert_array_equal(masks[0], masks[1])
+    assert 0.02 < 1 - masks[0][s.receiver].mean() < 0.98         # shadow and light both in the mask
+
+
+def test_rasterised_shadow_map_includes_collection_instances_as_cycles_does():
+    """A sphere that is only in the scene as a collection instance (an Empty) casts in both depth maps."""
+    scene = shadow_scenes.build("sphere", "sun", (48, 48))
+    sphere = scene.objects["Sphere"]
+    col = bpy.data.collections.new("Instanced")
+    col.objects.link(sphere)
+    for c in sphere.users_collection:
+        if c != col:
+            c.objects.unlink(sphere)
+    empty = bpy.data.objects.new("Sphere Instance", None)
+    empty.instance_type, empty.instance_collection = "COLLECTION", col
+    scene.collection.objects.link(empty)
+    p = shadows.check_params({})
+    with ShadowFrame(scene, scene["il_shadow_light"], 48) as s:
+        s.render_reference()
+        assert [o.name for o in s.casters] == [scene["il_shadow_receiver"]]
+        (raster,), _ = s.depth_maps(128, "raster")
+        (cycles,), _ = s.depth_maps(128, "cycles")
+        masks = [shadows.shadowmap_mask(s, [m], p)[0] for m in (raster, cycles)]
+        shadowed = 1 - s.reference[s.reach].mean()
+    sky = cycles.depth >= 0.5 * camera.SKY_DEPTH
+    np.testing.assert_array_equal(raster.depth >= 0.5 * camera.SKY_DEPTH, sky)
+    assert np.all(np.abs(raster.depth - cycles.depth)[~sky] <= 1e-5 * np.maximum(cycles.depth[~sky], 1.0))
+    np.testing.assert_array_equal(masks[0], masks[1])
+    assert shadowed > 0.02 and 1 - masks[0][s.reach].mean() > 0.02         # the instance's shadow is there

@@ -1,7 +1,9 @@
 """Shadow mapping (seed 003 "Shadow mapping"; Williams 1978; REFERENCE.md §4).
 
 A depth map is rendered from the light (orthographic for a sun, perspective for a spot, six
-90° cube faces for a point light). A receiver point p with light-view depth d_p is in shadow
+90° cube faces for a point light): rasterised from the scene's triangles (:func:`rasterize`) or
+read from a Cycles Depth pass; both give the planar view depth of the nearest surface through
+each texel centre. A receiver point p with light-view depth d_p is in shadow
 where d_p - b > z_map(texel(p)), with the bias b = b_c + b_s · texel(d_p) · tan θ:
 constant b_c (metres) plus slope-scaled b_s (in texels) times the world size of a map texel
 at that depth times tan θ, θ the angle between the normal and the light direction. Percentage
@@ -12,6 +14,7 @@ import numpy as np
 from .. import budget
 from ..camera import world_to_pixels
 from ..errors import InputError
+from .raster import rasterize_depth
 
 #: tan θ is clamped here (θ about 84°) so grazing receivers get a finite bias.
 MAX_TAN = 10.0
@@ -103,6 +106,13 @@ class DepthMap:
     def project(self, points):
         """Texel coordinates (x, y) and light-view depth of world points."""
         return world_to_pixels(points, self.world_to_view, self.proj, self.size, self.size)
+
+
+def rasterize(tris, world_to_view, proj, size, near, far=np.inf, stats=None):
+    """A :class:`DepthMap` of ``size``² texels of world triangles (T, 3, 3) seen by the light camera
+    ``world_to_view``, ``proj`` with clip range [near, far] (core.shadow.raster.rasterize_depth)."""
+    return DepthMap(rasterize_depth(tris, world_to_view, proj, size, size, near, far, stats=stats),
+                    world_to_view, proj)
 
 
 def select_faces(maps, points):

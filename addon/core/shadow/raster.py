@@ -1,16 +1,19 @@
 """Screen-space helpers shared by the numpy shadow methods: clipping triangles at a plane,
 triangle bounding boxes on the pixel grid, candidate (triangle, pixel) pairs in bounded chunks,
-and a depth-tested triangle rasteriser (ray-triangle hits are core.geometry.ray_triangle).
+a depth-tested triangle rasteriser (ray-triangle hits are core.geometry.ray_triangle) and a
+depth-image rasteriser (the shadow map's depth, as Cycles' Depth pass gives it).
 
 Pixel conventions are those of :mod:`core.camera`: pixel (0, 0) is the centre of the
 top-left pixel, x right, y down; ``proj`` is OpenGL clip space (Blender's calc_matrix_camera).
 """
 import numpy as np
 
-from ..camera import ndc_to_pixels
+from ..camera import SKY_DEPTH, ndc_to_pixels
 
 #: Upper bound on (triangle, pixel) pairs examined at once (memory ~ 100 bytes each).
 CHUNK = 2_000_000
+#: Pixel centres this close to a triangle's edge (pixels) count as inside: no crack along shared edges.
+EDGE_EPS = 1e-6
 
 
 def to_clip(points, world_to_view, proj):
@@ -209,3 +212,113 @@ def rasterize_depth_tested(tris, world_to_view, proj, width, height, scene_depth
         ok = inside & (frag <= scene_z[py, px])
         cover[py[ok], px[ok]] = True
     return cover
+
+
+def rasterize_depth(tris, world_to_view, proj, width, height, near, far=np.inf, chunk=CHUNK, stats=None):
+    """(H, W) planar view depth of the nearest world triangle (T, 3, 3) at each pixel centre, SKY_DEPTH where none.
+
+    What a camera ray through the pixel centre hits first, as Cycles' Depth pass at one sample through
+    the centre gives it: no back-face culling, the scene clipped to near <= d <= far (Cycles starts
+    camera rays on the plane d = clip_start and ends them on d = clip_end), centres on an edge inside
+    (EDGE_EPS). Along a row of a triangle's span the depth is affine in the pixel x for an orthographic
+    camera, 1/d for a perspective one; the nearest fragment wins (z-buffer minimum). ``stats``, a dict,
+    gets the counts "triangles" (after clipping), "spans" and "fragments" (covered pixel-triangle pairs) added.
+    """
+    w2v = np.asarray(world_to_view, np.float64)
+    proj = np.asarray(proj, np.float64)
+    depth = np.full(height * width, SKY_DEPTH)
+    v = np.asarray(tris, np.float64).reshape(-1, 3, 3) @ w2v[:3, :3].T + w2v[:3, 3]
+    v = clip_triangles(v, (0.0, 0.0, -1.0, -near))
+    if np.isfinite(far) and len(v):
+        v = clip_triangles(v, (0.0, 0.0, 1.0, far))
+    if len(v) == 0:
+        return depth.reshape(height, width)
+    ortho = proj[3, 2] == 0.0 and proj[3, 3] == 1.0
+    x, y, _ = clip_to_pixels(np.concatenate([v, np.ones(v.shape[:-1] + (1,))], -1) @ proj.T, width, height)
+    q = -v[..., 2] if ortho else -1.0 / v[..., 2]
+    counts = {"triangles": len(v), "spans": 0, "fragments": 0}
+    for row, lo, hi, qa, qb in _spans(x, y, q, width, height, chunk):
+        _fill(depth, row * width + lo, hi - lo + 1, qa, qb, ortho, chunk)
+        counts["spans"] += len(row)
+        counts["fragments"] += int((hi - lo + 1).sum())
+    if stats is not None:
+        for k, n in counts.items():
+            stats[k] = stats.get(k, 0) + n
+    return depth.reshape(height, width)
+
+
+def _spans(x, y, q, width, height, chunk):
+    """Yield (row, lo, hi, q(lo), q(hi)): for each triangle and pixel row, the inclusive run of pixel
+    centres inside it and the attribute ``q`` (affine in screen space) at both ends, clamped to the
+    triangle's range of q. Inside: s E_k(x, y) >= -EDGE_EPS |edge k| for the three edge functions
+    E_k = (x_b - x_a)(y - y_a) - (y_b - y_a)(x - x_a), s the sign of the area; on a row each is a half-line in x.
+    """
+    x0, y0, q0 = x[:, 0], y[:, 0], q[:, 0]
+    e1x, e1y, e2x, e2y = x[:, 1] - x0, y[:, 1] - y0, x[:, 2] - x0, y[:, 2] - y0
+    area = e1x * e2y - e2x * e1y
+    live = (np.abs(area) > 1e-12) & (x.max(1) >= -EDGE_EPS) & (x.min(1) <= width - 1 + EDGE_EPS)
+    r0 = np.maximum(np.ceil(y.min(1) - EDGE_EPS), 0)
+    r1 = np.minimum(np.floor(y.max(1) + EDGE_EPS), height - 1)
+    live &= r1 >= r0
+    idx = np.nonzero(live)[0]
+    if len(idx) == 0:
+        return
+    area, r0, r1 = area[idx], r0[idx].astype(np.int64), r1[idx].astype(np.int64)
+    x, y, q, x0, y0, q0 = x[idx], y[idx], q[idx], x0[idx], y0[idx], q0[idx]
+    e1x, e1y, e2x, e2y, e1q, e2q = e1x[idx], e1y[idx], e2x[idx], e2y[idx], q[:, 1] - q0, q[:, 2] - q0
+    qx = (e1q * e2y - e2q * e1y) / area
+    qy = (e2q * e1x - e1q * e2x) / area
+    qmin, qmax = q.min(1), q.max(1)
+    s = np.sign(area)
+    # s E_k = A x + B y + C per edge (a -> b)
+    a_, b_, c_, tol = [], [], [], []
+    for a, b in ((0, 1), (1, 2), (2, 0)):
+        dx, dy = x[:, b] - x[:, a], y[:, b] - y[:, a]
+        a_.append(-s * dy)
+        b_.append(s * dx)
+        c_.append(s * (dy * x[:, a] - dx * y[:, a]))
+        tol.append(EDGE_EPS * np.hypot(dx, dy))
+    rows = r1 - r0 + 1
+    start = 0
+    while start < len(idx):
+        cum = np.cumsum(rows[start:])
+        stop = start + max(1, int(np.searchsorted(cum, chunk // 4, side="right")))
+        c = rows[start:stop]
+        t = np.repeat(np.arange(start, stop), c)
+        row = r0[t] + np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c)
+        lo = np.full(len(t), -np.inf)
+        hi = np.full(len(t), np.inf)
+        for k in range(3):
+            ak = a_[k][t]
+            rhs = -(b_[k][t] * row + c_[k][t]) - tol[k][t]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                bound = rhs / ak
+            lo = np.where(ak > 0, np.maximum(lo, bound), lo)
+            hi = np.where(ak < 0, np.minimum(hi, bound), hi)
+            hi = np.where((ak == 0) & (rhs > 0), -np.inf, hi)
+        lo = np.maximum(np.ceil(lo), 0)
+        hi = np.minimum(np.floor(hi), width - 1)
+        keep = hi >= lo
+        t, row, lo, hi = t[keep], row[keep], lo[keep].astype(np.int64), hi[keep].astype(np.int64)
+        base = q0[t] + qy[t] * (row - y0[t])
+        qa = np.clip(base + qx[t] * (lo - x0[t]), qmin[t], qmax[t])
+        qb = np.clip(base + qx[t] * (hi - x0[t]), qmin[t], qmax[t])
+        yield row, lo, hi, qa, qb
+        start = stop
+
+
+def _fill(depth, first, n, qa, qb, ortho, chunk):
+    """z-buffer minimum of the runs of ``n`` pixels from flat index ``first``, q linear from qa to qb."""
+    step = np.where(n > 1, (qb - qa) / np.maximum(n - 1, 1), 0.0)
+    start = 0
+    while start < len(n):
+        cum = np.cumsum(n[start:])
+        stop = start + max(1, int(np.searchsorted(cum, chunk, side="right")))
+        c = n[start:stop]
+        offset = np.cumsum(c) - c
+        k = np.arange(int(c.sum())) - np.repeat(offset, c)
+        val = np.repeat(qa[start:stop], c) + np.repeat(step[start:stop], c) * k
+        if not ortho:
+            val = 1.0 / val
+        np.minimum.at(depth, np.repeat(first[start:stop], c) + k, val)
+        start = stop

@@ -26,9 +26,11 @@ from ...blender.progress import Progress
 from ...blender import scene as sc
 from ..options import SHADOW_METHOD_CHOICES, ShadowOptions
 from . import scenes
-from .frame import ShadowFrame
+from .frame import DEPTH_SOURCES, ShadowFrame
 
 METHODS = tuple(m[0] for m in SHADOW_METHOD_CHOICES)
+#: The shadow map's depth by default: "raster" (numpy, the casters' triangles) or "cycles" (Depth pass).
+DEPTH_SOURCE = "raster"
 
 
 def parse_methods(methods):
@@ -79,11 +81,12 @@ def shadowmap_mask(s, maps, p):
 
 
 def _shadowmap(s, p):
-    maps, render_s = s.depth_maps(p["shadowmap_size"])
+    source = p.get("depth_source", DEPTH_SOURCE)
+    maps, render_s = s.depth_maps(p["shadowmap_size"], source)
     mask, lookup_s = shadowmap_mask(s, maps, p)
     kind = {"SUN": "orthographic", "SPOT": "perspective", "POINT": "cube (6 faces)"}[s.light.kind]
     return mask, {"size": p["shadowmap_size"], "bias": p["bias"], "slope_bias": p["slope_bias"], "pcf": p["pcf"],
-                  "projection": kind, "render_seconds": render_s, "lookup_seconds": lookup_s}
+                  "projection": kind, "depth_source": source, "render_seconds": render_s, "lookup_seconds": lookup_s}
 
 
 def volume_inputs(s):
@@ -143,8 +146,11 @@ def run_method(s, method, p):
 
 
 # -- the comparison ---------------------------------------------------------------------------------
-def compare(scene, light, methods, out, **params):
+def compare(scene, light, methods, out, depth_source=DEPTH_SOURCE, **params):
     """Run ``methods`` on ``scene`` lit by the light named ``light``; write images and the report; return it.
+
+    ``depth_source`` is where the shadow map's depth comes from (frame.DEPTH_SOURCES), the rest are
+    lab.options.ShadowOptions.
 
     Everything is computed before the first file is written (an error or Ctrl-C leaves no partial set);
     the output folder is made only then. A reference with no lit or no shadowed receiver pixel scores
@@ -152,6 +158,9 @@ def compare(scene, light, methods, out, **params):
     """
     methods = parse_methods(methods)
     p = check_params(params)
+    if depth_source not in DEPTH_SOURCES:
+        raise InputError(f"unknown depth source '{depth_source}' (choose from {', '.join(DEPTH_SOURCES)})")
+    p["depth_source"] = depth_source
     report = {"scene": scene.name, "light": light, "reference": {}, "methods": {}}
     images = {}
     frame = ShadowFrame(scene, light, p["resolution"], p["samples"])
@@ -173,8 +182,8 @@ def compare(scene, light, methods, out, **params):
             warn(f"the reference is {'all shadow' if not lit else 'all lit'} on the {s.receiver.sum()} pixels the "
                  f"camera sees: every method's score is meaningless (aim '{light}' at the objects, or move them)")
         if s.skipped:
-            warn(f"not triangulated for the planar and volume methods: {', '.join(s.skipped)} (Cycles still "
-                 "renders them in the reference and the shadow map)")
+            warn(f"not triangulated for the planar, volume and shadow-map methods: {', '.join(s.skipped)} (Cycles "
+                 "still renders them in the reference, and in the shadow map with depth source cycles)")
         images["raytraced_mask.png"] = metrics.mask_image(s.reference)
         for m in methods:
             progress.step(m)
@@ -194,7 +203,7 @@ def compare(scene, light, methods, out, **params):
         f"{m} {e['error']:.2%}" for m, e in report["methods"].items() if m != "raytraced"))
 
 
-def compare_builtin(name, light_kind, methods, out, keep=False, **params):
+def compare_builtin(name, light_kind, methods, out, keep=False, depth_source=DEPTH_SOURCE, **params):
     """Build the built-in scene ``name`` with a ``light_kind`` light, compare, remove it unless ``keep``."""
     methods = parse_methods(methods)
     p = check_params(params)
@@ -202,7 +211,7 @@ def compare_builtin(name, light_kind, methods, out, keep=False, **params):
                           6 if light_kind == "point" else 1)
     scene = scenes.build(name, light_kind, (p["resolution"], p["resolution"]))
     try:
-        return compare(scene, scene["il_shadow_light"], methods, out, **params)
+        return compare(scene, scene["il_shadow_light"], methods, out, depth_source, **params)
     finally:
         if not keep:
             sc.remove_scene(scene)

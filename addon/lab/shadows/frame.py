@@ -24,6 +24,8 @@ from ...blender.state import SavedState
 
 #: The light's settings the lab changes (radius 0, no blend, shadows on, no EEVEE jitter), put back on exit.
 LIGHT_SETTINGS = ("shadow_soft_size", "angle", "spot_blend", "use_shadow", "use_shadow_jitter")
+#: Where a shadow map's depth comes from (ShadowFrame.depth_maps): numpy rasteriser (default) or Cycles.
+DEPTH_SOURCES = ("raster", "cycles")
 #: Pixel filter width of every lab render (pixels): every sample through the pixel centre.
 FILTER_WIDTH = 0.01
 
@@ -246,27 +248,60 @@ class ShadowFrame:
             faces.append(self._light_camera(f"IL Cube {i}", light.position, rot, angle=math.pi / 2))
         return faces
 
-    def depth_maps(self, size):
-        """Light-view depth maps rendered by Cycles (1 sample through texel centres); returns (maps, seconds)."""
+    def depth_maps(self, size, source="raster", stats=None):
+        """Light-view depth maps of ``size``² texels; returns (maps, seconds).
+
+        ``source`` "raster": the casters' evaluated triangles rasterised in numpy at texel centres
+        (core.shadow.depth_map.rasterize); "cycles": Cycles' Depth pass, 1 sample through texel centres
+        (also renders what is not triangulated, see ``skipped``). Both use the same light cameras.
+        ``stats`` (a dict) gets the rasteriser's counts (core.shadow.raster.rasterize_depth).
+        """
         if size < 2 or size > 16384:
             raise InputError(f"--shadowmap-size must be between 2 and 16384, got {size}")
+        if source not in DEPTH_SOURCES:
+            raise InputError(f"unknown depth source '{source}' (choose from {', '.join(DEPTH_SOURCES)})")
         t = time.perf_counter()
         maps = []
         cams = self.light_cameras()
         try:
             tmp = self.tmp
-            render.cycles_cpu(tmp, 1, pixel_filter=FILTER_WIDTH)
-            tmp.cycles.max_bounces = 0
-            for c in cams:
-                p = self._render(compat.CYCLES, c, size, size, {"use_pass_z"})
-                w2v, proj, _, _ = render.camera_matrices(tmp, c)
-                maps.append(depth_map.DepthMap(p["Depth"], w2v, proj))
+            if source == "cycles":
+                render.cycles_cpu(tmp, 1, pixel_filter=FILTER_WIDTH)
+                tmp.cycles.max_bounces = 0
+                for c in cams:
+                    p = self._render(compat.CYCLES, c, size, size, {"use_pass_z"})
+                    w2v, proj, _, _ = render.camera_matrices(tmp, c)
+                    maps.append(depth_map.DepthMap(p["Depth"], w2v, proj))
+            else:
+                tris = self.caster_triangles()
+                tmp.render.resolution_x = tmp.render.resolution_y = size
+                tmp.render.resolution_percentage = 100
+                for c in cams:
+                    w2v, proj, _, _ = render.camera_matrices(tmp, c)
+                    maps.append(depth_map.rasterize(tris, w2v, proj, size, c.data.clip_start, c.data.clip_end, stats))
         finally:
             for c in cams:
                 data = c.data
                 bpy.data.objects.remove(c)
                 bpy.data.cameras.remove(data)
         return maps, time.perf_counter() - t
+
+    def caster_triangles(self):
+        """(T, 3, 3) world-space triangles of every surface the private scene renders: each evaluated
+        object and instance (collection instances, geometry-nodes instances) of a SURFACE_TYPES type,
+        as Cycles sees them."""
+        vl = self.tmp.view_layers[0]
+        vl.update()
+        dg = vl.depsgraph
+        parts = []
+        for inst in dg.object_instances:
+            if inst.object.type not in SURFACE_TYPES:
+                continue
+            v, t = sc.evaluated_triangles(inst.object, dg)
+            if len(t):
+                m = np.array(inst.matrix_world, np.float64)
+                parts.append((v @ m[:3, :3].T + m[:3, 3])[t])
+        return np.concatenate(parts) if parts else np.zeros((0, 3, 3))
 
     def triangles(self, obj):
         """World-space (V, 3) vertices and (T, 3) triangles of an object's evaluated mesh."""

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from addon.core import camera
+from addon.core import camera, geometry
 from addon.core.shadow import metrics as shadow_metrics
 from addon.core.shadow import volume as shadow_volume
 from addon.core.shadow import depth_map
@@ -232,3 +232,65 @@ def test_reference_threshold_is_half_the_unshadowed_value():
     np.testing.assert_allclose(u, 3 / np.pi)
     lit = shadow_metrics.lit_from_pass(np.array([3 / np.pi, 0.0, 0.49 * 3 / np.pi]), u, np.ones(3, bool))
     assert lit.tolist() == [True, False, False]
+
+
+def _ray_cast_depth(tris, w2v, proj, n, near, far):
+    """Planar view depth of the nearest hit in [near, far] along each texel-centre ray (brute force)."""
+    o, d = camera.pixel_rays(w2v, proj, n, n)
+    t = geometry.ray_triangle(o.reshape(-1, 1, 3), d.reshape(-1, 1, 3), tris[None, :, 0], tris[None, :, 1],
+                              tris[None, :, 2])
+    hit = o.reshape(-1, 1, 3) + np.nan_to_num(t)[..., None] * d.reshape(-1, 1, 3)
+    depth = -(hit @ w2v[:3, :3].T + w2v[:3, 3])[..., 2]
+    ok = (t > 0) & (depth >= near) & (depth <= far)
+    best = np.where(ok, depth, np.inf).min(1).reshape(n, n)
+    return np.where(np.isfinite(best), best, camera.SKY_DEPTH)
+
+
+def _box_over_floor():
+    v, t = _cube((-0.5, -0.4, 0.6), (0.7, 0.5, 1.3))
+    floor = np.array([[[-3.1, -2.9, 0.05], [3.2, -3.0, -0.1], [2.9, 3.1, 0.0]],
+                      [[-3.1, -2.9, 0.05], [2.9, 3.1, 0.0], [-3.0, 3.05, 0.1]]])
+    return np.concatenate([v[t], floor])
+
+
+@pytest.mark.parametrize("kind", ["ortho", "perspective"])
+def test_rasterised_depth_is_the_nearest_hit_along_each_texel_centre_ray(kind):
+    """Orthographic depth is affine across a triangle, perspective depth is not (1/d is): both must agree
+    with a ray cast through every texel centre, the sky included, and not depend on the chunk size."""
+    tris = _box_over_floor()
+    n, near, far = 40, 1e-3, 100.0
+    if kind == "ortho":
+        w2v, proj, _, _ = _look_down((0.1, 0.05, 5.0), ortho=7.0)
+    else:
+        w2v, proj, _, _ = _look_down((0.1, 0.05, 4.0), fov=math.radians(80))
+    ref = _ray_cast_depth(tris, w2v, proj, n, near, far)
+    got = raster.rasterize_depth(tris, w2v, proj, n, n, near, far)
+    sky = ref == camera.SKY_DEPTH
+    assert 0 < sky.sum() < sky.size / 2 and (ref[~sky] < 4.5).any()        # floor, box top and sky all seen
+    np.testing.assert_array_equal(got == camera.SKY_DEPTH, sky)
+    np.testing.assert_allclose(got[~sky], ref[~sky], rtol=1e-12, atol=1e-12)
+    stats = {}
+    np.testing.assert_array_equal(raster.rasterize_depth(tris, w2v, proj, n, n, near, far, chunk=7, stats=stats), got)
+    assert stats["fragments"] >= (~sky).sum() and stats["triangles"] == len(tris)
+
+
+def test_rasterised_depth_is_clipped_at_the_near_and_far_planes():
+    """Camera rays start on the plane d = near and end on d = far: a box the near plane cuts shows its
+    inside (the far wall), a floor beyond far is sky; a quad's shared diagonal leaves no crack."""
+    tris = _box_over_floor()
+    w2v, proj, _, _ = _look_down((0.1, 0.05, 2.0), fov=math.radians(120))    # box top at d = 0.7, bottom 1.4
+    n = 32
+    for near, far in ((0.9, 100.0), (1e-3, 1.5)):
+        ref = _ray_cast_depth(tris, w2v, proj, n, near, far)
+        got = raster.rasterize_depth(tris, w2v, proj, n, n, near, far)
+        np.testing.assert_array_equal(got == camera.SKY_DEPTH, ref == camera.SKY_DEPTH)
+        np.testing.assert_allclose(got, ref, rtol=1e-12)
+        seen = got[got < camera.SKY_DEPTH]
+        if near == 0.9:
+            assert np.isclose(seen, 1.4).any() and not np.isclose(seen, 0.7).any()   # the top is cut away
+        else:
+            assert np.isclose(seen, 0.7).any() and seen.max() <= 1.5 and (got == camera.SKY_DEPTH).any()
+    # a square exactly filling an orthographic view: every texel centre is inside one of its two triangles
+    w2v, proj, _, _ = _look_down((0.0, 0.0, 2.0), ortho=2.0)
+    quad = np.array([[[-1, -1, 0], [1, -1, 0], [1, 1, 0]], [[-1, -1, 0], [1, 1, 0], [-1, 1, 0]]], float)
+    np.testing.assert_allclose(raster.rasterize_depth(quad, w2v, proj, 64, 64, 1e-3), 2.0)
