@@ -53,9 +53,9 @@ def _scatter(gb, values):
     return out
 
 
-def _chunks(n, per_item, budget=CHUNK):
-    """Slices of ``range(n)`` so that ``rows * per_item`` stays within ``budget`` elements."""
-    step = max(1, budget // max(1, per_item))
+def _chunks(n, per_item, budget=None):
+    """Slices of ``range(n)`` so that ``rows * per_item`` stays within ``budget`` (:data:`CHUNK`) elements."""
+    step = max(1, (CHUNK if budget is None else budget) // max(1, per_item))
     return [slice(i, min(n, i + step)) for i in range(0, n, step)]
 
 
