@@ -14,6 +14,11 @@ Methods (REFERENCE.md §4):
 - :func:`gtao`: ground-truth AO (Jimenez et al. 2016), horizon per slice and
   the cosine-weighted inner integral solved analytically;
 - :func:`core.ssao.blur.depth_aware_blur`: optional bilateral blur guided by depth and normal.
+
+Layout (issue 14): per chunk of :data:`CHUNK` pixel-samples, coordinates as separate float32 planes
+with pixels on the last axis, depth lookups as flat gathers (core.ssao.gbuffer.lookup_at); every
+floating-point operation and its order is the plain implementation's (tests/core/ssao/seed_ssao.py),
+so the images are the same.
 """
 import time
 

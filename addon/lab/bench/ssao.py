@@ -156,7 +156,8 @@ def run(output_dir, quick=False, radius=1.0, samples=16):
 def load_baseline(checkout):
     """The numpy SSAO methods of another checkout of this project (e.g. the main branch's worktree), to
     time beside this one in the same run: ``checkout``/addon imported as package ``il_baseline``
-    (core modules only, no bpy). Returns (methods module, gbuffer module); InputError if it has none."""
+    (core modules only, no bpy; no bytecode written there). Returns (methods module, gbuffer module);
+    InputError if it has none."""
     import importlib
     import importlib.util
     import sys
@@ -164,13 +165,18 @@ def load_baseline(checkout):
     if not os.path.isfile(os.path.join(root, "core", "ssao", "methods.py")):
         raise InputError(f"--baseline {checkout}: no addon/core/ssao/methods.py there")
     name = "il_baseline"
-    if name not in sys.modules:
-        spec = importlib.util.spec_from_file_location(name, os.path.join(root, "__init__.py"),
-                                                      submodule_search_locations=[root])
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
-        spec.loader.exec_module(module)
-    return importlib.import_module(name + ".core.ssao.methods"), importlib.import_module(name + ".core.ssao.gbuffer")
+    write_bytecode, sys.dont_write_bytecode = sys.dont_write_bytecode, True
+    try:
+        if name not in sys.modules:
+            spec = importlib.util.spec_from_file_location(name, os.path.join(root, "__init__.py"),
+                                                          submodule_search_locations=[root])
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[name] = module
+            spec.loader.exec_module(module)
+        return (importlib.import_module(name + ".core.ssao.methods"),
+                importlib.import_module(name + ".core.ssao.gbuffer"))
+    finally:
+        sys.dont_write_bytecode = write_bytecode
 
 
 def _timed(func, *args, **kwargs):
