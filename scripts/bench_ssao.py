@@ -7,9 +7,11 @@
 Times are the best of --repeats runs (wall and CPU seconds of this process); the
 numpy methods start from the G-buffer (rendered once). ns per pixel-sample =
 seconds / (geometry pixels x samples): the Pareto chart's time axis divided by
-the work. "passes" splits that cost (CPU figure): the method's random draws and
-depth gathers at this machine's measured rates, and the rest expressed as
-float32 passes (c = a·b, 12 bytes per element) at the cache-resident rate.
+the work. "passes" and "B/px-s" are the numpy passes (ufunc calls' elements) and
+bytes touched per pixel-sample, counted (addon.lab.bench.ssao.count_passes);
+"floor" is what they would cost at this machine's plainest rates (every pass as
+fast as c = a·b in cache, plus the method's random draws and four gathers), and
+"x floor" the measured CPU cost over it.
 Peak memory is tracemalloc's peak during one more run (numpy's arrays included).
 With --baseline DIR the numpy methods of that checkout (e.g. the main branch)
 run interleaved with these on the same G-buffer, and max |Δk| compares the images.
@@ -50,23 +52,25 @@ def main(args):
     print(f"  float32 pass c = a·b (12 B/element): {mc['pass_ns']:.2f} ns/element in cache "
           f"({mc['cache_gb_per_s']:.0f} GB/s), {mc['stream_ns']:.2f} ns from memory ({mc['stream_gb_per_s']:.0f} GB/s); "
           f"uniform float32 draw {mc['random_ns']:.2f} ns; gather {mc['gather_ns']:.2f} ns")
-    head = (f"{'method':<20}{'seconds':>9}{'cpu s':>8}{'ns/px-s':>9}{'passes':>8}{'peak MiB':>9}{'RMSE':>8}")
+    head = (f"{'method':<20}{'seconds':>9}{'cpu s':>8}{'ns/px-s':>9}{'passes':>7}{'B/px-s':>7}{'floor':>6}"
+            f"{'x floor':>8}{'peak MiB':>9}{'RMSE':>8}")
     if args.baseline:
         head += f"  |{'before':>8}{'cpu s':>8}{'RMSE':>8}{'peak MiB':>9}{'speed-up':>9}{'max|dk|':>9}"
     print(head + f"{'load':>6}")
     for r in rows:
         if "cpu_seconds" not in r:
-            print(f"{r['method']:<20}{r['seconds']:>9.3f}{'':>42}{r['rmse']:>8.4f}"
+            print(f"{r['method']:<20}{r['seconds']:>9.3f}{'':>54}{r['rmse']:>8.4f}"
                   + ("  |" + " " * 51 if args.baseline else "") + f"{r['load']:>6.1f}")
             continue
         name = r["method"].split(" ")[0]
-        passes = ""
-        if "blur" not in r["method"]:
-            rest = (r["cpu_ns_per_pixel_sample"] - bench_ssao.DRAWS_PER_SAMPLE[name] * mc["random_ns"]
-                    - bench_ssao.GATHERS_PER_SAMPLE * mc["gather_ns"])
-            passes = f"{rest / mc['pass_ns']:.0f}"
+        work = ["", "", "", ""]
+        if "passes" in r:
+            floor = (r["passes"] * mc["pass_ns"] + bench_ssao.DRAWS_PER_SAMPLE[name] * mc["random_ns"]
+                     + bench_ssao.GATHERS_PER_SAMPLE * mc["gather_ns"])
+            work = [f"{r['passes']:.0f}", f"{r['bytes']:.0f}", f"{floor:.0f}",
+                    f"{r['cpu_ns_per_pixel_sample'] / floor:.1f}"]
         line = (f"{r['method']:<20}{r['seconds']:>9.3f}{r['cpu_seconds']:>8.3f}{r['ns_per_pixel_sample']:>9.1f}"
-                f"{passes:>8}{_mib(r['peak_bytes']):>9}{r['rmse']:>8.4f}")
+                f"{work[0]:>7}{work[1]:>7}{work[2]:>6}{work[3]:>8}{_mib(r['peak_bytes']):>9}{r['rmse']:>8.4f}")
         if args.baseline:
             line += (f"  |{r['baseline_seconds']:>8.3f}{r['baseline_cpu_seconds']:>8.3f}{r['baseline_rmse']:>8.4f}"
                      f"{_mib(r['baseline_peak_bytes']):>9}{r['baseline_seconds'] / r['seconds']:>8.2f}x"

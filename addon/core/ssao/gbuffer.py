@@ -143,7 +143,7 @@ def lookup_at(gb, x, y):
     -1/2 <= x <= W - 1/2 and -1/2 <= y <= H - 1/2. v = (q00 (1-fx) + q01 fx)(1-fy) + (q10 (1-fx) + q11 fx) fy.
     """
     h, w = gb.depth.shape
-    x, y = np.asarray(x), np.asarray(y)
+    x, y = np.asanyarray(x), np.asanyarray(y)
     on = np.greater_equal(x, -0.5, out=np.empty(x.shape, bool))
     on &= x <= w - 0.5
     on &= y >= -0.5
@@ -199,7 +199,7 @@ def depth_at(gb, x, y):
     plane, so planes are reconstructed exactly), in z for an orthographic one
     (:func:`lookup_at`). Off-screen positions return SKY_DEPTH and on_screen False.
     """
-    v, on = lookup_at(gb, np.asarray(x), np.asarray(y))
+    v, on = lookup_at(gb, np.asanyarray(x), np.asanyarray(y))
     return np.where(on, depth_from_lookup(gb, v), np.float32(SKY_DEPTH)), on
 
 
@@ -212,7 +212,7 @@ def position_at(gb, x, y):
     that pixel's ray (GTAO's slice). Returns (positions, valid) where valid =
     on screen and not sky; off screen the position is the ray at the edge pixel's depth.
     """
-    x, y = np.asarray(x), np.asarray(y)
+    x, y = np.asanyarray(x), np.asanyarray(y)
     px, py, pz, valid = positions_at(gb, x, y)
     return np.stack([px, py, pz], -1).astype(np.float32), valid
 

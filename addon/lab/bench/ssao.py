@@ -12,6 +12,7 @@ import numpy as np
 
 from ...core import charts
 from ...core.ssao import figures as ssao_figures
+from ...core.ssao import gbuffer as gbuffer_mod
 from ...core.ssao import methods as ssao
 from ...core.ssao import limits as ssao_limits
 from ...core.ssao import metrics
@@ -232,6 +233,46 @@ def machine_rates(elements=1 << 22, chunk=ssao.CHUNK, repeats=5):
             "gather_ns": best(gathers, rounds * chunk)}
 
 
+class _Counted(np.ndarray):
+    """An ndarray whose ufunc passes, and those of every array computed from it, are tallied in
+    :attr:`tally`: passes (elements written) and bytes read and written by full-size operands."""
+    tally = None
+
+    def __array_ufunc__(self, ufunc, method, *inputs, **kwargs):
+        plain = [x.view(np.ndarray) if isinstance(x, _Counted) else x for x in inputs]
+        if "out" in kwargs:
+            kwargs["out"] = tuple(o.view(np.ndarray) if isinstance(o, _Counted) else o for o in kwargs["out"])
+        result = getattr(ufunc, method)(*plain, **kwargs)
+        outs = result if isinstance(result, tuple) else (result,)
+        n = max(np.size(o) for o in outs)
+        if _Counted.tally is not None:
+            _Counted.tally["elements"] += n
+            _Counted.tally["bytes"] += (sum(x.nbytes for x in plain if isinstance(x, np.ndarray) and x.size == n)
+                                        + sum(np.asarray(o).nbytes for o in outs))
+        wrap = (lambda o: o.view(_Counted) if isinstance(o, np.ndarray) else o)
+        return tuple(wrap(o) for o in outs) if isinstance(result, tuple) else wrap(result)
+
+
+def count_passes(gb, method, samples):
+    """Numpy passes and bytes touched per pixel-sample of one method on ``gb``: every ufunc call's
+    elements and full-size operands' bytes (the G-buffer and the random numbers tracked through an
+    ndarray subclass), plus the four gathers of each lookup (index, value, result: 12 bytes each).
+    Copies, np.where and reductions are not counted. Returns {"passes", "bytes"} per pixel-sample."""
+    tracked = ssao.__dict__["_sample_major"]
+    counted = gbuffer_mod.GBuffer(*(a.view(_Counted) for a in (gb.position, gb.normal, gb.depth)),
+                                  gb.mask, gb.proj)
+    _Counted.tally = {"elements": 0, "bytes": 0}
+    ssao._sample_major = lambda u: tracked(u).view(_Counted)
+    try:
+        ssao.run_method(method, counted, 1.0, samples)
+        tally = dict(_Counted.tally)
+    finally:
+        ssao._sample_major = tracked
+        _Counted.tally = None
+    n = int(gb.mask.sum()) * samples
+    return {"passes": tally["elements"] / n, "bytes": tally["bytes"] / n + 12 * GATHERS_PER_SAMPLE}
+
+
 #: Per pixel-sample of each numpy method: uniform draws and depth-buffer gathers (4 per bilinear lookup).
 #: The horizon methods draw 2 numbers per pixel, not per sample.
 DRAWS_PER_SAMPLE = {"crytek": 3, "hemisphere": 3, "hbao": 0, "gtao": 0}
@@ -244,7 +285,7 @@ def speed(output_dir, resolution=512, samples=16, repeats=3, reference_samples=2
     With ``baseline`` (another checkout, :func:`load_baseline`) its numpy methods run on the same
     G-buffer, interleaved with this checkout's, so both sets of figures share the machine's load.
     Returns {"rows": [{"method", "seconds", "cpu_seconds", "rmse", "ns_per_pixel_sample", "peak_bytes",
-    "load", and with a baseline "baseline_seconds", "baseline_cpu_seconds", "baseline_rmse",
+    "load", "passes" and "bytes" per pixel-sample (:func:`count_passes`, without blur), and with a baseline "baseline_seconds", "baseline_cpu_seconds", "baseline_rmse",
     "baseline_peak_bytes", "max_difference"}], "gbuffer", "reference", "machine"}; the reference is
     cached in ``output_dir``/cache.
     """
@@ -276,6 +317,8 @@ def speed(output_dir, resolution=512, samples=16, repeats=3, reference_samples=2
                     row[prefix + "rmse"] = metrics.error_metrics(images[prefix], ref["k"], gb.mask)["rmse"]
                     row[prefix + "peak_bytes"] = _peak_bytes(module.run_method, m, frame_gb, 1.0, samples,
                                                              blur=blur)
+                if not blur:
+                    row.update(count_passes(gb, m, samples))
                 row["ns_per_pixel_sample"] = row["seconds"] / pixel_samples * 1e9
                 row["cpu_ns_per_pixel_sample"] = row["cpu_seconds"] / pixel_samples * 1e9
                 if baseline:
