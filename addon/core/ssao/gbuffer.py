@@ -88,12 +88,34 @@ def view_to_pixels(points, proj, width, height):
 
     x = (ndc_x + 1) W/2 - 1/2, y = (1 - ndc_y) H/2 - 1/2 with ndc = clip.xyz / clip.w.
     """
+    return project(points[..., 0], points[..., 1], points[..., 2], proj, width, height)
+
+
+def _row(row, px, py, pz):
+    """row · (px, py, pz, 1) in float32, summed left to right; zero terms skipped and ±1 not multiplied
+    (both exact, so the result is the full sum's bit for bit)."""
+    acc = None
+    for c, v in zip(row[:3], (px, py, pz)):
+        if c == 0:
+            continue
+        term = v if c == 1 else (-v if c == -1 else c * v)
+        acc = term if acc is None else acc + term
+    if acc is None:
+        return np.full(np.shape(px), row[3], np.float32)
+    if row[3] != 0:
+        return acc + row[3]
+    return acc.copy() if any(acc is v for v in (px, py, pz)) else acc
+
+
+def project(px, py, pz, proj, width, height):
+    """:func:`view_to_pixels` on separate coordinate arrays (the methods' layout): returns x, y, w."""
     p = proj.astype(np.float32)
-    px, py, pz = points[..., 0], points[..., 1], points[..., 2]
-    w = p[3, 0] * px + p[3, 1] * py + p[3, 2] * pz + p[3, 3]
+    w = _row(p[3], px, py, pz)
     safe = np.where(w > 1e-6, w, np.float32(1.0))
-    ndc_x = (p[0, 0] * px + p[0, 1] * py + p[0, 2] * pz + p[0, 3]) / safe
-    ndc_y = (p[1, 0] * px + p[1, 1] * py + p[1, 2] * pz + p[1, 3]) / safe
+    ndc_x = _row(p[0], px, py, pz)
+    ndc_x /= safe
+    ndc_y = _row(p[1], px, py, pz)
+    ndc_y /= safe
     x, y = ndc_to_pixels(ndc_x, ndc_y, width, height)
     return x, y, w
 
@@ -114,32 +136,71 @@ def view_vectors(gb, pos):
     return np.broadcast_to(np.array([0, 0, 1], np.float32), pos.shape)
 
 
+def lookup_at(gb, x, y):
+    """Bilinear interpolation of :attr:`GBuffer.lookup` (1/z or z) at sub-pixel (x, y); returns (value, on_screen).
+
+    Positions are clamped to the pixel centres, so off-screen ones read the edge; on_screen =
+    -1/2 <= x <= W - 1/2 and -1/2 <= y <= H - 1/2. v = (q00 (1-fx) + q01 fx)(1-fy) + (q10 (1-fx) + q11 fx) fy.
+    """
+    h, w = gb.depth.shape
+    x, y = np.asanyarray(x), np.asanyarray(y)
+    on = np.greater_equal(x, -0.5, out=np.empty(x.shape, bool))
+    on &= x <= w - 0.5
+    on &= y >= -0.5
+    on &= y <= h - 0.5
+    fx = np.maximum(x, np.float32(0.0), out=np.empty(x.shape, np.result_type(x, np.float32)))
+    np.minimum(fx, np.float32(w - 1), out=fx)
+    x0 = np.floor(fx)
+    np.minimum(x0, np.float32(w - 2 if w > 1 else 0), out=x0)
+    fx -= x0
+    fx = fx.astype(np.float32, copy=False)
+    fy = np.maximum(y, np.float32(0.0), out=np.empty(y.shape, np.result_type(y, np.float32)))
+    np.minimum(fy, np.float32(h - 1), out=fy)
+    y0 = np.floor(fy)
+    np.minimum(y0, np.float32(h - 2 if h > 1 else 0), out=y0)
+    fy -= y0
+    fy = fy.astype(np.float32, copy=False)
+    index = y0.astype(np.int32)
+    index *= w
+    index += x0.astype(np.int32)
+    q = gb.lookup.ravel()
+    right, down = (1 if w > 1 else 0), (w if h > 1 else 0)       # x1 = min(x0 + 1, W - 1), y1 likewise
+    gx = 1 - fx
+    top = np.take(q, index, mode="clip")
+    top *= gx
+    index += right
+    t = np.take(q, index, mode="clip")
+    t *= fx
+    top += t
+    index += down - right
+    bot = np.take(q, index, mode="clip")
+    bot *= gx
+    index += right
+    np.take(q, index, out=t, mode="clip")
+    t *= fx
+    bot += t
+    top *= 1 - fy
+    bot *= fy
+    top += bot
+    return top, on
+
+
+def depth_from_lookup(gb, v):
+    """Depth from an interpolated :attr:`GBuffer.lookup` value: 1/max(v, 1/SKY_DEPTH) (perspective) or v."""
+    if gb.perspective:
+        return 1.0 / np.maximum(v, np.float32(1.0 / SKY_DEPTH))
+    return v
+
+
 def depth_at(gb, x, y):
     """Depth buffer at sub-pixel positions; returns (depth, on_screen).
 
     Bilinear in 1/z for a perspective camera (1/z is affine in screen space on a
-    plane, so planes are reconstructed exactly), in z for an orthographic one.
-    Off-screen positions return SKY_DEPTH and on_screen False.
+    plane, so planes are reconstructed exactly), in z for an orthographic one
+    (:func:`lookup_at`). Off-screen positions return SKY_DEPTH and on_screen False.
     """
-    h, w = gb.depth.shape
-    on = (x >= -0.5) & (x <= w - 0.5) & (y >= -0.5) & (y <= h - 0.5)
-    xc = np.clip(x, 0.0, w - 1.0)
-    yc = np.clip(y, 0.0, h - 1.0)
-    x0 = np.minimum(np.floor(xc).astype(np.int32), w - 2 if w > 1 else 0)
-    y0 = np.minimum(np.floor(yc).astype(np.int32), h - 2 if h > 1 else 0)
-    fx = (xc - x0).astype(np.float32)
-    fy = (yc - y0).astype(np.float32)
-    x1 = np.minimum(x0 + 1, w - 1)
-    y1 = np.minimum(y0 + 1, h - 1)
-    q = gb.lookup
-    top = q[y0, x0] * (1 - fx) + q[y0, x1] * fx
-    bot = q[y1, x0] * (1 - fx) + q[y1, x1] * fx
-    v = top * (1 - fy) + bot * fy
-    if gb.perspective:
-        d = 1.0 / np.maximum(v, np.float32(1.0 / SKY_DEPTH))
-    else:
-        d = v
-    return np.where(on, d, np.float32(SKY_DEPTH)), on
+    v, on = lookup_at(gb, np.asanyarray(x), np.asanyarray(y))
+    return np.where(on, depth_from_lookup(gb, v), np.float32(SKY_DEPTH)), on
 
 
 def position_at(gb, x, y):
@@ -149,16 +210,30 @@ def position_at(gb, x, y):
     orthographic: X = (x_ndc - P03)/P00, Y = (y_ndc - P13)/P11. Points along a
     screen line through a pixel stay in the plane through the eye containing
     that pixel's ray (GTAO's slice). Returns (positions, valid) where valid =
-    on screen and not sky.
+    on screen and not sky; off screen the position is the ray at the edge pixel's depth.
     """
-    d, on = depth_at(gb, x, y)
+    x, y = np.asanyarray(x), np.asanyarray(y)
+    px, py, pz, valid = positions_at(gb, x, y)
+    return np.stack([px, py, pz], -1).astype(np.float32), valid
+
+
+def positions_at(gb, x, y):
+    """:func:`position_at` as separate coordinate arrays: returns (X, Y, Z, valid)."""
+    v, on = lookup_at(gb, x, y)
+    d = depth_from_lookup(gb, v)
+    on &= d < 0.5 * SKY_DEPTH
     p = gb.proj
     ndc_x, ndc_y = pixels_to_ndc(x, y, gb.width, gb.height)
     if gb.perspective:
-        px = d * ((ndc_x + p[0, 2]) / p[0, 0])
-        py = d * ((ndc_y + p[1, 2]) / p[1, 1])
+        ndc_x += p[0, 2]
+        ndc_x /= p[0, 0]
+        ndc_x *= d
+        ndc_y += p[1, 2]
+        ndc_y /= p[1, 1]
+        ndc_y *= d
     else:
-        px = (ndc_x - p[0, 3]) / p[0, 0]
-        py = (ndc_y - p[1, 3]) / p[1, 1]
-    pos = np.stack([px, py, -d], -1).astype(np.float32)
-    return pos, on & (d < 0.5 * SKY_DEPTH)
+        ndc_x -= p[0, 3]
+        ndc_x /= p[0, 0]
+        ndc_y -= p[1, 3]
+        ndc_y /= p[1, 1]
+    return ndc_x, ndc_y, np.negative(d), on

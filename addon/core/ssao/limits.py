@@ -13,7 +13,8 @@ MAX_SAMPLES = 1024
 MAX_REFERENCE_SAMPLES = 65536
 #: Cost estimates (measured on 2 cores, rounded up, README "Limits"): peak bytes per frame pixel of
 #: a comparison (Blender's render buffers, passes, G-buffer; 280 measured at 1024²), seconds per
-#: pixel and sample of a numpy method (0.8-1.9e-7 measured) and of Cycles' AO pass (1.2e-6).
+#: pixel and sample of a numpy method (0.8-1.9e-7 measured before issue 14, 0.3-0.5e-7 after; the bound is
+#: kept) and of Cycles' AO pass (1.2e-6).
 BYTES_PER_PIXEL = 400
 SECONDS_PER_SAMPLE = 2e-7
 REFERENCE_SECONDS_PER_SAMPLE = 1.5e-6

@@ -14,6 +14,11 @@ Methods (REFERENCE.md §4):
 - :func:`gtao`: ground-truth AO (Jimenez et al. 2016), horizon per slice and
   the cosine-weighted inner integral solved analytically;
 - :func:`core.ssao.blur.depth_aware_blur`: optional bilateral blur guided by depth and normal.
+
+Layout (issue 14): per chunk of :data:`CHUNK` pixel-samples, coordinates as separate float32 planes
+with pixels on the last axis, depth lookups as flat gathers (core.ssao.gbuffer.lookup_at); every
+floating-point operation and its order is the plain implementation's (tests/core/ssao/seed_ssao.py),
+so the images are the same.
 """
 import time
 
@@ -22,14 +27,22 @@ import numpy as np
 from .. import budget
 from ..errors import InputError
 from .blur import depth_aware_blur
-from .gbuffer import depth_at, pixels_per_metre, position_at, view_to_pixels, view_vectors
-from .samplers import cosine_hemisphere, orthonormal_basis, split_samples, uniform_ball
+from .gbuffer import depth_from_lookup, lookup_at, pixels_per_metre, positions_at, project
+from .samplers import ball_from_uniform, hemisphere_from_uniform, orthonormal_basis, split_samples
 
 
 #: The numpy methods of this module.
 METHODS = ("crytek", "hemisphere", "hbao", "gtao")
 #: Every method the SSAO lab compares (the last two are Blender's own renders).
 ALL_METHODS = METHODS + ("eevee", "workbench")
+
+#: Pixel-samples per draw of random numbers. Fixed, so that a seed gives the same image whatever
+#: :data:`CHUNK` is.
+RNG_BLOCK = 1 << 18
+#: Pixel-samples computed at once: each float32 temporary is 512 KiB, so a chunk's working set stays
+#: in the caches (1 MiB L2 per core, 32 MiB L3 here) while numpy's per-call overhead stays small
+#: (measured at 512², 16 samples: 2^17 best, 2^15 and 2^18 5-15 % slower).
+CHUNK = 1 << 17
 
 
 def _check(radius, samples):
@@ -46,10 +59,23 @@ def _scatter(gb, values):
     return out
 
 
-def _chunks(n, per_item, budget=1 << 18):
-    """Slices of ``range(n)`` so that ``rows * per_item`` stays within ``budget`` elements."""
-    step = max(1, budget // max(1, per_item))
+def _chunks(n, per_item, budget=None):
+    """Slices of ``range(n)`` so that ``rows * per_item`` stays within ``budget`` (:data:`CHUNK`) elements."""
+    step = max(1, (CHUNK if budget is None else budget) // max(1, per_item))
     return [slice(i, min(n, i + step)) for i in range(0, n, step)]
+
+
+def _blocks(n, per_item):
+    """(block, chunks): the :data:`RNG_BLOCK` slices of ``range(n)``, each with its :data:`CHUNK` slices
+    relative to the block's start."""
+    for block in _chunks(n, per_item, RNG_BLOCK):
+        yield block, _chunks(block.stop - block.start, per_item)
+
+
+def _sample_major(u):
+    """Uniforms drawn (pixels, samples, k) as a (samples, pixels, k) view whose k planes are contiguous,
+    so per-pixel operands broadcast along whole rows."""
+    return np.ascontiguousarray(u.transpose(2, 1, 0)).transpose(1, 2, 0)
 
 
 # --------------------------------------------------------------------------- methods
@@ -65,18 +91,32 @@ def crytek(gb, radius, samples, seed=0, range_check=False):
     """
     _check(radius, samples)
     rng = np.random.default_rng(seed)
-    pos = gb.position[gb.mask]
-    out = np.empty(len(pos), np.float32)
-    for sl in _chunks(len(pos), samples):
-        p = pos[sl][:, None, :]
-        s = p + np.float32(radius) * uniform_ball(rng, (len(p), samples))
-        x, y, w = view_to_pixels(s, gb.proj, gb.width, gb.height)
-        d, on = depth_at(gb, x, y)
-        z = -s[..., 2]
-        visible = (z < d) | ~on | (w <= 0)
-        if range_check:
-            visible |= (z - d) > radius
-        out[sl] = visible.mean(axis=1)
+    pos = gb.position[gb.mask].T.copy()
+    out = np.empty(pos.shape[1], np.float32)
+    r = np.float32(radius)
+    for block, chunks in _blocks(pos.shape[1], samples):
+        u = rng.random((block.stop - block.start, samples, 3), dtype=np.float32)
+        p_block = pos[:, block]
+        for sl in chunks:                                       # (samples, pixels) from here on
+            p = p_block[:, sl]
+            sx, sy, sz = ball_from_uniform(_sample_major(u[sl]))
+            sx *= r
+            sx += p[0]
+            sy *= r
+            sy += p[1]
+            sz *= r
+            sz += p[2]
+            x, y, w = project(sx, sy, sz, gb.proj, gb.width, gb.height)
+            v, on = lookup_at(gb, x, y)
+            d = depth_from_lookup(gb, v)
+            z = np.negative(sz, out=sz)
+            visible = z < d
+            visible |= ~on
+            visible |= w <= 0
+            if range_check:
+                z -= d
+                visible |= z > radius
+            out[block][sl] = np.count_nonzero(visible, axis=0) / samples
     return _scatter(gb, out)
 
 
@@ -84,6 +124,19 @@ def range_weight(radius, dz):
     """Range check of the hemisphere method: smoothstep(0, 1, r / |z_p - d(s)|) (Chapman 2013)."""
     t = np.clip(radius / np.maximum(np.abs(dz), 1e-12), 0.0, 1.0)
     return t * t * (3.0 - 2.0 * t)
+
+
+def _range_weight_inplace(radius, dz):
+    """:func:`range_weight` overwriting ``dz`` (float32, same operations)."""
+    t = np.abs(dz, out=dz)
+    np.maximum(t, 1e-12, out=t)
+    np.divide(radius, t, out=t)
+    np.minimum(t, 1.0, out=t)                      # r/|dz| > 0: clip(t, 0, 1) = min(t, 1)
+    s = 2.0 * t
+    np.subtract(3.0, s, out=s)
+    t *= t
+    t *= s
+    return t
 
 
 def hemisphere(gb, radius, samples, seed=0, bias=None, range_check=True):
@@ -97,22 +150,59 @@ def hemisphere(gb, radius, samples, seed=0, bias=None, range_check=True):
     _check(radius, samples)
     bias = 0.025 * radius if bias is None else float(bias)
     rng = np.random.default_rng(seed)
-    pos, nrm = gb.position[gb.mask], gb.normal[gb.mask]
-    out = np.empty(len(pos), np.float32)
-    for sl in _chunks(len(pos), samples):
-        p, n = pos[sl], nrm[sl]
-        t, b = orthonormal_basis(n)
-        local = cosine_hemisphere(rng, (len(p), samples))
-        lam = 0.1 + 0.9 * rng.random((len(p), samples, 1), dtype=np.float32) ** 2
-        local = local * (np.float32(radius) * lam)
-        s = (p[:, None, :] + local[..., :1] * t[:, None, :] + local[..., 1:2] * b[:, None, :]
-             + local[..., 2:] * n[:, None, :])
-        x, y, w = view_to_pixels(s, gb.proj, gb.width, gb.height)
-        d, on = depth_at(gb, x, y)
-        occluded = (d < -s[..., 2] - bias) & on & (w > 0)
-        weight = range_weight(radius, -p[:, None, 2] - d) if range_check else 1.0
-        out[sl] = 1.0 - (occluded * weight).mean(axis=1)
+    pos, nrm = gb.position[gb.mask].T.copy(), gb.normal[gb.mask]
+    out = np.empty(pos.shape[1], np.float32)
+    r = np.float32(radius)
+    for block, chunks in _blocks(pos.shape[1], samples):
+        m = block.stop - block.start
+        u = rng.random((m, samples, 2), dtype=np.float32)
+        u_lam = rng.random((m, samples, 1), dtype=np.float32)
+        p_block, n_block = pos[:, block], nrm[block]
+        for sl in chunks:                                       # (samples, pixels) from here on
+            p, n = p_block[:, sl], n_block[sl]
+            t, b = orthonormal_basis(n)
+            frame = [f.T.copy() for f in (t, b, n)]             # (3, pixels) each
+            lx, ly, lz = hemisphere_from_uniform(_sample_major(u[sl]))
+            lam = _sample_major(u_lam[sl])[..., 0] ** 2
+            lam *= 0.9
+            lam += 0.1
+            lam *= r
+            lx *= lam
+            ly *= lam
+            lz *= lam
+            s = []
+            for k in range(3):                                  # s = ((p + lx t) + ly b) + lz n
+                c = lx * frame[0][k]
+                c += p[k]
+                np.multiply(ly, frame[1][k], out=lam)
+                c += lam
+                np.multiply(lz, frame[2][k], out=lam)
+                c += lam
+                s.append(c)
+            x, y, w = project(*s, gb.proj, gb.width, gb.height)
+            v, on = lookup_at(gb, x, y)
+            d = depth_from_lookup(gb, v)
+            z = np.negative(s[2], out=s[2])
+            z -= bias
+            occluded = d < z
+            occluded &= on
+            occluded &= w > 0
+            if range_check:
+                dz = np.subtract(-p[2], d, out=z)
+                weight = _range_weight_inplace(radius, dz)
+                weight *= occluded
+                out[block][sl] = 1.0 - weight.T.copy().mean(axis=1)   # the per-pixel sum's order
+            else:
+                out[block][sl] = 1.0 - occluded.mean(axis=0)
     return _scatter(gb, out)
+
+
+def _dot(a, b):
+    """a·b of coordinate triples, (a0 b0 + a1 b1) + a2 b2 (the order of numpy's sum over a last axis of 3)."""
+    d = a[0] * b[0]
+    d += a[1] * b[1]
+    d += a[2] * b[2]
+    return d
 
 
 def _horizon_search(gb, radius, samples, seed, slices=None, steps=None):
@@ -123,8 +213,8 @@ def _horizon_search(gb, radius, samples, seed, slices=None, steps=None):
     on both sides; the sample's view position S gives H = S - p, kept when
     0 < |H| <= r (AO distance) and on screen and not sky.
     Sample positions are sub-pixel (:func:`core.ssao.gbuffer.position_at`), so H lies in the slice
-    plane. Yields: chunk slice, |n_p|, γ, and for each side cos(H, v) (nan when
-    invalid) and |H|.
+    plane. Yields: chunk slice, |n_p| and γ (S, m), and for each side cos(H, v) (-inf when invalid)
+    and |H|, both (N, S, m). Pixels are the last axis, so every operation runs along contiguous rows.
     """
     _check(radius, samples)
     if slices is None or steps is None:
@@ -132,37 +222,61 @@ def _horizon_search(gb, radius, samples, seed, slices=None, steps=None):
         slices, steps = slices or s0, steps or n0
     rng = np.random.default_rng(seed)
     ys, xs = (a.astype(np.float32) for a in np.nonzero(gb.mask))
-    pos, nrm = gb.position[gb.mask], gb.normal[gb.mask]
+    pos, nrm = gb.position[gb.mask].T.copy(), gb.normal[gb.mask].T.copy()           # (3, pixels)
     scale = pixels_per_metre(gb, gb.depth[gb.mask]) * radius
-    for sl in _chunks(len(pos), slices * steps * 2):
-        p, n = pos[sl], nrm[sl]
-        m = len(p)
-        v = view_vectors(gb, p)
-        psi = (np.arange(slices, dtype=np.float32)[None, :] + rng.random((m, 1), dtype=np.float32)) * (np.pi / slices)
-        c, s_ = np.cos(psi), np.sin(psi)                                   # (m, S) screen direction, y down
-        d3 = np.stack([c, -s_, np.zeros_like(c)], -1)                      # view space, y up
-        vv = v[:, None, :]
-        t = d3 - np.sum(d3 * vv, -1, keepdims=True) * vv
-        t /= np.maximum(np.linalg.norm(t, axis=-1, keepdims=True), 1e-12)
-        axis = np.cross(vv, t)                                             # slice plane normal
-        nn = n[:, None, :]
-        n_p = nn - np.sum(nn * axis, -1, keepdims=True) * axis
-        n_len = np.linalg.norm(n_p, axis=-1)
-        gamma = np.arctan2(np.sum(n_p * t, -1), np.sum(n_p * vv, -1))
-        jitter = rng.random((m, 1, 1), dtype=np.float32)
-        frac = (np.arange(steps, dtype=np.float32)[None, None, :] + jitter) / steps   # (m, 1, N)
-        off = scale[sl, None, None] * frac                                             # pixels
-        sides = []
-        for sign in (1.0, -1.0):
-            qx = xs[sl, None, None] + sign * c[..., None] * off
-            qy = ys[sl, None, None] + sign * s_[..., None] * off
-            spos, valid = position_at(gb, qx, qy)
-            hv = spos - p[:, None, None, :]                                 # (m, S, N, 3) in the slice plane
-            dist = np.linalg.norm(hv, axis=-1)
-            valid &= (dist > 1e-6 * radius) & (dist <= radius)
-            cos_h = np.sum(hv * vv[:, :, None, :], -1) / np.maximum(dist, 1e-12)
-            sides.append((np.where(valid, cos_h, np.nan), dist))
-        yield sl, n_len, gamma, sides
+    step_index = np.arange(steps, dtype=np.float32)[:, None, None]
+    slice_index = np.arange(slices, dtype=np.float32)[:, None]
+    for block, chunks in _blocks(pos.shape[1], slices * steps * 2):
+        m_block = block.stop - block.start
+        u_psi = rng.random((m_block, 1), dtype=np.float32)[:, 0]
+        u_step = rng.random((m_block, 1, 1), dtype=np.float32)[:, 0, 0]
+        for rel in chunks:
+            sl = slice(block.start + rel.start, block.start + rel.stop)
+            p, n = pos[:, sl], nrm[:, sl]
+            if gb.perspective:                                                 # v = -p/|p|
+                length = np.sqrt(_dot(p, p))
+                np.maximum(length, 1e-12, out=length)
+                v = [np.negative(pk) / length for pk in p]
+            else:
+                v = [np.zeros(p.shape[1], np.float32)] * 2 + [np.ones(p.shape[1], np.float32)]
+            psi = (slice_index + u_psi[rel]) * (np.pi / slices)                     # (S, m)
+            c, s_ = np.cos(psi), np.sin(psi)                                    # screen direction, y down
+            d3 = (c, -s_)                                                       # view space, y up; z = 0
+            dot = d3[0] * v[0]
+            dot += d3[1] * v[1]
+            t = [d3[0] - dot * v[0], d3[1] - dot * v[1], 0.0 - dot * v[2]]
+            length = np.sqrt(_dot(t, t))
+            np.maximum(length, 1e-12, out=length)
+            for tk in t:
+                tk /= length
+            axis = [v[1] * t[2] - v[2] * t[1], v[2] * t[0] - v[0] * t[2], v[0] * t[1] - v[1] * t[0]]
+            dot = _dot(n[:, None, :], axis)
+            n_p = [n[k] - dot * axis[k] for k in range(3)]                      # normal in the slice plane
+            n_len = np.sqrt(_dot(n_p, n_p))
+            gamma = np.arctan2(_dot(n_p, t), _dot(n_p, v))
+            frac = (step_index + u_step[rel]) / steps                               # (N, 1, m)
+            off = scale[sl] * frac                                                  # pixels
+            dx, dy = c * off, s_ * off                                              # (N, S, m)
+            x0, y0 = xs[sl], ys[sl]
+            sides = []
+            for qx, qy in ((dx + x0, dy + y0), (np.subtract(x0, dx, out=dx), np.subtract(y0, dy, out=dy))):
+                hx, hy, hz, valid = positions_at(gb, qx, qy)                     # in the slice plane
+                hx -= p[0]
+                hy -= p[1]
+                hz -= p[2]
+                cos_h = _dot((hx, hy, hz), v)
+                hx *= hx
+                hy *= hy
+                hz *= hz
+                hx += hy
+                hx += hz
+                dist = np.sqrt(hx, out=hx)
+                valid &= dist > 1e-6 * radius
+                valid &= dist <= radius
+                cos_h /= np.maximum(dist, 1e-12, out=hy)
+                np.copyto(cos_h, -np.inf, where=~valid)
+                sides.append((cos_h, dist))
+            yield sl, n_len, gamma, sides
 
 
 def gtao_inner(h, gamma):
@@ -187,14 +301,14 @@ def gtao(gb, radius, samples, seed=0, slices=None, steps=None, normalise=True):
     out = np.empty(int(gb.mask.sum()), np.float32)
     for sl, n_len, gamma, sides in _horizon_search(gb, radius, samples, seed, slices, steps):
         (c2, _), (c1, _) = sides
-        with np.errstate(all="ignore"):
-            c2 = np.fmax(np.nanmax(np.where(np.isnan(c2), -1.0, c2), -1), -1.0)
-            c1 = np.fmax(np.nanmax(np.where(np.isnan(c1), -1.0, c1), -1), -1.0)
+        c2 = np.fmax(np.max(c2, axis=0), -1.0)
+        c1 = np.fmax(np.max(c1, axis=0), -1.0)
         h2 = np.minimum(np.arccos(np.clip(c2, -1, 1)), gamma + np.pi / 2)
         h1 = np.maximum(-np.arccos(np.clip(c1, -1, 1)), gamma - np.pi / 2)
-        k = n_len * (gtao_inner(h1, gamma) + gtao_inner(h2, gamma))
+        k = (n_len * (gtao_inner(h1, gamma) + gtao_inner(h2, gamma))).T.copy()        # (m, S)
         if normalise:
             k_open = n_len * (gtao_inner(gamma - np.pi / 2, gamma) + gtao_inner(gamma + np.pi / 2, gamma))
+            k_open = k_open.T.copy()
             out[sl] = np.clip(k.sum(axis=1) / np.maximum(k_open.sum(axis=1), 1e-12), 0.0, 1.0)
         else:
             out[sl] = np.clip(k.mean(axis=1), 0.0, 1.0)
@@ -219,13 +333,16 @@ def hbao(gb, radius, samples, seed=0, slices=None, steps=None, attenuation=True)
         occ = np.zeros(gamma.shape, np.float32)
         for (cos_h, dist), sin_t in zip(sides, (-np.sin(gamma), np.sin(gamma))):
             best = sin_t.astype(np.float32)
-            for j in range(cos_h.shape[-1]):
-                sh = cos_h[..., j]
-                rise = np.where(np.isnan(sh), 0.0, np.maximum(sh - best, 0.0))
-                wgt = hbao_attenuation(dist[..., j], radius) if attenuation else 1.0
-                occ += rise * wgt
-                best = np.where(rise > 0, sh, best)
-        out[sl] = np.clip(1.0 - occ.mean(axis=1) / 2.0, 0.0, 1.0)
+            wgt = hbao_attenuation(dist, radius) if attenuation else None
+            for j in range(len(cos_h)):
+                sh = cos_h[j]
+                rise = np.maximum(sh - best, 0.0)           # an invalid step (-inf) never rises
+                rising = rise > 0
+                if wgt is not None:
+                    rise *= wgt[j]
+                occ += rise
+                np.copyto(best, sh, where=rising)
+        out[sl] = np.clip(1.0 - occ.T.copy().mean(axis=1) / 2.0, 0.0, 1.0)
     return _scatter(gb, out)
 
 

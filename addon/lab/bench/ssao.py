@@ -5,14 +5,18 @@ project-wide bench; ``speed(...)`` times the methods on one frame (scripts/bench
 Errors are RMSE against Cycles' AO pass over geometry pixels (core.ssao.metrics.error_metrics).
 """
 import os
+import time
+import tracemalloc
 
 import numpy as np
 
 from ...core import charts
 from ...core.ssao import figures as ssao_figures
+from ...core.ssao import gbuffer as gbuffer_mod
 from ...core.ssao import methods as ssao
 from ...core.ssao import limits as ssao_limits
 from ...core.ssao import metrics
+from ...core.errors import InputError
 from ...core.io.files import write_json
 from ...blender.progress import Progress
 from .. import ssao as lab
@@ -150,33 +154,188 @@ def run(output_dir, quick=False, radius=1.0, samples=16):
     return BenchResult(tables, chart_paths, figures)
 
 
-def speed(output_dir, resolution=512, samples=16, repeats=3, reference_samples=256, eevee=True):
+def load_baseline(checkout):
+    """The numpy SSAO methods of another checkout of this project (e.g. the main branch's worktree), to
+    time beside this one in the same run: ``checkout``/addon imported as package ``il_baseline``
+    (core modules only, no bpy; no bytecode written there). Returns (methods module, gbuffer module);
+    InputError if it has none."""
+    import importlib
+    import importlib.util
+    import sys
+    root = os.path.join(os.path.abspath(checkout), "addon")
+    if not os.path.isfile(os.path.join(root, "core", "ssao", "methods.py")):
+        raise InputError(f"--baseline {checkout}: no addon/core/ssao/methods.py there")
+    name = "il_baseline"
+    write_bytecode, sys.dont_write_bytecode = sys.dont_write_bytecode, True
+    try:
+        if name not in sys.modules:
+            spec = importlib.util.spec_from_file_location(name, os.path.join(root, "__init__.py"),
+                                                          submodule_search_locations=[root])
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[name] = module
+            spec.loader.exec_module(module)
+        return (importlib.import_module(name + ".core.ssao.methods"),
+                importlib.import_module(name + ".core.ssao.gbuffer"))
+    finally:
+        sys.dont_write_bytecode = write_bytecode
+
+
+def _timed(func, *args, **kwargs):
+    """(result, wall seconds, CPU seconds of this process) of one call."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    result = func(*args, **kwargs)
+    return result, time.perf_counter() - t0, time.process_time() - c0
+
+
+def _peak_bytes(func, *args, **kwargs):
+    """Peak bytes allocated (numpy arrays included, tracemalloc) during one call, above what was held before."""
+    tracemalloc.start()
+    try:
+        func(*args, **kwargs)
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+def machine_rates(elements=1 << 22, chunk=ssao.CHUNK, repeats=5):
+    """What numpy does per element on this machine, best of ``repeats`` (ns): one float32 pass c = a·b
+    over chunk-sized arrays (12 bytes, cache-resident as the methods' chunks are) and over arrays too
+    large for any cache (so GB/s of memory), a float32 uniform draw, and a gather (np.take) from a
+    512² float32 table at positions scattered ±64 px around consecutive pixels."""
+    rng = np.random.default_rng(0)
+
+    def best(func, n):
+        t = min(_timed(func)[1] for _ in range(repeats))
+        return t / n * 1e9
+
+    a, b = rng.random(chunk, dtype=np.float32), rng.random(chunk, dtype=np.float32)
+    c = np.empty_like(a)
+    rounds = max(1, elements // chunk)
+
+    def cached():
+        for _ in range(rounds):
+            np.multiply(a, b, out=c)
+    big_a, big_b = rng.random(elements, dtype=np.float32), rng.random(elements, dtype=np.float32)
+    big_c = np.empty_like(big_a)
+    table = rng.random(512 * 512, dtype=np.float32)
+    base = np.arange(chunk) * (512 * 512 // chunk)
+    index = np.clip(base + rng.integers(-64, 65, chunk) * 512 + rng.integers(-64, 65, chunk), 0, 512 * 512 - 1)
+    index = index.astype(np.int32)
+
+    def gathers():
+        for _ in range(rounds):
+            np.take(table, index, out=c)
+    pass_ns = best(cached, rounds * chunk)
+    stream_ns = best(lambda: np.multiply(big_a, big_b, out=big_c), elements)
+    return {"pass_ns": pass_ns, "stream_ns": stream_ns, "stream_gb_per_s": 12.0 / stream_ns,
+            "cache_gb_per_s": 12.0 / pass_ns,
+            "random_ns": best(lambda: rng.random(elements, dtype=np.float32), elements),
+            "gather_ns": best(gathers, rounds * chunk)}
+
+
+class _Counted(np.ndarray):
+    """An ndarray whose ufunc passes, and those of every array computed from it, are tallied in
+    :attr:`tally`: passes (elements written) and bytes read and written by full-size operands."""
+    tally = None
+
+    def __array_ufunc__(self, ufunc, method, *inputs, **kwargs):
+        plain = [x.view(np.ndarray) if isinstance(x, _Counted) else x for x in inputs]
+        if "out" in kwargs:
+            kwargs["out"] = tuple(o.view(np.ndarray) if isinstance(o, _Counted) else o for o in kwargs["out"])
+        result = getattr(ufunc, method)(*plain, **kwargs)
+        outs = result if isinstance(result, tuple) else (result,)
+        n = max(np.size(o) for o in outs)
+        if _Counted.tally is not None:
+            _Counted.tally["elements"] += n
+            _Counted.tally["bytes"] += (sum(x.nbytes for x in plain if isinstance(x, np.ndarray) and x.size == n)
+                                        + sum(np.asarray(o).nbytes for o in outs))
+        wrap = (lambda o: o.view(_Counted) if isinstance(o, np.ndarray) else o)
+        return tuple(wrap(o) for o in outs) if isinstance(result, tuple) else wrap(result)
+
+
+def count_passes(gb, method, samples):
+    """Numpy passes and bytes touched per pixel-sample of one method on ``gb``: every ufunc call's
+    elements and full-size operands' bytes (the G-buffer and the random numbers tracked through an
+    ndarray subclass), plus the four gathers of each lookup (index, value, result: 12 bytes each).
+    Copies, np.where and reductions are not counted. Returns {"passes", "bytes"} per pixel-sample."""
+    tracked = ssao.__dict__["_sample_major"]
+    counted = gbuffer_mod.GBuffer(*(a.view(_Counted) for a in (gb.position, gb.normal, gb.depth)),
+                                  gb.mask, gb.proj)
+    _Counted.tally = {"elements": 0, "bytes": 0}
+    ssao._sample_major = lambda u: tracked(u).view(_Counted)
+    try:
+        ssao.run_method(method, counted, 1.0, samples)
+        tally = dict(_Counted.tally)
+    finally:
+        ssao._sample_major = tracked
+        _Counted.tally = None
+    n = int(gb.mask.sum()) * samples
+    return {"passes": tally["elements"] / n, "bytes": tally["bytes"] / n + 12 * GATHERS_PER_SAMPLE}
+
+
+#: Per pixel-sample of each numpy method: uniform draws and depth-buffer gathers (4 per bilinear lookup).
+#: The horizon methods draw 2 numbers per pixel, not per sample.
+DRAWS_PER_SAMPLE = {"crytek": 3, "hemisphere": 3, "hbao": 0, "gtao": 0}
+GATHERS_PER_SAMPLE = 4
+
+
+def speed(output_dir, resolution=512, samples=16, repeats=3, reference_samples=256, eevee=True, baseline=None):
     """Every numpy method (with and without blur) and Blender's AO on the corner scene, best of ``repeats``.
 
-    Returns {"rows": [(method, seconds, rmse)], "gbuffer", "reference"}; the reference is cached in
-    ``output_dir``/cache.
+    With ``baseline`` (another checkout, :func:`load_baseline`) its numpy methods run on the same
+    G-buffer, interleaved with this checkout's, so both sets of figures share the machine's load.
+    Returns {"rows": [{"method", "seconds", "cpu_seconds", "rmse", "ns_per_pixel_sample", "peak_bytes",
+    "load", "passes" and "bytes" per pixel-sample (:func:`count_passes`, without blur), and with a baseline "baseline_seconds", "baseline_cpu_seconds", "baseline_rmse",
+    "baseline_peak_bytes", "max_difference"}], "gbuffer", "reference", "machine"}; the reference is
+    cached in ``output_dir``/cache.
     """
+    base_methods, base_gbuffer = load_baseline(baseline) if baseline else (None, None)
     ssao_limits.check_cost(resolution, resolution, samples, reference_samples,
-                    len(ssao.METHODS) * 2 * repeats)          # each method with and without blur, repeated
+                           len(ssao.METHODS) * 2 * (repeats + 1) * (2 if baseline else 1))
     scene = ssao_scenes.build_scene("corner", resolution, 1.0)
     cache = os.path.abspath(os.path.join(output_dir, "cache"))
-    gb, _, ref = lab.frame(scene, 1.0, reference_samples, resolution, cache)
-    rows = []
-    for m in ssao.METHODS:
-        for blur in (False, True):
-            best, k = float("inf"), None
-            for _ in range(repeats):
-                k, sec, _ = ssao.run_method(m, gb, 1.0, samples, blur=blur)
-                best = min(best, sec)
-            rows.append((m + (" + blur" if blur else ""), best, metrics.error_metrics(k, ref["k"], gb.mask)["rmse"]))
-    for m in ("workbench",) + (("eevee",) if eevee else ()):
-        if m == "eevee":
-            lab.blender_method(scene, "eevee", 1.0, 1, 32)           # compile shaders first
-        for spp in sorted({1, samples}):
-            best, k = float("inf"), None
-            for _ in range(repeats):
-                k, sec, _ = lab.blender_method(scene, m, 1.0, spp, resolution)
-                best = min(best, sec)
-            rows.append((f"{m} ({spp} spp)", best, metrics.error_metrics(k, ref["k"], gb.mask)["rmse"]))
-    sc.remove_scene(scene)
-    return {"rows": rows, "gbuffer": gb, "reference": ref}
+    try:
+        gb, _, ref = lab.frame(scene, 1.0, reference_samples, resolution, cache)
+        base_gb = (base_gbuffer.GBuffer(gb.position, gb.normal, gb.depth, gb.mask, gb.proj)
+                   if baseline else None)
+        pixel_samples = int(gb.mask.sum()) * samples
+        machine = machine_rates()
+        rows = []
+        for m in ssao.METHODS:
+            for blur in (False, True):
+                row = {"method": m + (" + blur" if blur else "")}
+                runs = [("", ssao, gb)] + ([("baseline_", base_methods, base_gb)] if baseline else [])
+                best = {prefix: (float("inf"), float("inf")) for prefix, _, _ in runs}
+                images = {}
+                for _ in range(repeats):
+                    for prefix, module, frame_gb in runs:
+                        (k, _, _), wall, cpu = _timed(module.run_method, m, frame_gb, 1.0, samples, blur=blur)
+                        best[prefix] = (min(best[prefix][0], wall), min(best[prefix][1], cpu))
+                        images[prefix] = k
+                for prefix, module, frame_gb in runs:
+                    row[prefix + "seconds"], row[prefix + "cpu_seconds"] = best[prefix]
+                    row[prefix + "rmse"] = metrics.error_metrics(images[prefix], ref["k"], gb.mask)["rmse"]
+                    row[prefix + "peak_bytes"] = _peak_bytes(module.run_method, m, frame_gb, 1.0, samples,
+                                                             blur=blur)
+                if not blur:
+                    row.update(count_passes(gb, m, samples))
+                row["ns_per_pixel_sample"] = row["seconds"] / pixel_samples * 1e9
+                row["cpu_ns_per_pixel_sample"] = row["cpu_seconds"] / pixel_samples * 1e9
+                if baseline:
+                    row["max_difference"] = float(np.max(np.abs(images[""].astype(np.float64) - images["baseline_"])))
+                row["load"] = os.getloadavg()[0]
+                rows.append(row)
+        for m in ("workbench",) + (("eevee",) if eevee else ()):
+            if m == "eevee":
+                lab.blender_method(scene, "eevee", 1.0, 1, 32)           # compile shaders first
+            for spp in sorted({1, samples}):
+                best, k = float("inf"), None
+                for _ in range(repeats):
+                    k, sec, _ = lab.blender_method(scene, m, 1.0, spp, resolution)
+                    best = min(best, sec)
+                rows.append({"method": f"{m} ({spp} spp)", "seconds": best,
+                             "rmse": metrics.error_metrics(k, ref["k"], gb.mask)["rmse"],
+                             "load": os.getloadavg()[0]})
+    finally:
+        sc.remove_scene(scene)
+    return {"rows": rows, "gbuffer": gb, "reference": ref, "machine": machine}
