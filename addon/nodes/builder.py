@@ -101,9 +101,31 @@ class Graph:
     def gt(self, a, b, label=None):
         return self.math("GREATER_THAN", a, b, label=label)
 
+    def madd(self, a, b, c, label=None):
+        """a b + c in one node."""
+        return self.math("MULTIPLY_ADD", a, b, c, label=label)
+
+    @staticmethod
+    def _by_id(sockets, identifier):
+        return next(s for s in sockets if s.identifier == identifier)
+
     def lerp(self, a, b, t, label=None):
-        """a (1 - t) + b t, for the 0/1 switch inputs (both branches are evaluated)."""
-        return self.add(a, self.mul(t, self.sub(b, a)), label=label)
+        """a (1 - t) + b t in one Mix node: with a constant t of 0 or 1 Cycles keeps only the chosen
+        branch (constant folding), with a linked t both are evaluated."""
+        n = self.node("ShaderNodeMix", label=label, data_type="FLOAT", clamp_factor=False)
+        self.feed(t, self._by_id(n.inputs, "Factor_Float"))
+        self.feed(a, self._by_id(n.inputs, "A_Float"))
+        self.feed(b, self._by_id(n.inputs, "B_Float"))
+        return self._by_id(n.outputs, "Result_Float")
+
+    def add_scaled(self, a, b, t, label=None):
+        """Colour a + t b in one Mix node (blend Add, factor not clamped)."""
+        n = self.node("ShaderNodeMix", label=label, data_type="RGBA", blend_type="ADD", clamp_factor=False,
+                      clamp_result=False)
+        self.feed(t, self._by_id(n.inputs, "Factor_Float"))
+        self.feed(a, self._by_id(n.inputs, "A_Color"))
+        self.feed(b, self._by_id(n.inputs, "B_Color"))
+        return self._by_id(n.outputs, "Result_Color")
 
     def vmath(self, op, a, b=None, scale=None, label=None):
         n = self.node("ShaderNodeVectorMath", label=label, operation=op)
