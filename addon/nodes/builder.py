@@ -26,6 +26,8 @@ class Graph:
         self.frame = None
         self.blocks = [[]]
         self.frames = [None]
+        self._zero = self._zero_v = None
+        self._regs = {}
 
     # -- structure --------------------------------------------------------------------------------
     @contextlib.contextmanager
@@ -69,6 +71,33 @@ class Graph:
             if hasattr(current, "__len__") and not hasattr(value, "__len__"):
                 value = [value] * len(current)
             socket.default_value = value
+
+    # -- registers: constants loaded once per shading point ----------------------------------------
+    def registers(self, geometry):
+        """Set up :meth:`reg`: 0 = Backfacing - Backfacing of this Geometry node (a value Cycles cannot
+        fold, so nodes built on it stay nodes, computed once per shading point and shared by every node
+        group instance of the material)."""
+        back = geometry.outputs["Backfacing"]
+        self._zero = self.math("SUBTRACT", back, back, label="0 (register)")
+        self._zero_v = self.vmath("SUBTRACT", geometry.outputs["Normal"], geometry.outputs["Normal"],
+                                  label="(0, 0, 0) (register)")
+
+    def reg(self, value, label=None):
+        """``value`` (a number or a socket that is constant in practice) as the output of a node computed
+        once per shading point. Cycles' SVM loads a constant operand before every node that takes it,
+        which costs about as much as the operation; a linked operand costs nothing."""
+        key = ("f", value if not is_socket(value) else value.as_pointer())
+        if key not in self._regs:
+            self._regs[key] = self.math("ADD", self._zero, value, label=label or f"{value:g}"
+                                        if not is_socket(value) else label)
+        return self._regs[key]
+
+    def vreg(self, value, label=None):
+        """A colour or vector ``value`` computed once per shading point (see :meth:`reg`)."""
+        key = ("v", tuple(value) if not is_socket(value) else value.as_pointer())
+        if key not in self._regs:
+            self._regs[key] = self.vmath("ADD", self._zero_v, value, label=label)
+        return self._regs[key]
 
     # -- arithmetic -------------------------------------------------------------------------------
     def math(self, op, a, b=None, c=None, clamp=False, label=None):
