@@ -415,44 +415,48 @@ def _timed_render(scene):
 
 def render_cost(configs=COST_CONFIGS, light_counts=(1, 4), repeats=3, models=COST_MODELS):
     """Seconds of one Cycles render (F12: sync, shader compile, path tracing) of the same scene with each material
-    of ``models``, best of ``repeats``; the materials alternate within each repeat so that a change of load on
-    the machine hits them alike.
+    of ``models`` and each light count, best of ``repeats``; every (light count, material) pair is rendered once
+    per repeat, in turn, so that a change of load on the machine hits them alike.
 
-    Rows {"model", "lights", "size", "samples", "seconds", "ratio" (over Principled's, same row set),
-    "nodes_per_light" (nodes of the IL Light and model groups), "ns_per_sample" (seconds / (size^2 samples))}.
+    Rows {"model", "lights", "size", "samples", "seconds", "ratio" (over Principled's with the same lights and
+    settings), "nodes_per_light" (nodes of the IL Light and model groups), "ns_per_sample" (seconds per camera
+    sample)}.
     """
-    rows = []
     counts = node_counts()
-    for light_count in light_counts:
-        scene = cost_scene(light_count)
-        objs = [o for o in scene.objects if o.type == "MESH"]
-        mats = {}
-        try:
+    scenes, mats = {}, {}
+    try:
+        for light_count in light_counts:
+            scene = scenes[light_count] = cost_scene(light_count)
+            objs = [o for o in scene.objects if o.type == "MESH"]
             for model in models:
                 if model == "PRINCIPLED":
-                    mats[model] = closure_material("Cost Principled", "PRINCIPLED", (0.5, 0.5, 0.5), 0.5)
+                    mat = closure_material("Cost Principled", "PRINCIPLED", (0.5, 0.5, 0.5), 0.5)
                 else:
                     kind = "COOK_TORRANCE" if model.startswith("COOK_TORRANCE") else model
-                    mats[model] = material.assign_shading_model(scene, objs, kind, params=COST_PARAMS.get(model),
-                                                                name=f"Cost {model}")[0]
-            best = {}
-            for size, samples in configs:
+                    mat = material.assign_shading_model(scene, objs, kind, params=COST_PARAMS.get(model),
+                                                        name=f"Cost {model}")[0]
+                mats[(light_count, model)] = mat
+        best = {}
+        for size, samples in configs:
+            for light_count, scene in scenes.items():
                 scene.render.resolution_x = scene.render.resolution_y = size
                 render.cycles_cpu(scene, samples=samples)
-                for o in objs:
-                    assign(o, mats["PRINCIPLED" if "PRINCIPLED" in mats else models[0]])
-                _timed_render(scene)  # warm-up: first render of this size
-                for _ in range(repeats):
-                    for model, mat in mats.items():
+            for rep in range(repeats + 1):  # the first pass warms up and is not counted
+                for light_count, scene in scenes.items():
+                    objs = [o for o in scene.objects if o.type == "MESH"]
+                    for model in models:
                         for o in objs:
-                            assign(o, mat)
+                            assign(o, mats[(light_count, model)])
                         sec = _timed_render(scene)
-                        key = (size, samples, model)
-                        best[key] = min(best.get(key, sec), sec)
-            for size, samples in configs:
-                base = best.get((size, samples, "PRINCIPLED"))
+                        if rep:
+                            key = (light_count, size, samples, model)
+                            best[key] = min(best.get(key, sec), sec)
+        rows = []
+        for size, samples in configs:
+            for light_count in light_counts:
+                base = best.get((light_count, size, samples, "PRINCIPLED"))
                 for model in models:
-                    sec = best[(size, samples, model)]
+                    sec = best[(light_count, size, samples, model)]
                     kind = "COOK_TORRANCE" if model.startswith("COOK_TORRANCE") else model
                     per_light = (None if model == "PRINCIPLED"
                                  else counts[groups.LIGHT] + counts[groups.MODEL_GROUPS[kind]])
@@ -460,8 +464,9 @@ def render_cost(configs=COST_CONFIGS, light_counts=(1, 4), repeats=3, models=COS
                                  "seconds": sec, "ratio": sec / base if base else None,
                                  "nodes_per_light": per_light,
                                  "ns_per_sample": sec / (size * size * samples) * 1e9})
-        finally:
-            sc.remove_scene(scene, list(mats.values()))
+    finally:
+        for scene in scenes.values():
+            sc.remove_scene(scene, [m for (lc, _), m in mats.items() if scenes.get(lc) is scene])
     return rows
 
 
