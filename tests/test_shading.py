@@ -59,8 +59,8 @@ def test_add_node_groups_is_idempotent_and_updates_older_groups():
 
 #: Switch inputs: a constant switch reaches Cycles as the factor of a Mix node, which keeps only the chosen
 #: branch (constant folding); math that blends two branches would evaluate both for every light.
-SWITCHES = {"IL Phong": ["Normalized"], "IL Blinn-Phong": ["Normalized"], "IL Cook-Torrance": ["Distribution", "Geometry"],
-            "IL Light": ["Physical"]}
+SWITCHES = {"IL Phong": ["Normalized"], "IL Blinn-Phong": ["Normalized"],
+            "IL Cook-Torrance": ["Distribution", "Geometry"], "IL Light": ["Physical"]}
 UNARY = {"SQRT", "INVERSE_SQRT", "EXPONENT", "ABSOLUTE", "COSINE", "SINE"}
 TERNARY = {"MULTIPLY_ADD", "COMPARE"}
 
@@ -83,7 +83,8 @@ def test_switches_are_mix_factors_and_per_light_math_has_no_constant_operands():
         for switch in switches:
             assert gin.outputs[switch].links, (name, switch)
             for lk in gin.outputs[switch].links:
-                assert (lk.to_node.bl_idname, lk.to_socket.identifier) == ("ShaderNodeMix", "Factor_Float"), (name, switch)
+                target = (lk.to_node.bl_idname, lk.to_socket.identifier)
+                assert target == ("ShaderNodeMix", "Factor_Float"), (name, switch, target)
     # every math node that depends on the light reads its operands from links (registers computed once per
     # shading point), never from constants that Cycles' SVM would load again for every light
     for name in CONTRACT:
