@@ -57,6 +57,50 @@ def test_add_node_groups_is_idempotent_and_updates_older_groups():
     assert node.inputs["Albedo"].is_linked  # the user's material kept its link
 
 
+#: Switch inputs: a constant switch reaches Cycles as the factor of a Mix node, which keeps only the chosen
+#: branch (constant folding); math that blends two branches would evaluate both for every light.
+SWITCHES = {"IL Phong": ["Normalized"], "IL Blinn-Phong": ["Normalized"],
+            "IL Cook-Torrance": ["Distribution", "Geometry"], "IL Light": ["Physical"]}
+UNARY = {"SQRT", "INVERSE_SQRT", "EXPONENT", "ABSOLUTE", "COSINE", "SINE"}
+TERNARY = {"MULTIPLY_ADD", "COMPARE"}
+
+
+def _downstream(sockets):
+    seen, todo = set(), [lk.to_node for s in sockets for lk in s.links]
+    while todo:
+        node = todo.pop()
+        if node.name not in seen:
+            seen.add(node.name)
+            todo += [lk.to_node for s in node.outputs for lk in s.links]
+    return seen
+
+
+@pytest.mark.both_versions
+def test_switches_are_mix_factors_and_per_light_math_has_no_constant_operands():
+    groups.add_node_groups()
+    for name, switches in SWITCHES.items():
+        gin = next(n for n in bpy.data.node_groups[name].nodes if n.bl_idname == "NodeGroupInput")
+        for switch in switches:
+            assert gin.outputs[switch].links, (name, switch)
+            for lk in gin.outputs[switch].links:
+                target = (lk.to_node.bl_idname, lk.to_socket.identifier)
+                assert target == ("ShaderNodeMix", "Factor_Float"), (name, switch, target)
+    # every math node that depends on the light reads its operands from links (registers computed once per
+    # shading point), never from constants that Cycles' SVM would load again for every light
+    for name in CONTRACT:
+        tree = bpy.data.node_groups[name]
+        gin = next(n for n in tree.nodes if n.bl_idname == "NodeGroupInput")
+        per_light = _downstream([gin.outputs["Light Vector"], gin.outputs["Light Color"]])
+        checked = 0
+        for node in (tree.nodes[k] for k in per_light):
+            if node.bl_idname != "ShaderNodeMath":
+                continue
+            arity = 1 if node.operation in UNARY else 3 if node.operation in TERNARY else 2
+            assert all(node.inputs[k].is_linked for k in range(arity)), (name, node.label or node.name, node.operation)
+            checked += 1
+        assert checked >= 4, name
+
+
 def _camera_view(scene):
     return np.array(scene.camera.matrix_world.to_3x3() @ Vector((0, 0, 1)))
 

@@ -26,6 +26,8 @@ class Graph:
         self.frame = None
         self.blocks = [[]]
         self.frames = [None]
+        self._zero = self._zero_v = None
+        self._regs = {}
 
     # -- structure --------------------------------------------------------------------------------
     @contextlib.contextmanager
@@ -70,6 +72,33 @@ class Graph:
                 value = [value] * len(current)
             socket.default_value = value
 
+    # -- registers: constants loaded once per shading point ----------------------------------------
+    def registers(self, geometry):
+        """Set up :meth:`reg`: 0 = Backfacing - Backfacing of this Geometry node (a value Cycles cannot
+        fold, so nodes built on it stay nodes, computed once per shading point and shared by every node
+        group instance of the material)."""
+        back = geometry.outputs["Backfacing"]
+        self._zero = self.math("SUBTRACT", back, back, label="0 (register)")
+        self._zero_v = self.vmath("SUBTRACT", geometry.outputs["Normal"], geometry.outputs["Normal"],
+                                  label="(0, 0, 0) (register)")
+
+    def reg(self, value, label=None):
+        """``value`` (a number or a socket that is constant in practice) as the output of a node computed
+        once per shading point. Cycles' SVM loads a constant operand before every node that takes it,
+        which costs about as much as the operation; a linked operand costs nothing."""
+        key = ("f", value if not is_socket(value) else value.as_pointer())
+        if key not in self._regs:
+            self._regs[key] = self.math("ADD", self._zero, value, label=label or f"{value:g}"
+                                        if not is_socket(value) else label)
+        return self._regs[key]
+
+    def vreg(self, value, label=None):
+        """A colour or vector ``value`` computed once per shading point (see :meth:`reg`)."""
+        key = ("v", tuple(value) if not is_socket(value) else value.as_pointer())
+        if key not in self._regs:
+            self._regs[key] = self.vmath("ADD", self._zero_v, value, label=label)
+        return self._regs[key]
+
     # -- arithmetic -------------------------------------------------------------------------------
     def math(self, op, a, b=None, c=None, clamp=False, label=None):
         n = self.node("ShaderNodeMath", label=label, operation=op, use_clamp=clamp)
@@ -101,9 +130,31 @@ class Graph:
     def gt(self, a, b, label=None):
         return self.math("GREATER_THAN", a, b, label=label)
 
+    def madd(self, a, b, c, label=None):
+        """a b + c in one node."""
+        return self.math("MULTIPLY_ADD", a, b, c, label=label)
+
+    @staticmethod
+    def _by_id(sockets, identifier):
+        return next(s for s in sockets if s.identifier == identifier)
+
     def lerp(self, a, b, t, label=None):
-        """a (1 - t) + b t, for the 0/1 switch inputs (both branches are evaluated)."""
-        return self.add(a, self.mul(t, self.sub(b, a)), label=label)
+        """a (1 - t) + b t in one Mix node: with a constant t of 0 or 1 Cycles keeps only the chosen
+        branch (constant folding), with a linked t both are evaluated."""
+        n = self.node("ShaderNodeMix", label=label, data_type="FLOAT", clamp_factor=False)
+        self.feed(t, self._by_id(n.inputs, "Factor_Float"))
+        self.feed(a, self._by_id(n.inputs, "A_Float"))
+        self.feed(b, self._by_id(n.inputs, "B_Float"))
+        return self._by_id(n.outputs, "Result_Float")
+
+    def add_scaled(self, a, b, t, label=None):
+        """Colour a + t b in one Mix node (blend Add, factor not clamped)."""
+        n = self.node("ShaderNodeMix", label=label, data_type="RGBA", blend_type="ADD", clamp_factor=False,
+                      clamp_result=False)
+        self.feed(t, self._by_id(n.inputs, "Factor_Float"))
+        self.feed(a, self._by_id(n.inputs, "A_Color"))
+        self.feed(b, self._by_id(n.inputs, "B_Color"))
+        return self._by_id(n.outputs, "Result_Color")
 
     def vmath(self, op, a, b=None, scale=None, label=None):
         n = self.node("ShaderNodeVectorMath", label=label, operation=op)

@@ -19,7 +19,7 @@ from ..core import brdf
 from .builder import Graph
 
 #: Bump whenever a group's contents or sockets change: older groups in a file are rebuilt.
-GROUP_VERSION = 4
+GROUP_VERSION = 6
 
 PHONG, BLINN_PHONG, OREN_NAYAR, COOK_TORRANCE, LIGHT = (
     "IL Phong", "IL Blinn-Phong", "IL Oren-Nayar", "IL Cook-Torrance", "IL Light")
@@ -137,16 +137,18 @@ def _io(g):
 
 
 def _common(g, i):
-    """Normalised n, v, l and the dot products every model needs, in a frame "Vectors"."""
-    with g.block("Vectors: n, v, l"):
+    """Normalised n and v, n.v and the constant registers (surface: the same nodes in every light's group
+    node, which Cycles merges, so they are computed once per shading point), then l and n.l (per light)."""
+    with g.block("Surface: n, v, n.v, constants (computed once for all lights)"):
         geo = g.node("ShaderNodeNewGeometry")
+        g.registers(geo)
         n = g.normalize(geo.outputs["Normal"], label="n")
         v = g.normalize(geo.outputs["Incoming"], label="v (toward viewer)")
+        n_v = g.dot(n, v, label="n.v")
+    with g.block("Light: l, n.l"):
         l = g.normalize(i["Light Vector"], label="l (toward light)")
         n_l = g.dot(n, l, label="n.l")
-        n_v = g.dot(n, v, label="n.v")
-        lit = g.gt(n_l, 0.0, label="lit: n.l > 0")
-    return n, v, l, n_l, n_v, lit
+    return n, v, l, n_l, n_v
 
 
 def _finish(g, o, color):
@@ -159,35 +161,47 @@ def _finish(g, o, color):
 
 
 # -- models -----------------------------------------------------------------------------------------
+#
+# Cost (Cycles SVM): identical nodes of every light's group node (the surface terms) are merged and
+# computed once; a switch input left constant (Distribution, Geometry, Normalized, Physical, Type)
+# keeps one branch only, so switches are Mix nodes, never math that evaluates both branches; and the
+# per-light nodes take no constant operands (a constant is loaded before every node that takes it, as
+# costly as the operation): they read "registers" (g.reg), nodes computed once per shading point.
 
 def _build_phong(tree, blinn):
     g = Graph(tree)
     i, o = _io(g)
-    n, v, l, n_l, n_v, lit = _common(g, i)
-    shin = i["Shininess"]
+    n, v, l, n_l, n_v = _common(g, i)
+    R = g.reg
+    shin = R(i["Shininess"], "n")
+    with g.block("lit: n.l > 0"):
+        lit = g.gt(n_l, R(0.0), label="lit")
+        a = g.mul(n_l, lit, label="max(n.l, 0)")
     if blinn:
         with g.block("Lobe: (n.h)^n"):
             h = g.normalize(g.vadd(l, v), label="h = (l+v)/|l+v|")
-            lobe = g.pow(g.max(g.dot(n, h, label="n.h"), 0.0), shin, label="(n.h)^n")
-        with g.block("Normalisation: 1 or (n+2)(n+4) / (8 (2^(-n/2) + n)) n.l"):
-            n0 = g.max(shin, 0.0, label="max(n, 0)")
+            lobe = g.pow(g.max(g.dot(n, h, label="n.h"), R(0.0)), shin, label="(n.h)^n")
+        with g.block("Surface: (n+2)(n+4) / (8 (2^(-n/2) + n))"):
+            n0 = g.max(i["Shininess"], 0.0, label="max(n, 0)")
             num = g.mul(g.add(n0, 2.0), g.add(n0, 4.0), label="(n+2)(n+4)")
             den = g.mul(g.add(g.pow(2.0, g.mul(n0, -0.5)), n0), 8.0, label="8 (2^(-n/2) + n)")
-            energy = g.mul(g.div(num, den), g.max(n_l, 0.0), label="energy factor")
-            norm = g.lerp(1.0, energy, i["Normalized"], label="N")
+            factor = R(g.div(num, den), "energy factor")
     else:
-        with g.block("Lobe: (r.v)^n"):
-            r = g.vmath("SUBTRACT", g.scale(n, g.mul(n_l, 2.0)), l, label="r = 2n(n.l) - l")
-            lobe = g.pow(g.max(g.dot(r, v, label="r.v"), 0.0), shin, label="(r.v)^n")
-        with g.block("Normalisation: 1 or ((n+2)/2) n.l"):
-            energy = g.mul(g.div(g.add(shin, 2.0), 2.0), g.max(n_l, 0.0), label="energy factor")
-            norm = g.lerp(1.0, energy, i["Normalized"], label="N")
-    with g.block("Sum: k_a I_a + I (k_d n.l + k_s N lobe) + I_e"):
-        spec = g.mul(g.mul(i["Ks"], g.mul(lobe, norm)), lit, label="k_s N lobe")
-        diff = g.scale(i["Kd"], g.mul(lit, g.max(n_l, 0.0)), label="k_d n.l")
-        direct = g.vmul(i["Light Color"], g.vadd(diff, g.vmath("ADD", (0, 0, 0), spec)), label="I (...)")
-        amb = g.scale(i["Ambient Light"], i["Ka"], label="k_a I_a")
-        color = g.vadd(g.vadd(amb, direct), i["Emission Color"], label="radiance")
+        with g.block("Lobe: (r.v)^n, r.v = 2 (n.l)(n.v) - l.v"):
+            two_nv = g.add(n_v, n_v, label="2 n.v")
+            minus_v = g.scale(v, -1.0, label="-v")
+            r_v = g.madd(n_l, two_nv, g.dot(l, minus_v, label="-l.v"), label="r.v")
+            lobe = g.pow(g.max(r_v, R(0.0)), shin, label="(r.v)^n")
+        with g.block("Surface: (n+2)/2"):
+            factor = R(g.div(g.add(i["Shininess"], 2.0), 2.0), "energy factor")
+    with g.block("N lit: lit (classic) or factor max(n.l, 0) (energy-normalised)"):
+        norm = g.lerp(lit, g.mul(a, factor, label="factor max(n.l, 0)"), i["Normalized"], label="N lit")
+    with g.block("Sum: I (k_d n.l + k_s N lobe) + k_a I_a + I_e"):
+        diff = g.scale(g.vreg(i["Kd"], "k_d"), a, label="k_d n.l")
+        direct = g.vmul(i["Light Color"], g.add_scaled(diff, g.vreg(i["Ks"], "k_s"), g.mul(lobe, norm, label="N lobe")),
+                        label="I (k_d n.l + k_s N lobe)")
+        once = g.vadd(g.scale(i["Ambient Light"], i["Ka"], label="k_a I_a"), i["Emission Color"], label="+ I_e")
+        color = g.vadd(direct, once, label="radiance")
     _finish(g, o, color)
     g.layout()
 
@@ -195,20 +209,22 @@ def _build_phong(tree, blinn):
 def _build_oren_nayar(tree):
     g = Graph(tree)
     i, o = _io(g)
-    n, v, l, n_l, n_v, lit = _common(g, i)
-    with g.block("A and B from sigma"):
+    n, v, l, n_l, n_v = _common(g, i)
+    R = g.reg
+    with g.block("Surface: A, B from sigma; n.v terms"):
         s2 = g.mul(i["Sigma"], i["Sigma"], label="sigma^2")
-        A = g.sub(1.0, g.div(g.mul(s2, 0.5), g.add(s2, 0.33)), label="A = 1 - 0.5 s2/(s2+0.33)")
-        B = g.div(g.mul(s2, 0.45), g.add(s2, 0.09), label="B = 0.45 s2/(s2+0.09)")
-    with g.block("(n.l) max(0, cos dphi) sin(alpha) tan(beta), bounded vector form"):
-        s = g.max(g.sub(g.dot(l, v, label="l.v"), g.mul(n_l, n_v)), 0.0, label="max(0, l.v - (n.l)(n.v))")
-        den = g.max(g.max(n_l, n_v), brdf.TINY, label="max(n.l, n.v, 1e-12)")
-        ratio = g.div(g.max(n_l, 0.0), den, label="n.l / max(n.l, n.v): in [0, 1]")
-        ang = g.mul(s, ratio, label="angular term")
-    with g.block("L = rho I (A n.l + B term), zero unless n.l > 0 and n.v > 0"):
-        both = g.mul(lit, g.gt(n_v, 0.0), label="n.l > 0 and n.v > 0")
-        factor = g.mul(both, g.add(g.mul(A, g.max(n_l, 0.0)), g.mul(B, ang)), label="A n.l + B term")
-        color = g.scale(g.vmul(i["Albedo"], i["Light Color"]), factor, label="radiance")
+        A = R(g.sub(1.0, g.div(g.mul(s2, 0.5), g.add(s2, 0.33))), "A = 1 - 0.5 s2/(s2+0.33)")
+        B = R(g.div(g.mul(s2, 0.45), g.add(s2, 0.09)), "B = 0.45 s2/(s2+0.09)")
+        minus_nv = g.mul(n_v, -1.0, label="-n.v")
+        nv_tiny = g.max(n_v, brdf.TINY, label="max(n.v, 1e-12)")
+        seen2 = g.mul(g.gt(n_v, 0.0), 2.0, label="2 (n.v > 0)")
+    with g.block("(n.l)(A + B max(0, cos dphi) sin(alpha) tan(beta)), bounded vector form"):
+        s = g.max(g.madd(n_l, minus_nv, g.dot(l, v, label="l.v")), R(0.0), label="max(0, l.v - (n.l)(n.v))")
+        t = g.div(s, g.max(n_l, nv_tiny), label="s / max(n.l, n.v, 1e-12)")
+        a = g.min(g.max(n_l, R(0.0)), seen2, label="max(n.l, 0), 0 unless n.v > 0")
+        factor = g.mul(a, g.madd(t, B, A), label="n.l (A + B s / max(n.l, n.v))")
+    with g.block("L = rho I factor"):
+        color = g.scale(g.vmul(i["Light Color"], g.vreg(i["Albedo"], "rho")), factor, label="radiance")
     _finish(g, o, color)
     g.layout()
 
@@ -216,62 +232,65 @@ def _build_oren_nayar(tree):
 def _build_cook_torrance(tree):
     g = Graph(tree)
     i, o = _io(g)
-    n, v, l, n_l, n_v, lit = _common(g, i)
-    eps = brdf.EPS
-    with g.block("Half vector and roughness"):
+    n, v, l, n_l, n_v = _common(g, i)
+    R = g.reg
+    dist, geom = i["Distribution"], i["Geometry"]
+    with g.block("Surface: roughness"):
+        r = g.max(i["Roughness"], brdf.MIN_ROUGHNESS, label="m or alpha (>= 1e-3)")
+        r2 = g.mul(r, r)
+        r2_r, inv_r = R(r2, "r^2"), R(g.div(1.0, r), "1/r")
+        zero, one, eps = R(0.0), R(1.0), R(brdf.EPS)
+
+    def lam(cos_theta, which):
+        """Smith Lambda: (sqrt(1 + a^2 tan^2) - 1)/2 (GGX) or Walter's rational fit (Beckmann)."""
+        c = g.max(cos_theta, eps)
+        cc = g.mul(c, c)
+        t2 = g.div(g.max(g.sub(one, cc), zero), cc, label=f"tan^2 theta_{which}")
+        lam_ggx = g.madd(g.math("SQRT", g.madd(r2_r, t2, one)), R(0.5), R(-0.5), label=f"Lambda GGX ({which})")
+        a = g.max(g.mul(g.math("INVERSE_SQRT", g.max(t2, R(brdf.TINY))), inv_r), eps, label=f"a ({which})")
+        fit = g.div(g.madd(a, g.madd(a, R(0.396), R(-1.259)), one), g.mul(a, g.madd(a, R(2.181), R(3.535))),
+                    label=f"Walter fit ({which})")
+        lam_beck = g.mul(fit, g.math("LESS_THAN", a, R(1.6)), label=f"Lambda Beckmann ({which})")
+        return g.lerp(lam_beck, lam_ggx, dist, label=f"Lambda ({which})")
+
+    with g.block("Surface: n.v terms, 1 + Lambda(v), pi k_s / (4 n.v) where n.v > 0, times F0 and 1 - F0"):
+        nv0 = g.max(n_v, 0.0, label="max(n.v, 0)")
+        one_lam_v = g.add(lam(n_v, "v"), 1.0, label="1 + Lambda(v)")
+        k = g.mul(g.div(g.mul(i["Ks"], math.pi), g.mul(g.max(n_v, brdf.EPS), 4.0)), g.gt(n_v, 0.0),
+                  label="k = pi k_s / (4 n.v), 0 unless n.v > 0")
+        k0 = g.mul(k, i["F0"], label="F0 k")
+        k1 = g.mul(k, g.sub(1.0, i["F0"]), label="(1 - F0) k")
+    with g.block("Half vector"):
         h = g.normalize(g.vadd(l, v), label="h")
         n_h = g.dot(n, h, label="n.h")
         v_h = g.dot(v, h, label="v.h")
-        r = g.max(i["Roughness"], brdf.MIN_ROUGHNESS, label="m or alpha (>= 1e-3)")
-        r2 = g.mul(r, r, label="r^2")
-        h_up = g.gt(n_h, 0.0, label="n.h > 0")
+        a_l = g.max(n_l, zero, label="max(n.l, 0)")
+    # n.h enters D and G unclamped at 0 where the twin clamps it: those points have n.h <= 0, where the
+    # mask below makes the specular 0 (both stay finite there).
     with g.block("D: Beckmann"):
         c = g.max(n_h, eps)
         c2 = g.mul(c, c, label="cos^2")
-        ex = g.math("EXPONENT", g.div(g.sub(c2, 1.0), g.mul(r2, c2)), label="exp(-tan^2/m^2)")
-        d_beck = g.div(ex, g.mul(g.mul(r2, math.pi), g.mul(c2, c2)), label="D Beckmann")
+        ex = g.math("EXPONENT", g.div(g.sub(c2, one), g.mul(r2_r, c2)), label="exp(-tan^2/m^2)")
+        d_beck = g.div(ex, g.mul(R(g.mul(r2, math.pi), "pi r^2"), g.mul(c2, c2)), label="D Beckmann")
     with g.block("D: GGX"):
-        cg = g.max(n_h, 0.0)
-        t = g.add(g.mul(g.mul(cg, cg), g.sub(r2, 1.0)), 1.0, label="cos^2 (a^2-1) + 1")
-        d_ggx = g.div(r2, g.mul(g.mul(t, t), math.pi), label="D GGX")
+        t = g.madd(g.mul(n_h, n_h), R(g.sub(r2, 1.0), "r^2 - 1"), one, label="cos^2 (a^2-1) + 1")
+        d_ggx = g.div(R(g.div(r2, math.pi), "r^2/pi"), g.mul(t, t), label="D GGX")
     with g.block("D: select (0 Beckmann, 1 GGX)"):
-        D = g.mul(g.lerp(d_beck, d_ggx, i["Distribution"]), h_up, label="D")
-    with g.block("G: Cook-Torrance 1982"):
-        vh = g.max(v_h, eps)
-        nh0 = g.max(n_h, 0.0)
-        g1 = g.div(g.mul(g.mul(nh0, g.max(n_v, 0.0)), 2.0), vh, label="2 (n.h)(n.v)/(v.h)")
-        g2 = g.div(g.mul(g.mul(nh0, g.max(n_l, 0.0)), 2.0), vh, label="2 (n.h)(n.l)/(v.h)")
-        g_ct = g.min(1.0, g.min(g1, g2), label="G Cook-Torrance")
-
-    def tan2(cos_theta, label):
-        c = g.max(cos_theta, eps)
-        cc = g.mul(c, c)
-        return g.div(g.max(g.sub(1.0, cc), 0.0), cc, label=label)
-
-    def lam(cos_theta, which):
-        t2 = tan2(cos_theta, f"tan^2 theta_{which}")
-        lam_ggx = g.div(g.sub(g.math("SQRT", g.add(1.0, g.mul(r2, t2))), 1.0), 2.0, label=f"Lambda GGX ({which})")
-        a = g.max(g.div(1.0, g.mul(r, g.math("SQRT", g.max(t2, brdf.TINY)))), eps, label=f"a ({which})")
-        a2 = g.mul(a, a)
-        fit = g.div(g.add(g.sub(1.0, g.mul(a, 1.259)), g.mul(a2, 0.396)),
-                    g.add(g.mul(a, 3.535), g.mul(a2, 2.181)), label=f"Walter fit ({which})")
-        lam_beck = g.mul(fit, g.math("LESS_THAN", a, 1.6), label=f"Lambda Beckmann ({which})")
-        return g.lerp(lam_beck, lam_ggx, i["Distribution"], label=f"Lambda ({which})")
-
+        D = g.lerp(d_beck, d_ggx, dist, label="D")
+    with g.block("G: Cook-Torrance 1982, min(1, 2 (n.h) min(n.v, n.l) / (v.h))"):
+        q = g.div(g.add(n_h, n_h), g.max(v_h, eps), label="2 (n.h) / (v.h)")
+        g_ct = g.min(g.mul(q, g.min(a_l, nv0)), one, label="G Cook-Torrance")
     with g.block("G: Smith height-correlated, 1/(1 + Lambda(l) + Lambda(v))"):
-        g_smith = g.div(1.0, g.add(g.add(1.0, lam(n_l, "l")), lam(n_v, "v")), label="G Smith")
+        g_smith = g.div(one, g.add(lam(n_l, "l"), one_lam_v), label="G Smith")
     with g.block("G: select (0 Cook-Torrance, 1 Smith)"):
-        G = g.lerp(g_ct, g_smith, i["Geometry"], label="G")
-    with g.block("F: Schlick"):
-        one_minus = g.sub(1.0, g.math("MINIMUM", g.max(v_h, 0.0), 1.0), label="1 - v.h")
-        Fs = g.add(i["F0"], g.mul(g.sub(1.0, i["F0"]), g.pow(one_minus, 5.0)), label="F")
-    with g.block("L = I (k_d n.l + pi k_s F D G / (4 n.v))"):
-        both = g.mul(lit, g.gt(n_v, 0.0), label="n.l > 0 and n.v > 0")
-        spec = g.div(g.mul(g.mul(g.mul(Fs, D), G), g.mul(i["Ks"], math.pi)), g.mul(g.max(n_v, eps), 4.0),
-                     label="pi k_s F D G / (4 n.v)")
-        spec = g.mul(spec, both, label="specular")
-        diff = g.scale(i["Kd"], g.mul(lit, g.max(n_l, 0.0)), label="k_d n.l")
-        color = g.vmul(i["Light Color"], g.vadd(diff, g.vmath("ADD", (0, 0, 0), spec)), label="radiance")
+        G = g.lerp(g_ct, g_smith, geom, label="G")
+    with g.block("F k: Schlick, F0 + (1 - F0)(1 - v.h)^5 with v.h in [0, 1], times k"):
+        one_minus = g.max(g.min(g.sub(one, v_h), one), zero, label="1 - v.h")
+        Fk = g.madd(g.pow(one_minus, R(5.0)), k1, k0, label="F k")
+    with g.block("L = I (k_d n.l + pi k_s F D G / (4 n.v)), specular 0 unless n.l, n.v, n.h > 0"):
+        mask = g.gt(g.min(n_l, n_h), zero, label="n.l > 0 and n.h > 0")
+        spec = g.mul(g.mul(g.mul(Fk, D), G), mask, label="specular")
+        color = g.vmul(i["Light Color"], g.add_scaled(spec, g.vreg(i["Kd"], "k_d"), a_l), label="radiance")
     _finish(g, o, color)
     g.layout()
 
@@ -280,25 +299,31 @@ def _build_light(tree):
     g = Graph(tree)
     i, o = _io(g)
     four_pi2 = 4.0 * math.pi ** 2
+    R = g.reg
     with g.block("Surface"):
         geo = g.node("ShaderNodeNewGeometry")
+        g.registers(geo)
         p, n = geo.outputs["Position"], geo.outputs["Normal"]
     with g.block("Type switches"):
         is_t = [g.math("COMPARE", i["Type"], float(k), 0.5, label=name)
                 for k, name in enumerate(("point", "spot", "sun", "hemisphere"))]
     with g.block("Point: vector and attenuation"):
         lvec_p = g.vmath("SUBTRACT", i["Position"], p, label="position - p")
-        d = g.vmath("LENGTH", lvec_p, label="d")
-        phys = g.div(1.0, g.max(g.mul(d, d), brdf.TINY), label="1/d^2")
-        poly = g.add(g.add(i["C1"], g.mul(i["C2"], d)), g.mul(i["C3"], g.mul(d, d)), label="c1 + c2 d + c3 d^2")
-        emp = g.min(g.div(1.0, g.max(poly, brdf.TINY)), 1.0, label="min(1/(...), 1)")
+        d2 = g.dot(lvec_p, lvec_p, label="d^2")
+        phys = g.div(R(1.0), g.max(d2, R(brdf.TINY)), label="1/d^2")
+        poly = g.madd(R(i["C3"], "c3"), d2, g.madd(R(i["C2"], "c2"), g.math("SQRT", d2, label="d"), R(i["C1"], "c1")),
+                      label="c1 + c2 d + c3 d^2")
+        emp = g.min(g.div(R(1.0), g.max(poly, R(brdf.TINY))), R(1.0), label="min(1/(...), 1)")
         att = g.lerp(emp, phys, i["Physical"], label="f_att")
-        point_i = g.mul(g.div(i["Power"], four_pi2), att, label="P/(4 pi^2) f_att")
     with g.block("Spot: cutoff and (s.s')^k"):
-        cos_ss = g.dot(g.normalize(i["Direction"]), g.scale(g.normalize(lvec_p), -1.0), label="s.s'")
+        minus_s = g.scale(g.normalize(i["Direction"]), -1.0, label="-s")
+        cos_ss = g.dot(g.normalize(lvec_p), minus_s, label="s.s'")
         inside = g.math("GREATER_THAN", cos_ss, g.math("COSINE", i["Spot Cutoff"]), label="inside cone")
-        fall = g.mul(inside, g.pow(g.max(cos_ss, 0.0), i["Spot Exponent"]), label="spot falloff")
-        spot_i = g.mul(point_i, fall, label="spot intensity")
+        fall = g.mul(inside, g.pow(g.max(cos_ss, R(0.0)), R(i["Spot Exponent"], "k")), label="spot falloff")
+    with g.block("Point and spot: colour P/(4 pi^2) f_att (s.s')^k"):
+        k_ps = g.mul(att, g.add(is_t[0], g.mul(is_t[1], fall)), label="f_att, times the falloff for a spot")
+        col_ps = g.scale(g.scale(i["Color"], g.div(i["Power"], four_pi2), label="colour P/(4 pi^2)"),
+                         g.mul(k_ps, g.add(is_t[0], is_t[1])), label="point/spot colour")
     with g.block("Sun and hemisphere"):
         sun_l = g.scale(i["Direction"], -1.0, label="-direction")
         sun_i = g.div(i["Power"], math.pi, label="S/pi")
@@ -307,9 +332,8 @@ def _build_light(tree):
     with g.block("Select by type"):
         lvec = g.vadd(g.scale(lvec_p, g.add(is_t[0], is_t[1])),
                       g.vadd(g.scale(sun_l, is_t[2]), g.scale(n, is_t[3])), label="Light Vector")
-        k_ps = g.add(g.mul(point_i, is_t[0]), g.mul(spot_i, is_t[1]), label="point/spot factor")
-        k_s = g.add(k_ps, g.mul(sun_i, is_t[2]), label="+ sun factor")
-        col = g.vadd(g.scale(i["Color"], k_s), g.scale(hemi_c, g.mul(sun_i, is_t[3])), label="Light Color")
+        col = g.vadd(col_ps, g.vadd(g.scale(i["Color"], g.mul(sun_i, is_t[2])),
+                                    g.scale(hemi_c, g.mul(sun_i, is_t[3]))), label="Light Color")
     g.feed(lvec, o["Light Vector"])
     g.feed(col, o["Light Color"])
     g.layout()

@@ -10,6 +10,8 @@ A material built here holds, left to right:
 - the sum of the per-light radiances (superposition) into one Emission shader.
 Ambient and emission terms enter once (first light only). Without lights the material
 still works: one model node with a black light, i.e. ambient and emission only.
+The emission is the model's radiance, not a lamp: its emission sampling is off, so Cycles builds
+no light tree over the shaded triangles (other surfaces still receive it through their BSDF rays).
 """
 import bpy
 
@@ -226,6 +228,8 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
     out = nodes.new("ShaderNodeOutputMaterial")
     out.location = (450, 300)
     links.new(emission.outputs[0], out.inputs["Surface"])
+    if hasattr(getattr(mat, "cycles", None), "emission_sampling"):
+        mat.cycles.emission_sampling = "NONE"
     mat["il_model"] = model
     mat["il_attenuation"] = attenuation
     mat["il_version"] = groups.GROUP_VERSION

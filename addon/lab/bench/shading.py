@@ -369,36 +369,120 @@ def best_sigma(n, L, l, v=V_ORTHO):
 
 # -- cost ---------------------------------------------------------------------------------------------
 
-def render_cost(size=128, samples=32):
-    """Seconds of one Cycles render with IL Cook-Torrance vs Principled BSDF, same scene and samples."""
-    scene = sc.new_scene("IL cost", (size, size))
+#: Materials of the cost benchmark: Blender's Principled BSDF, then each IL model (assigned with the scene's lights).
+COST_MODELS = ("PRINCIPLED", "PHONG", "BLINN_PHONG", "OREN_NAYAR", "COOK_TORRANCE", "COOK_TORRANCE_BECKMANN")
+COST_PARAMS = {"COOK_TORRANCE": {"Roughness": 0.3, "Kd": (0.5, 0.5, 0.5)},
+               "COOK_TORRANCE_BECKMANN": {"Roughness": 0.3, "Kd": (0.5, 0.5, 0.5), "Distribution": 0.0,
+                                          "Geometry": 0.0}}
+#: (resolution, samples per pixel) of the cost benchmark.
+COST_CONFIGS = ((256, 64), (64, 8))
+
+
+def cost_scene(light_count):
+    """Floor, ball, camera, a dim world and 1 (a point) or up to 4 lights (+ sun, spot, second point)."""
+    scene = sc.new_scene(f"IL cost {light_count}", (64, 64))
     sc.plane(scene, "Cost Floor", 8.0)
     sc.sphere(scene, "Cost Ball", 0.8, location=(0, 0, 0.8))
-    sc.light(scene, "Cost Sun", "SUN", 3.0, rotation=sc.deg(40, 0, 30))
     sc.light(scene, "Cost Key", "POINT", 300.0, location=(2.0, -3.0, 3.5))
+    if light_count > 1:
+        sc.light(scene, "Cost Sun", "SUN", 3.0, rotation=sc.deg(40, 0, 30))
+    if light_count > 2:
+        spot = sc.light(scene, "Cost Spot", "SPOT", 400.0, location=(-2.5, -2.0, 3.0))
+        sc.look_at(spot, (0, 0, 0.5))
+    if light_count > 3:
+        sc.light(scene, "Cost Fill", "POINT", 100.0, location=(-3.0, 2.0, 1.5), color=(0.6, 0.7, 1.0))
     sc.camera(scene, "Cost Cam", (0.0, -5.0, 3.0), target=(0, 0, 0.6))
     sc.world(scene, strength=0.2)
-    objs = [o for o in scene.objects if o.type == "MESH"]
-    mats = []
+    return scene
+
+
+def _nodes(tree):
+    return sum(n.bl_idname not in ("NodeFrame", "NodeGroupInput", "NodeGroupOutput", "NodeReroute")
+               for n in tree.nodes)
+
+
+def node_counts():
+    """{group name: nodes in it (frames, group input and output not counted)} of every IL group."""
+    return {name: _nodes(groups.ensure_group(name)) for name in groups.BUILDERS}
+
+
+def _timed_render(scene):
+    scene.view_layers[0].update()  # drivers of a scene that is not the window's are stale otherwise
+    t = time.perf_counter()
+    bpy.ops.render.render(scene=scene.name)
+    return time.perf_counter() - t
+
+
+def render_cost(configs=COST_CONFIGS, light_counts=(1, 4), repeats=3, models=COST_MODELS):
+    """Seconds of one Cycles render (F12: sync, shader compile, path tracing) of the same scene with each material
+    of ``models`` and each light count, best of ``repeats``; every (light count, material) pair is rendered once
+    per repeat, in turn, so that a change of load on the machine hits them alike.
+
+    Rows {"model", "lights", "size", "samples", "seconds", "ratio" (over Principled's with the same lights and
+    settings), "nodes_per_light" (nodes of the IL Light and model groups), "ns_per_sample" (seconds per camera
+    sample)}.
+    """
+    counts = node_counts()
+    scenes, mats = {}, {}
     try:
-        il, _ = material.assign_shading_model(scene, objs, "COOK_TORRANCE",
-                                              params={"Roughness": 0.3, "Kd": (0.5, 0.5, 0.5)})
-        mats.append(il)
-        principled = closure_material("Cost Principled", "PRINCIPLED", (0.5, 0.5, 0.5), 0.5)
-        mats.append(principled)
-        render.cycles_cpu(scene, samples=samples)
-        times = {}
-        for label, mat in (("il_cook_torrance", il), ("principled", principled)):
-            for o in objs:
-                assign(o, mat)
-            t = time.perf_counter()
-            render.render_layers(scene)
-            times[label] = time.perf_counter() - t
+        for light_count in light_counts:
+            scene = scenes[light_count] = cost_scene(light_count)
+            objs = [o for o in scene.objects if o.type == "MESH"]
+            for model in models:
+                if model == "PRINCIPLED":
+                    mat = closure_material("Cost Principled", "PRINCIPLED", (0.5, 0.5, 0.5), 0.5)
+                else:
+                    kind = "COOK_TORRANCE" if model.startswith("COOK_TORRANCE") else model
+                    mat = material.assign_shading_model(scene, objs, kind, params=COST_PARAMS.get(model),
+                                                        name=f"Cost {model}")[0]
+                mats[(light_count, model)] = mat
+        best = {}
+        for size, samples in configs:
+            for light_count, scene in scenes.items():
+                scene.render.resolution_x = scene.render.resolution_y = size
+                render.cycles_cpu(scene, samples=samples)
+            for rep in range(repeats + 1):  # the first pass warms up and is not counted
+                for light_count, scene in scenes.items():
+                    objs = [o for o in scene.objects if o.type == "MESH"]
+                    for model in models:
+                        for o in objs:
+                            assign(o, mats[(light_count, model)])
+                        sec = _timed_render(scene)
+                        if rep:
+                            key = (light_count, size, samples, model)
+                            best[key] = min(best.get(key, sec), sec)
+        rows = []
+        for size, samples in configs:
+            for light_count in light_counts:
+                base = best.get((light_count, size, samples, "PRINCIPLED"))
+                for model in models:
+                    sec = best[(light_count, size, samples, model)]
+                    kind = "COOK_TORRANCE" if model.startswith("COOK_TORRANCE") else model
+                    per_light = (None if model == "PRINCIPLED"
+                                 else counts[groups.LIGHT] + counts[groups.MODEL_GROUPS[kind]])
+                    rows.append({"model": model, "lights": light_count, "size": size, "samples": samples,
+                                 "seconds": sec, "ratio": sec / base if base else None,
+                                 "nodes_per_light": per_light,
+                                 "ns_per_sample": sec / (size * size * samples) * 1e9})
     finally:
-        sc.remove_scene(scene, mats)
-    return {"size": size, "samples": samples, "seconds_il": times["il_cook_torrance"],
-            "seconds_principled": times["principled"],
-            "ratio_il_over_principled": times["il_cook_torrance"] / times["principled"]}
+        for scene in scenes.values():
+            sc.remove_scene(scene, [m for (lc, _), m in mats.items() if scenes.get(lc) is scene])
+    return rows
+
+
+def per_light_cost(rows):
+    """Per-light cost from rows of two light counts: (seconds(k) - seconds(j)) / (k - j) per (model, size,
+    samples), as {(model, size, samples): (seconds per light, ns per sample per light)}."""
+    out = {}
+    by = {}
+    for r in rows:
+        by.setdefault((r["model"], r["size"], r["samples"]), {})[r["lights"]] = r["seconds"]
+    for key, secs in by.items():
+        if len(secs) >= 2:
+            lo, hi = min(secs), max(secs)
+            per = (secs[hi] - secs[lo]) / (hi - lo)
+            out[key] = (per, per / (key[1] * key[1] * key[2]) * 1e9)
+    return out
 
 
 # -- charts of the twins ------------------------------------------------------------------------------
@@ -536,9 +620,11 @@ def run(output_dir, quick=False):
         figures["cook_torrance_vs_glossy_max_relative_rms"] = max(r["relative_rms"] for r in ct_rows)
 
         progress.step(steps[4])
-        cost = render_cost(size=64 if quick else 256, samples=8 if quick else 64)
-        tables["shading_render_cost"] = [cost]
-        figures["render_time_ratio_il_ct_over_principled"] = cost["ratio_il_over_principled"]
+        cost = render_cost(configs=((64, 8),) if quick else ((256, 64),), repeats=1,
+                           models=("PRINCIPLED", "COOK_TORRANCE"))
+        tables["shading_render_cost"] = cost
+        figures["render_time_ratio_il_ct_over_principled"] = max(
+            r["ratio"] for r in cost if r["model"] == "COOK_TORRANCE")
     for name, rows in tables.items():
         charts.write_csv(os.path.join(output_dir, f"{name}.csv"), rows)
     return BenchResult(tables, chart_paths, figures)
