@@ -24,7 +24,7 @@ from conftest import ROOT
 
 SCRIPTS = sorted(f for f in os.listdir(os.path.join(ROOT, "scripts")) if f.endswith(".py") and f != "_cli.py")
 BLEND_SCRIPTS = ("ssao.py", "shadows.py", "envmap.py", "bake.py", "radiosity.py")
-NO_OUT = ("bench_shadows.py",)    # prints only
+NO_OUT = ("bench_shadows.py", "bench_shading.py")    # print only
 REQUIRED = {"bake.py": ["--objects", "Cube"]}
 
 
