@@ -109,7 +109,7 @@ class Occluders:
 
     def edges(self, points):
         """m_k·x − h_k (P, F, 4): all >= 0 where x's projection lies inside the polygon."""
-        return np.einsum("pk,fmk->pfm", points, self.m) - self.h
+        return (points @ self.m.reshape(-1, 3).T).reshape(len(points), *self.h.shape) - self.h
 
 
 def occluders(base, patches=None):
@@ -187,9 +187,9 @@ def visible_faces(patches, occ, offset=1e-4):
         for s in range(0, len(points), step):
             o = points[s:s + step] + offset * normals[s:s + step]
             j = src[s:s + step]
-            go = occ.edges(o)
-            out[s:s + step] = ~_blocked(occ.side(o), st_all[j], lambda p, f: go[p, f], lambda p, f: gt_all[j[p], f],
-                                        o, tc[j], 2 * offset)
+            out[s:s + step] = ~_blocked(occ.side(o), st_all[j],
+                                        lambda p, f: np.einsum("kc,kmc->km", o[p], occ.m[f]) - occ.h[f],
+                                        lambda p, f: gt_all[j[p], f], o, tc[j], 2 * offset)
         return out
     return visible
 
