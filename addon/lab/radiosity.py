@@ -710,7 +710,7 @@ def estimate(scene, max_edge):
 
 def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge=RadiosityOptions.max_edge,
         adaptive=RadiosityOptions.adaptive, samples=RadiosityOptions.samples, compare=RadiosityOptions.compare,
-        tol=RadiosityOptions.tol, chart=True, memory=None):
+        tol=RadiosityOptions.tol, chart=True, memory=None, visibility="auto", reciprocal=True):
     """The whole job of scripts/radiosity.py; returns a core.result.JobResult (reads as the report written to
     ``out``; ``arrays`` holds the solve: patches, F, solution, H, front, H_front and the comparison's arrays).
 
@@ -718,7 +718,8 @@ def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge
     folder is created or anything big is allocated. ``chart=False`` skips the convergence chart (the UI
     passes ``charts.available()``: no matplotlib inside Blender); the report's "chart" is then None, the
     CSV table is written either way. Light maps and vertex colours hold the front side of every face
-    (the side its normal points to, what a light-map bake of it measures).
+    (the side its normal points to, what a light-map bake of it measures). ``visibility`` and ``reciprocal``
+    as in :func:`solve_scene` (the benchmark's before/after).
     """
     check_options(solver, max_edge, adaptive, samples, tol)
     out = check_output_dir(out)
@@ -736,7 +737,8 @@ def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge
         base = scene_patches(meshes)
         rad_cost.check_cost(base, max_edge, memory=memory)
         p.step("patches, visibility, form factors, solve")
-        r = solve_scene(base, max_edge, solver, tol, adaptive, memory=memory)
+        r = solve_scene(base, max_edge, solver, tol, adaptive, memory=memory, visibility=visibility,
+                        reciprocal=reciprocal)
         patches, F, sol, H = r["patches"], r["F"], r["solution"], r["H"]
         _finite("the radiosity solution", sol.B)
         tg = time.perf_counter()
