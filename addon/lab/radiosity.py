@@ -401,6 +401,18 @@ def visibility_method(base, patches, method="auto"):
     return "faces", occ
 
 
+def seconds_per_pair(base, max_edge, visibility="auto"):
+    """The cost estimate's seconds a patch pair (core.radiosity.cost) for the visibility :func:`visibility_method`
+    will pick: the BVH's when the faces that could block (planar faces whole, the others' planned patches as
+    two triangles each, an upper bound) exceed MAX_OCCLUDERS."""
+    if visibility == "bvh":
+        return rad_cost.SECONDS_PER_PAIR_BVH
+    whole = rad_visibility.whole_faces(base)
+    rest = ~whole & ~base.back
+    n = int(whole.sum()) + (2 * int(rad_subdivision.planned_patches(base.take(rest), max_edge)) if rest.any() else 0)
+    return rad_cost.SECONDS_PER_PAIR_BVH if visibility == "auto" and n > MAX_OCCLUDERS else rad_cost.SECONDS_PER_PAIR
+
+
 def _visible(patches, how, bvh=None):
     return rad_visibility.visible_faces(patches, how[1]) if how[0] == "faces" else visible_bvh(patches, bvh=bvh)
 
@@ -464,7 +476,8 @@ def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, th
     t = {}
     t0 = time.perf_counter()
     base = meshes if isinstance(meshes, rad_patches.Patches) else scene_patches(meshes)
-    cost = rad_cost.check_cost(base, max_edge, memory=memory)
+    per = seconds_per_pair(base, max_edge, visibility)
+    cost = rad_cost.check_cost(base, max_edge, memory=memory, seconds_per_pair=per)
     patches = rad_subdivision.subdivide_to_size(base, max_edge)
     patches = refine_near_emitters(patches, max_edge, memory, t, base, visibility)
     for round_ in range(adaptive + 1):
@@ -703,8 +716,9 @@ def estimate(scene, max_edge):
         warnings.simplefilter("ignore")
         meshes, _ = meshes_from_scene(scene)
     base = scene_patches(meshes)
-    cost = rad_cost.solve_cost(rad_subdivision.planned_patches(base, max_edge))
-    best = rad_cost.smallest_edge_that_fits(base, memory_budget())
+    per = seconds_per_pair(base, max_edge)
+    cost = rad_cost.solve_cost(rad_subdivision.planned_patches(base, max_edge), per)
+    best = rad_cost.smallest_edge_that_fits(base, memory_budget(), seconds_per_pair=per)
     return cost, best
 
 
@@ -735,7 +749,7 @@ def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge
                              "(an Emission shader or Principled emission), not lamps; give a mesh an emissive "
                              "material or build the Cornell box")
         base = scene_patches(meshes)
-        rad_cost.check_cost(base, max_edge, memory=memory)
+        rad_cost.check_cost(base, max_edge, memory=memory, seconds_per_pair=seconds_per_pair(base, max_edge, visibility))
         p.step("patches, visibility, form factors, solve")
         r = solve_scene(base, max_edge, solver, tol, adaptive, memory=memory, visibility=visibility,
                         reciprocal=reciprocal)

@@ -112,21 +112,27 @@ class Occluders:
         return (points @ self.m.reshape(-1, 3).T).reshape(len(points), *self.h.shape) - self.h
 
 
-def occluders(base, patches=None):
-    """The faces that can block a ray between ``patches`` (default ``base``): every front-side face of
-    ``base`` (the unsplit patches) that is planar and convex as a whole polygon, and for the others the
-    triangles of the ``patches`` cut from them (matched by owner and source face)."""
-    patches = base if patches is None else patches
-    front = np.flatnonzero(~base.back)
-    c = base.corners[front]
-    tri = base.is_tri[front]
+def whole_faces(base):
+    """(N,) bool: the faces of ``base`` that block as one polygon in :func:`occluders` (triangles, planar convex
+    quads; back sides False)."""
+    c = base.corners
     size = np.linalg.norm(c.max(axis=1) - c.min(axis=1), axis=1)
     _, nrm = _plane(c)
     off = np.abs(np.einsum("fk,fk->f", c[:, 3] - c[:, 0], nrm))
     e = np.roll(c, -1, axis=1) - c
     turn = np.einsum("fmk,fk->fm", np.cross(e, np.roll(e, -1, axis=1)), nrm)
-    convex = tri | (turn >= -1e-12 * size[:, None] ** 2).all(axis=1)
-    whole = tri | ((off <= PLANAR_TOL * size) & convex)
+    convex = base.is_tri | (turn >= -1e-12 * size[:, None] ** 2).all(axis=1)
+    return ~base.back & (base.is_tri | ((off <= PLANAR_TOL * size) & convex))
+
+
+def occluders(base, patches=None):
+    """The faces that can block a ray between ``patches`` (default ``base``): every front-side face of
+    ``base`` (the unsplit patches) that is planar and convex as a whole polygon, and for the others the
+    triangles of the ``patches`` cut from them (matched by owner and source face)."""
+    patches = base if patches is None else patches
+    whole_all = whole_faces(base)
+    front = np.flatnonzero(~base.back)
+    c, whole = base.corners[front], whole_all[front]
     polys = [c[whole]]
     rest = {(int(base.owner[k]), int(base.source[k])) for k in front[~whole]}
     if rest:

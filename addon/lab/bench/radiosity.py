@@ -57,16 +57,16 @@ def _timed_solve(meshes, edge, path):
     return r, g, t, time.process_time() - c0
 
 
-def speed(scenes, paths=("before", "after"), repeat=1):
+def speed(scenes, paths=("before", "after"), repeat=1, report=None):
     """Rows {scene, path, method, patches, visibility_s, form_factors_s, near_field_s, near_emitters_s, solve_s,
     texel_gather_s, total_s, cpu_s} (best total of ``repeat`` runs) and, per scene, the largest differences of
     the paths' irradiance (the same patches): {scene: {"H_rel_max", "texel_rel_rms"}}. ``scenes``: {name:
-    (meshes, max_edge)}."""
+    (meshes, max_edge[, paths])}; ``report(row)`` is called as each row is measured."""
     import numpy as np
     rows, diffs = [], {}
-    for name, (meshes, edge) in scenes.items():
+    for name, (meshes, edge, *own) in scenes.items():
         out = {}
-        for path in paths:
+        for path in (own[0] if own else paths):
             best = None
             for _ in range(repeat):
                 r, g, t, cpu = _timed_solve(meshes, edge, path)
@@ -79,6 +79,8 @@ def speed(scenes, paths=("before", "after"), repeat=1):
                                                                        "near_emitters", "solve", "texel_gather",
                                                                        "total")},
                          "cpu_s": round(cpu, 1)})
+            if report:
+                report(rows[-1])
             del r, g
         if len(out) == 2:
             (h0, g0), (h1, g1) = out.values()
