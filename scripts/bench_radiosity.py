@@ -56,7 +56,30 @@ def main(args):
             print(f"imported 0.1 {path}: {rep['patches']} patches, solve {rep['seconds']:.1f} s, Cycles "
                   f"{rep['cycles_samples']} samples {rep['cycles_seconds']:.1f} s, relative RMS vs Cycles "
                   f"{100 * rep['relative_rms_vs_cycles']:.2f} % (run {time.perf_counter() - t0:.0f} s)")
+    if args.versus:
+        versus(out, args.versus)
     print(f"load average {os.getloadavg()[0]:.2f}")
+
+
+def versus(out, ref_samples, edge=0.25, samples=(4, 16, 64)):
+    """Radiosity against Cycles' path-traced bake on the imported box, both against a ``ref_samples`` Cycles
+    bake of the same patch atlas: relative RMS per patch (the report's "patch" comparison) and seconds."""
+    import numpy as np
+    from addon.lab import radiosity as L
+    runs = {}
+    for s in samples + (ref_samples,):
+        sc = _imported_cornell(os.path.join(out, "obj"))
+        res = L.run(os.path.join(out, f"versus_{s}"), scene=sc, max_edge=edge, samples=s, chart=False)
+        runs[s] = (res.report, res.arrays["cycles"], res.arrays["H_points"])
+    rep, ref, H = runs[ref_samples]
+    norm = float(np.nanmean(ref))
+    print(f"imported box {edge} m, {rep['patches']} patches; reference: Cycles {ref_samples} samples "
+          f"({rep['cycles_seconds']:.1f} s)")
+    print(f"{'method':30s} {'seconds':>8s} {'relative RMS vs reference':>26s}")
+    print(f"{'radiosity (solve incl. near field)':30s} {rep['seconds']:8.1f} {100 * L.rms(H, ref) / norm:25.2f}%")
+    for s in samples:
+        r, hc, _ = runs[s]
+        print(f"{f'Cycles bake, {s} samples':30s} {r['cycles_seconds']:8.1f} {100 * L.rms(hc, ref) / norm:25.2f}%")
 
 
 def build_parser():
@@ -64,6 +87,9 @@ def build_parser():
                           "out/bench_radiosity", "the imported box only")
     p.add_argument("--no-before", action="store_true", help="skip the old path (BVH rays, every ordered pair)")
     p.add_argument("--big-before", action="store_true", help="the old path on the 11k-patch box too (minutes)")
+    p.add_argument("--versus", type=int, default=0, metavar="REF_SAMPLES",
+                   help="also radiosity against Cycles bakes of 4, 16, 64 samples, error against seconds, both "
+                        "measured against a REF_SAMPLES bake (0: skip)")
     p.add_argument("--samples", type=int, default=32, help="Cycles samples of the comparison (0: none)")
     return p
 
