@@ -1,5 +1,7 @@
-"""Visibility between patches by brute-force numpy rays (core.geometry.ray_triangle_hits; small scenes, tests);
-Blender's BVHTree does the same for big ones (lab.radiosity)."""
+"""Visibility between patches: against the scene's faces (:func:`visibility_faces`, :func:`visible_faces`, the
+default of lab.radiosity), and by brute-force numpy rays against every patch triangle
+(core.geometry.ray_triangle_hits; small scenes, tests). Blender's BVHTree casts the same rays where too many
+faces can block (lab.radiosity)."""
 import numpy as np
 
 from ..geometry import ray_triangle_hits
