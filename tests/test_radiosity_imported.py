@@ -196,6 +196,24 @@ def test_imported_cornell_box_against_cycles_and_against_bake_py(tmp_path):
         assert got == pytest.approx(want, rel=0.06), name
 
 
+def test_face_visibility_equals_the_bvh_rays_pair_by_pair(tmp_path):
+    """The published box: its red wall is 6 mm out of plane (taken patch by patch) and its light 1 mm under the
+    ceiling. The numpy face test (the default) and Blender's BVH rays give the same V, and so the same F."""
+    from addon.core.radiosity import visibility as rad_visibility
+    sc = import_cornell(str(tmp_path))
+    meshes, _ = L.meshes_from_scene(sc)
+    base = L.scene_patches(meshes)
+    p = rad_subdivision.subdivide_to_size(base, 0.15)
+    how, occ = L.visibility_method(base, p)
+    assert how == "faces" and len(occ) < len(p)
+    V = rad_visibility.visibility_faces(p, occ)
+    Vb = L.visibility_bvh(p)
+    assert 0 < V.sum() < V.size and np.array_equal(V, Vb)
+    i, j = rad_visibility.candidate_pairs(p)
+    assert np.array_equal(rad_visibility.visible_faces(p, occ)(p.center[i], p.normal[i], j),
+                          L.visible_bvh(p)(p.center[i], p.normal[i], j))
+
+
 def test_light_facing_the_ceiling_still_lights_the_room(tmp_path):
     """Cycles emits from both sides of an emitting face (measured: a plane bakes the same irradiance under
     an Emission quad facing it or facing away, for every emission_sampling setting): the solution must

@@ -382,18 +382,54 @@ def scene_patches(meshes):
     return rad_patches.with_back_sides(base, rad_patches.back_side_needed(base, rad_patches.open_meshes(meshes)))
 
 
-def refine_near_emitters(patches, max_edge, memory=None, timings=None):
+# The numpy face test (core.radiosity.visibility.visibility_faces) costs about a pair of patches times the
+# faces that can block it; a BVH ray about 5 µs a pair. Past this many blocking faces the BVH is used.
+MAX_OCCLUDERS = 256
+VISIBILITY = ("auto", "faces", "bvh")
+
+
+def visibility_method(base, patches, method="auto"):
+    """("faces", Occluders) or ("bvh", None): how :func:`solve_scene` casts its rays (``method`` "auto" takes the
+    faces when at most MAX_OCCLUDERS of them can block a ray between ``patches``)."""
+    if method not in VISIBILITY:
+        raise InputError(f"visibility must be one of {', '.join(VISIBILITY)}, got {method!r}")
+    if method == "bvh":
+        return "bvh", None
+    occ = rad_visibility.blocking(rad_visibility.occluders(base, patches), patches.center + 1e-4 * patches.normal)
+    if method == "auto" and len(occ) > MAX_OCCLUDERS:
+        return "bvh", None
+    return "faces", occ
+
+
+def seconds_per_pair(base, max_edge, visibility="auto"):
+    """The cost estimate's seconds a patch pair (core.radiosity.cost) for the visibility :func:`visibility_method`
+    will pick: the BVH's when the faces that could block (planar faces whole, the others' planned patches as
+    two triangles each, an upper bound) exceed MAX_OCCLUDERS."""
+    if visibility == "bvh":
+        return rad_cost.SECONDS_PER_PAIR_BVH
+    whole = rad_visibility.whole_faces(base)
+    rest = ~whole & ~base.back
+    n = int(whole.sum()) + (2 * int(rad_subdivision.planned_patches(base.take(rest), max_edge)) if rest.any() else 0)
+    return rad_cost.SECONDS_PER_PAIR_BVH if visibility == "auto" and n > MAX_OCCLUDERS else rad_cost.SECONDS_PER_PAIR
+
+
+def _visible(patches, how, bvh=None):
+    return rad_visibility.visible_faces(patches, how[1]) if how[0] == "faces" else visible_bvh(patches, bvh=bvh)
+
+
+def refine_near_emitters(patches, max_edge, memory=None, timings=None, base=None, visibility="bvh"):
     """Split the patches whose direct light from a near emitter varies across them, and grade the patches
     facing a bright bounce (core.radiosity.subdivision.emitter_refine_mask), edges not below max_edge / 2**EMITTER_LEVELS, adding at
     most core.radiosity.subdivision.refine_budget patches (the share of the up-front estimate); past it the largest of the marked
     patches are split first and the rest stay, with a warning; a split that would not fit the memory or the
     time limit is skipped with a warning."""
     t0 = time.perf_counter()
-    budget = int(rad_subdivision.refine_budget(patches, len(patches)))
-    limit = len(patches) + budget
+    extra = int(rad_subdivision.refine_budget(patches, len(patches)))
+    limit = len(patches) + extra
     for level in range(2 * rad_subdivision.EMITTER_LEVELS):       # edges >= min_edge bound it; grading lags a level
         interrupt.checkpoint()
-        mask = rad_subdivision.emitter_refine_mask(patches, visible_bvh(patches),
+        how = visibility_method(patches if base is None else base, patches, visibility)
+        mask = rad_subdivision.emitter_refine_mask(patches, _visible(patches, how),
                                         min_edge=max_edge / 2 ** rad_subdivision.EMITTER_LEVELS * 1.0001)
         if not mask.any():
             break
@@ -402,7 +438,7 @@ def refine_near_emitters(patches, max_edge, memory=None, timings=None):
             marked = np.flatnonzero(mask)
             mask[:] = False
             mask[marked[np.argsort(-patches.area[marked], kind="stable")[:max(room, 0)]]] = True
-            warn(f"subdivision near emitters stopped at its budget of {budget} more patches (the share of the "
+            warn(f"subdivision near emitters stopped at its budget of {extra} more patches (the share of the "
                  f"up-front estimate; a smaller --max-edge gives it more)")
             if not mask.any():
                 break
@@ -422,36 +458,46 @@ def refine_near_emitters(patches, max_edge, memory=None, timings=None):
 
 
 def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, threshold=0.25, progress=None,
-                memory=None):
+                memory=None, visibility="auto", reciprocal=True):
     """Patches -> visibility -> form factors -> solution, with ``adaptive`` refinement rounds.
 
     ``meshes`` may also be the patches of :func:`scene_patches`. The cost is checked before anything big is
     allocated (core.radiosity.cost.check_cost): a split that does not fit is refused, an adaptive round that would not fit
     is skipped with a warning. The near pairs' F_ij come from their texel-element exchange
     (core.radiosity.gather.NearField, returned as "near_field" for :func:`run`'s texel solution). Returns a dict:
-    patches, F, V, solution, H (irradiance of the patch solution), timings, cost, near, near_field.
+    patches, F, V, solution, H (irradiance of the patch solution), timings, cost, near, near_field, visibility.
+
+    ``visibility``: "faces" tests the rays against the scene's faces in numpy
+    (core.radiosity.visibility.visibility_faces), "bvh" casts them with Blender's BVHTree, "auto" the faces
+    unless more than MAX_OCCLUDERS can block (the same V either way). ``reciprocal``: the form factors of the
+    visible pairs only, each pair once (core.radiosity.form_factors.visible_form_factors); False: every
+    ordered pair (core.radiosity.form_factors.form_factors, as before).
     """
     t = {}
     t0 = time.perf_counter()
     base = meshes if isinstance(meshes, rad_patches.Patches) else scene_patches(meshes)
-    cost = rad_cost.check_cost(base, max_edge, memory=memory)
+    per = seconds_per_pair(base, max_edge, visibility)
+    cost = rad_cost.check_cost(base, max_edge, memory=memory, seconds_per_pair=per)
     patches = rad_subdivision.subdivide_to_size(base, max_edge)
-    patches = refine_near_emitters(patches, max_edge, memory, t)
+    patches = refine_near_emitters(patches, max_edge, memory, t, base, visibility)
     for round_ in range(adaptive + 1):
         if progress:
             progress(f"visibility and form factors of {len(patches)} patches")
         interrupt.checkpoint()
         tv = time.perf_counter()
-        bvh = _bvh(patches)
-        V = visibility_bvh(patches, bvh=bvh)
+        how = visibility_method(base, patches, visibility)
+        bvh = _bvh(patches) if how[0] == "bvh" else None
+        V = (visibility_bvh(patches, bvh=bvh) if bvh is not None
+             else rad_visibility.visibility_faces(patches, how[1], progress=interrupt.checkpoint))
         t["visibility"] = t.get("visibility", 0) + time.perf_counter() - tv
         tf = time.perf_counter()
-        F = rad_form_factors.form_factors(patches, V)
+        F = (rad_form_factors.visible_form_factors(patches, V) if reciprocal
+             else rad_form_factors.form_factors(patches, V))
         del V
         t["form_factors"] = t.get("form_factors", 0) + time.perf_counter() - tf
         tn = time.perf_counter()
         near = rad_visibility.near_candidate_pairs(patches)
-        visible = visible_bvh(patches, bvh=bvh)
+        visible = _visible(patches, how, bvh)
         nf = rad_gather.NearField(patches, *near, CELL, visible, fine=rad_gather.fine_patches(patches, *near, CELL))
         F[near] = nf.patch_form_factors()
         t["near_field"] = t.get("near_field", 0) + time.perf_counter() - tn
@@ -475,7 +521,7 @@ def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, th
         patches, _ = rad_subdivision.split(patches, mask)
     t["total"] = time.perf_counter() - t0
     return {"patches": patches, "F": F, "solution": sol, "H": H, "timings": t, "cost": cost,
-            "near": near, "near_evals": nf.evaluations, "visible": visible, "near_field": nf}
+            "near": near, "near_evals": nf.evaluations, "visible": visible, "near_field": nf, "visibility": how[0]}
 
 
 def convergence(F, patches, tol=1e-6):
@@ -670,14 +716,15 @@ def estimate(scene, max_edge):
         warnings.simplefilter("ignore")
         meshes, _ = meshes_from_scene(scene)
     base = scene_patches(meshes)
-    cost = rad_cost.solve_cost(rad_subdivision.planned_patches(base, max_edge))
-    best = rad_cost.smallest_edge_that_fits(base, memory_budget())
+    per = seconds_per_pair(base, max_edge)
+    cost = rad_cost.solve_cost(rad_subdivision.planned_patches(base, max_edge), per)
+    best = rad_cost.smallest_edge_that_fits(base, memory_budget(), seconds_per_pair=per)
     return cost, best
 
 
 def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge=RadiosityOptions.max_edge,
         adaptive=RadiosityOptions.adaptive, samples=RadiosityOptions.samples, compare=RadiosityOptions.compare,
-        tol=RadiosityOptions.tol, chart=True, memory=None):
+        tol=RadiosityOptions.tol, chart=True, memory=None, visibility="auto", reciprocal=True):
     """The whole job of scripts/radiosity.py; returns a core.result.JobResult (reads as the report written to
     ``out``; ``arrays`` holds the solve: patches, F, solution, H, front, H_front and the comparison's arrays).
 
@@ -685,7 +732,8 @@ def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge
     folder is created or anything big is allocated. ``chart=False`` skips the convergence chart (the UI
     passes ``charts.available()``: no matplotlib inside Blender); the report's "chart" is then None, the
     CSV table is written either way. Light maps and vertex colours hold the front side of every face
-    (the side its normal points to, what a light-map bake of it measures).
+    (the side its normal points to, what a light-map bake of it measures). ``visibility`` and ``reciprocal``
+    as in :func:`solve_scene` (the benchmark's before/after).
     """
     check_options(solver, max_edge, adaptive, samples, tol)
     out = check_output_dir(out)
@@ -701,9 +749,10 @@ def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge
                              "(an Emission shader or Principled emission), not lamps; give a mesh an emissive "
                              "material or build the Cornell box")
         base = scene_patches(meshes)
-        rad_cost.check_cost(base, max_edge, memory=memory)
+        rad_cost.check_cost(base, max_edge, memory=memory, seconds_per_pair=seconds_per_pair(base, max_edge, visibility))
         p.step("patches, visibility, form factors, solve")
-        r = solve_scene(base, max_edge, solver, tol, adaptive, memory=memory)
+        r = solve_scene(base, max_edge, solver, tol, adaptive, memory=memory, visibility=visibility,
+                        reciprocal=reciprocal)
         patches, F, sol, H = r["patches"], r["F"], r["solution"], r["H"]
         _finite("the radiosity solution", sol.B)
         tg = time.perf_counter()

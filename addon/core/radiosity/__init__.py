@@ -4,7 +4,7 @@ patches       the Patches list: polygons as quads, area, normal, centroid, back 
 subdivision   splitting to a size, near emitters (graded) and where the solution changes fast
 cost          the patch count, memory and time of a solve, refused before allocating
 form_factors  point-to-polygon (Lambert), patch-to-patch and near-field form factors
-visibility    brute-force numpy visibility rays between patches
+visibility    visibility rays between patches against the scene's faces (clustered), or brute force
 solvers       direct, Jacobi, Gauss-Seidel and progressive solvers of B = E + ρ F B
 atlas         per-vertex values and the light-map atlas
 

@@ -17,9 +17,14 @@ from .subdivision import MAX_LEVELS, planned_patches
 # chunks. Rounded up.
 BYTES_PER_PAIR = 24.0
 OVERHEAD_BYTES = 600e6                  # Blender, numpy and the chunked temporaries
-# Seconds per patch pair (visibility ray + form factor + the three solvers of the convergence chart),
-# measured on the 2-core reference machine (tests/test_radiosity.py states the run it comes from).
-SECONDS_PER_PAIR = 4e-6
+# Seconds per patch pair (visibility + form factor + the three solvers of the convergence chart), measured on
+# the 2-core reference machine by scripts/bench_radiosity.py (docs/envmap-radiosity.md): with the face test
+# (core.radiosity.visibility.visibility_faces) and the visible pairs' form factors once, and with a BVH ray a
+# pair (scenes with more blocking faces than lab.radiosity.MAX_OCCLUDERS). Measured: the solve 0.23 CPU-µs a
+# pair (15,331 patches, 53.6 s including the near field), the convergence chart's progressive solver about
+# 0.8 µs a pair (3,216 patches, 8.5 s); the BVH path 4 µs a pair as before (a ray 4.7 µs on the candidates).
+SECONDS_PER_PAIR = 1e-6
+SECONDS_PER_PAIR_BVH = 4e-6
 # The near field (:class:`core.radiosity.gather.NearField`): element form factors of the near pairs, stored as
 # float32 (4 B each), a visibility ray per receiving texel and source; made in chunks below NEAR_PEAK_BYTES.
 # Measured: 1,190 a patch on the imported Cornell box (1,453 patches, the light's back in 8 x 8 elements), 590 on
@@ -37,19 +42,20 @@ class Cost:
     seconds: float
 
 
-def solve_cost(n):
+def solve_cost(n, seconds_per_pair=None):
     """:class:`Cost` of solving ``n`` patches: N² form factors and visibility, plus the near field's bounded
     work (NEAR_EVALS_PER_PATCH element form factors a patch, kept; NEAR_PEAK_BYTES at most while made)."""
     n = float(n)
+    per = SECONDS_PER_PAIR if seconds_per_pair is None else seconds_per_pair
     return Cost(n, BYTES_PER_PAIR * n * n + OVERHEAD_BYTES + NEAR_PEAK_BYTES + 4 * NEAR_EVALS_PER_PATCH * n,
-                SECONDS_PER_PAIR * n * n + SECONDS_PER_NEAR_EVAL * NEAR_EVALS_PER_PATCH * n)
+                per * n * n + SECONDS_PER_NEAR_EVAL * NEAR_EVALS_PER_PATCH * n)
 
 
-def smallest_edge_that_fits(patches, memory, max_seconds=MAX_SECONDS):
+def smallest_edge_that_fits(patches, memory, max_seconds=MAX_SECONDS, seconds_per_pair=None):
     """The smallest max_edge whose estimated solve fits in ``memory`` bytes and ``max_seconds`` (None when
     even the unsplit faces do not fit)."""
     def fits(e):
-        c = solve_cost(planned_patches(patches, e))
+        c = solve_cost(planned_patches(patches, e), seconds_per_pair)
         return c.bytes <= memory and c.seconds <= max_seconds
     hi = float(longest_edge(patches.corners).max()) * 1.0000001
     if not fits(hi):
@@ -63,22 +69,23 @@ def smallest_edge_that_fits(patches, memory, max_seconds=MAX_SECONDS):
     return hi
 
 
-def check_cost(patches, max_edge, memory=None, max_seconds=MAX_SECONDS, option="--max-edge"):
+def check_cost(patches, max_edge, memory=None, max_seconds=MAX_SECONDS, option="--max-edge", seconds_per_pair=None):
     """Estimate the solve of ``patches`` split to ``max_edge`` (an upper bound: :func:`core.radiosity.subdivision.planned_patches`) and
     refuse (InputError, one line naming the
     limit and the smallest edge that fits) what needs more than ``memory`` bytes (default: the memory
     a job may plan to use, core.budget) or more than ``max_seconds``. Returns the :class:`Cost`."""
     memory = memory_budget() if memory is None else memory
-    cost = solve_cost(planned_patches(patches, max_edge))
+    per = SECONDS_PER_PAIR if seconds_per_pair is None else seconds_per_pair
+    cost = solve_cost(planned_patches(patches, max_edge), per)
     over_mem = memory is not None and cost.bytes > memory
     over_time = max_seconds is not None and cost.seconds > max_seconds
     if not (over_mem or over_time):
         return cost
     mem = memory if memory is not None else float("inf")
     secs = max_seconds if max_seconds is not None else float("inf")
-    best = smallest_edge_that_fits(patches, mem, secs)
+    best = smallest_edge_that_fits(patches, mem, secs, per)
     limits = " and ".join(x for x in (f"{format_bytes(mem)} of usable memory" if memory is not None else "",
-                                      f"{format_seconds(secs)} (at {SECONDS_PER_PAIR * 1e6:g} µs a patch pair)"
+                                      f"{format_seconds(secs)} (at {per * 1e6:g} µs a patch pair)"
                                       if max_seconds is not None else "") if x)
     hint = (f"the smallest edge that fits in {limits} is {best:.2g}" if best is not None
             else f"even the unsplit faces do not fit in {limits}: simplify the scene")

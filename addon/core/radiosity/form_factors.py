@@ -154,6 +154,79 @@ def form_factors(patches, visibility=None, quadrature=1):
     return F
 
 
+def _pair_form_factors(cx, cy, cz, pn, p, n, j):
+    """F(dA_p -> polygon j) for matching rows (polygon corners cx, cy, cz (N, 4) by component, their normals
+    pn; points p and normals n (M, 3); source indices j (M,)) by the rules of :func:`polygon_form_factors`,
+    on component arrays (:func:`lambert_polygon` without its temporaries); pairs whose polygon crosses the
+    point's tangent plane go through :func:`polygon_form_factors` (clipped)."""
+    x = cx[j] - p[:, 0:1]
+    y = cy[j] - p[:, 1:2]
+    z = cz[j] - p[:, 2:3]
+    nx, ny, nz = n[:, 0:1], n[:, 1:2], n[:, 2:3]
+    d = x * nx + y * ny + z * nz
+    facing = -(x[:, 0] * pn[j, 0] + y[:, 0] * pn[j, 1] + z[:, 0] * pn[j, 2]) > 1e-9
+    front = (d > 1e-9).any(axis=1) & facing
+    simple = front & (d >= -1e-9).all(axis=1)
+    inv = 1.0 / np.maximum(np.sqrt(x * x + y * y + z * z), 1e-300)
+    x *= inv
+    y *= inv
+    z *= inv
+    out = np.zeros(len(j))
+    for m in range(4):
+        k = (m + 1) % 4
+        ax, ay, az, bx, by, bz = x[:, m], y[:, m], z[:, m], x[:, k], y[:, k], z[:, k]
+        qx, qy, qz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+        sn = np.sqrt(qx * qx + qy * qy + qz * qz)
+        g = np.arctan2(sn, ax * bx + ay * by + az * bz)
+        proj = qx * nx[:, 0] + qy * ny[:, 0] + qz * nz[:, 0]
+        out += np.where(sn > 1e-12, g * proj / np.maximum(sn, 1e-300), 0.0)
+    out = np.where(simple, np.abs(out) / (2 * np.pi), 0.0)
+    clip = front & ~simple
+    if clip.any():
+        rel = np.stack([cx[j[clip]], cy[j[clip]], cz[j[clip]]], -1) - p[clip][:, None, :]
+        out[clip] = polygon_form_factors(rel, n[clip], pn[j[clip]])
+    return out
+
+
+def visible_form_factors(patches, visibility, reciprocal=True, chunk_pairs=200_000):
+    """:func:`form_factors` (quadrature 1) with boolean ``visibility`` (N, N, symmetric), evaluated only for
+    the visible pairs (the rest are 0 in both: pairs behind each other's plane, occluded, or on one plane).
+
+    ``reciprocal``: each pair once, from the smaller patch's centre s to the larger patch b, and the other way
+    by reciprocity, F_bs = A_s F_sb / A_b: half the work, A_i F_ij = A_j F_ji exactly, and the collocation
+    error of the centre rule O((r_s / d)²) set by the smaller patch instead of O((r_b / d)²) by the larger.
+    Otherwise every visible ordered pair from its receiver's centre, equal to :func:`form_factors`. About
+    ``chunk_pairs`` pairs at a time."""
+    n = len(patches)
+    V = np.asarray(visibility, bool)
+    if V.shape != (n, n):
+        raise InputError(f"visibility must be {n}x{n}, got {V.shape}")
+    F = np.zeros((n, n))
+    _, pn = polygon_area_normal(patches.corners)
+    c, area = patches.corners, patches.area
+    cx, cy, cz = (np.ascontiguousarray(c[..., k]) for k in range(3))
+    per_row = V.sum(axis=1) if not reciprocal else np.array([V[r, r + 1:].sum() for r in range(n)])
+    cum = np.concatenate([[0], np.cumsum(per_row)])
+    s = 0
+    while s < n:
+        e = max(s + 1, int(np.searchsorted(cum, cum[s] + chunk_pairs, side="right")) - 1)
+        i, j = np.nonzero(V[s:e])
+        i += s
+        if reciprocal:
+            up = j > i
+            i, j = i[up], j[up]
+            small = area[i] <= area[j]
+            r, q = np.where(small, i, j), np.where(small, j, i)
+            f = _pair_form_factors(cx, cy, cz, pn, patches.center[r], patches.normal[r], q)
+            F[r, q] = f
+            F[q, r] = f * area[r] / area[q]
+        elif len(i):
+            F[i, j] = _pair_form_factors(cx, cy, cz, pn, patches.center[i], patches.normal[i], j)
+        s = e
+    np.fill_diagonal(F, 0.0)
+    return F
+
+
 # A pair (receiver i, source j) is near when the gap between their bounding spheres is below NEAR_RATIO
 # times i's diameter: there F(dA_x -> P_j) changes over patch i by more than its centre value can stand for
 # (the midpoint rule's relative error grows as (diameter / distance)²; for touching or overlapping patches,

@@ -311,3 +311,53 @@ def test_texel_gather_of_a_closed_room_is_e_over_one_minus_rho_everywhere():
     g = gather.near_field_gather(p, F, B, gather.NearField(p, *near, 4), tol=1e-9)
     assert g.converged and np.allclose(g.B[g.mask], want, rtol=1e-6)
     assert np.allclose(g.H[g.mask], want, rtol=1e-6)                 # H = (B − E) / ρ
+
+
+def _warped_room():
+    """The Cornell box with its right wall warped (one corner 6 mm out of plane, as the published box's red
+    wall): a face the occluders take patch by patch."""
+    meshes = analytic.cornell_box()
+    for m in meshes:
+        if m["name"] == "Right":
+            m["vertices"] = np.array(m["vertices"], float)
+            m["vertices"][np.argmax(m["vertices"].sum(axis=1))] += (0.006, 0, 0)
+    return rad_patches.patches_from_meshes(meshes)
+
+
+@pytest.mark.parametrize("warped", [False, True])
+def test_face_visibility_equals_brute_force_rays_pair_by_pair(warped):
+    base = _warped_room() if warped else rad_patches.patches_from_meshes(analytic.cornell_box())
+    p = rad_subdivision.subdivide_to_size(base, 0.6)
+    occ = visibility.occluders(base, p)
+    # a planar face blocks as one polygon; the warped wall's patches block as their triangles (2 a quad)
+    wall = np.array([p.names[o] == "Right" for o in p.owner])
+    assert len(occ) == len(base) - 1 + (2 * wall.sum() if warped else 1)
+    V = visibility.visibility_faces(p, occ, offset=1e-6, leaf=16)       # small clusters: every classification
+    Vn = visibility.visibility_numpy(p)                                  # rays against every patch triangle
+    assert np.array_equal(V, V.T) and 0 < V.sum() < V.size
+    assert np.array_equal(V, Vn)
+    # the per-point callback (near field, emitter split) says the same on every candidate pair
+    i, j = visibility.candidate_pairs(p)
+    vis = visibility.visible_faces(p, occ, offset=1e-6)(p.center[i], p.normal[i], j)
+    assert np.array_equal(vis > 0.5, V[i, j])
+
+
+def test_visible_pair_form_factors_equal_the_full_computation_and_reciprocity_is_closer():
+    base = rad_patches.patches_from_meshes(analytic.cornell_box())
+    p = rad_subdivision.subdivide_to_size(base, 0.5)
+    p, _ = rad_subdivision.split(p, np.arange(len(p)) % 3 == 0)     # unequal neighbours: reciprocity matters
+    V = visibility.visibility_faces(p, visibility.occluders(base, p))
+    full = form_factors.form_factors(p, V)
+    assert np.array_equal(form_factors.visible_form_factors(p, V, reciprocal=False), full)
+    F = form_factors.visible_form_factors(p, V)
+    a = p.area[:, None]
+    assert np.allclose(F * a, (F * a).T, rtol=1e-12, atol=0)
+    small = a < a.T                                                    # receiver the smaller of the pair
+    assert np.array_equal(F[small & V], full[small & V]) and not F[~V].any()
+    # against the patch-to-patch integral (6 x 6 points over the receiver): closer than every ordered pair
+    # from its receiver's centre, the larger patch's centre rule error replaced by the smaller's (measured RMS
+    # 6.8e-4 against 7.5e-4; the near pairs, which the texel gather replaces, dominate both)
+    ref = form_factors.form_factors(p, V, quadrature=6)
+    err_full, err_rec = np.sqrt(np.mean((full - ref) ** 2)), np.sqrt(np.mean((F - ref) ** 2))
+    assert err_rec < err_full, (err_rec, err_full)
+    assert np.abs(F - ref).max() <= np.abs(full - ref).max()
