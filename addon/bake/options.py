@@ -54,6 +54,8 @@ class BakeOptions(Options):
     overwrite: bool = option(False, "Overwrite", "replace existing output files")
     keep_products: bool = option(True, "Keep Products", "leave the generated 'Lightmap' UV layer / vertex "
                                  "colour attributes on the meshes", cli=False, ui=False)
+    batch: bool = option(True, "Batch", "bake the maps of many objects in one Cycles call (one scene sync) where "
+                         "the result is the same", cli=False, ui=False)
     sizes: dict = None
 
     def check(self):

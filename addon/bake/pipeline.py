@@ -235,29 +235,47 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
                 areas = uvmod.check_coverage(group, layers, size)
                 overlap = uvmod.check_overlap(scene, group, layers, size)
             plan.append((name, group, size, areas, overlap))
-        for name, group, size, areas, overlap in plan:
-            for m in maps:
-                estimate = ""
-                if size:
-                    peak = cost.peak_bytes(size[0], size[1], [m], options.denoise)
-                    estimate = (f" {size[0]}x{size[1]} (about {budget.format_bytes(peak)}, "
-                                f"{cost.seconds(size[0], size[1], [m], _planned_samples(options)):.2g} s)")
-                step(f"{name}: {m}" + (estimate or " (vertices)"))
+        batched, singles = batches(scene, plan, layers, state, options)
+
+        def finish(entry, m, result, t_map):
+            name, group, size, areas, overlap = entry
+            if size is not None:
+                _check_covered(name, group, m, result, layers, areas)
+            if m == "ao":
+                _check_plausible(scene, name, group, result, options)
+            margin = margins.get(group[0].name, int(options.margin))
+            entries = _write(name, group, m, result, out, options, layers, margin, overlap)
+            part = {"objects": {}}
+            for o in group:
+                entries[o.name]["seconds"] = round(result.seconds + time.perf_counter() - t_map, 4)  # files included
+                report["objects"].setdefault(o.name, {})[m] = entries[o.name]
+                part["objects"].setdefault(o.name, {})[m] = entries[o.name]
+            part["seconds"] = time.perf_counter() - t_all
+            _merge_report(report_path, part)      # finished maps are in the report, also if a later one fails
+
+        def announce(entry, m):
+            name, _, size = entry[:3]
+            estimate = ""
+            if size:
+                peak = cost.peak_bytes(size[0], size[1], [m], options.denoise)
+                estimate = (f" {size[0]}x{size[1]} (about {budget.format_bytes(peak)}, "
+                            f"{cost.seconds(size[0], size[1], [m], _planned_samples(options)):.2g} s)")
+            step(f"{name}: {m}" + (estimate or " (vertices)"))
+
+        for m in maps:
+            temporary.assign(objects, m)       # every object shows the same materials to the others' bakes
+            for batch in batched:
+                results = bake_batch(scene, batch, m, options, layers, temporary, state)
+                for entry in batch:
+                    announce(entry, m)
+                    finish(entry, m, results.pop(entry[0]), time.perf_counter())
+            for entry in singles:
+                name, group, size = entry[:3]
+                announce(entry, m)
                 t_map = time.perf_counter()
                 result = bake_map(scene, group, m, options, layers, size, temporary.assign(group, m), state)
-                if size is not None:
-                    _check_covered(name, group, m, result, layers, areas)
-                if m == "ao":
-                    _check_plausible(scene, name, group, result, options)
-                margin = margins.get(group[0].name, int(options.margin))
-                entries = _write(name, group, m, result, out, options, layers, margin, overlap)
-                part = {"objects": {}}
-                for o in group:
-                    entries[o.name]["seconds"] = round(time.perf_counter() - t_map, 4)    # files included
-                    report["objects"].setdefault(o.name, {})[m] = entries[o.name]
-                    part["objects"].setdefault(o.name, {})[m] = entries[o.name]
-                part["seconds"] = time.perf_counter() - t_all
-                _merge_report(report_path, part)      # finished maps are in the report, also if a later one fails
+                result.seconds = 0.0
+                finish(entry, m, result, t_map)
         if options.keep_products:       # products stay only when the whole bake succeeded
             state.keep |= {(o.data.name, uvmod.LIGHTMAP) for o in objects}
             state.keep |= {(o.data.name, ATTRIBUTE[m]) for o in objects for m in maps}
@@ -378,8 +396,8 @@ class TemporaryMaterials:
 
     def __init__(self, state):
         self.state = state
-        self.ao = None
-        self.copies = {}          # original material (or None) -> (copy, image node)
+        self.ao = {}              # group key (None: per-object bakes) -> (material, image node)
+        self.copies = {}          # (original material or None, group key) -> (copy, image node)
 
     def assign(self, group, kind):
         """Put the ``kind`` materials on every slot of ``group``; return their image nodes."""
@@ -396,6 +414,17 @@ class TemporaryMaterials:
                     nodes.append(tex)
         return nodes
 
+    def batch_slots(self, obj, kind, key, image):
+        """The ``kind`` materials of ``obj``'s slots (one for an object without slots) for a batched bake, their
+        image nodes on ``image``: made once per group ``key`` and original material."""
+        originals = [mat for _, mat in self.state.slots[obj.name]] or [None]
+        out = []
+        for orig in originals:
+            mat, tex = self._ao(key) if kind == "ao" else self._irradiance(orig, key)
+            tex.image = image
+            out.append(mat)
+        return out
+
     def _new(self, name):
         return self.state.track(bpy.data.materials, materials.empty_material(name))
 
@@ -405,15 +434,15 @@ class TemporaryMaterials:
         nt.nodes.active = tex
         return tex
 
-    def _ao(self):
-        if self.ao is None:
+    def _ao(self, key=None):
+        if key not in self.ao:
             mat = materials.white_lambert("IL bake AO", self._new("IL bake AO"))
-            self.ao = (mat, self._image_node(mat.node_tree))
-        return self.ao
+            self.ao[key] = (mat, self._image_node(mat.node_tree))
+        return self.ao[key]
 
-    def _irradiance(self, orig):
-        if orig in self.copies:
-            return self.copies[orig]
+    def _irradiance(self, orig, key=None):
+        if (orig, key) in self.copies:
+            return self.copies[(orig, key)]
         if orig is None or (not compat.IS_5 and not orig.use_nodes) or orig.node_tree is None:
             # Cycles shades such a slot with a plain diffuse of the viewport colour (grey without material)
             mat = self._new(f"IL bake {orig.name if orig else 'default'}")
@@ -447,8 +476,8 @@ class TemporaryMaterials:
             nt.links.new(surface, mix.inputs[1])
         nt.links.new(materials.white_diffuse_node(nt).outputs["BSDF"], mix.inputs[2])
         nt.links.new(mix.outputs["Shader"], out.inputs["Surface"])
-        self.copies[orig] = (mat, self._image_node(nt))
-        return self.copies[orig]
+        self.copies[(orig, key)] = (mat, self._image_node(nt))
+        return self.copies[(orig, key)]
 
 
 def bake_map(scene, group, kind, options, layers, size, image_nodes, state):
@@ -492,30 +521,45 @@ def bake_map(scene, group, kind, options, layers, size, image_nodes, state):
     pilot = 0
     if options.target_error is not None:
         values, mask, n, pilot, err = _bake_to_error(once, options)
-        estimate = "pilots"
-    elif kind == "irradiance" and options.samples >= 2:
-        n = int(options.samples)
-        h = n // 2
-        (a, mask), (b, _) = once(h, options.seed), once(n - h, options.seed + 1)
-        var = lightmap.per_sample_variance_pair(_flat(a), _flat(b), h, n - h, _flat_mask(mask, a))
-        values, err, estimate = _combine([a, b], [h, n - h]), lightmap.expected_error(var, n), "halves"
+        estimate = ESTIMATES["pilots"]
     else:
-        n = int(options.samples)
-        values, mask = once(n, options.seed)
-        if kind == "ao":
-            var = lightmap.per_sample_variance_ao(_flat(values), _flat_mask(mask, values))
-            err, estimate = lightmap.expected_error(var, n), "binomial"
-        else:
-            err, estimate = float("nan"), "none"
-    estimate = ESTIMATES[estimate]
+        values, mask, n, err, estimate = _estimated(kind, options, [once(m, seed) for m, seed in _calls(kind, options)])
     if image is not None:
         bpy.data.images.remove(image)           # one map's image at a time (memory, cost.BYTES_PER_TEXEL)
     if image_target and options.denoise:
-        filled, _ = lightmap.nearest_fill(values, mask)
-        from .denoise import denoise
-        values = np.where((mask[..., None] if values.ndim == 3 else mask), denoise(filled), 0.0).astype(np.float32)
-        estimate += DENOISED
+        values, estimate = _denoised(values, mask), estimate + DENOISED
     return BakeResult(values, mask, n, time.perf_counter() - t0, err, estimate, pilot, timer["cycles"])
+
+
+def _calls(kind, options):
+    """[(samples, seed)] of the Cycles calls of a fixed-sample map: two independent halves for irradiance
+    (its error is measured from their difference), one call otherwise."""
+    n = int(options.samples)
+    if kind == "irradiance" and n >= 2:
+        return [(n // 2, int(options.seed)), (n - n // 2, int(options.seed) + 1)]
+    return [(n, int(options.seed))]
+
+
+def _estimated(kind, options, parts):
+    """(values, mask, samples, estimated error, estimate) of a fixed-sample map from its calls' (values, mask)
+    (:func:`_calls`): irradiance halves combined, error from their difference; AO the binomial bound."""
+    n = int(options.samples)
+    if len(parts) == 2:
+        h = n // 2
+        (a, mask), (b, _) = parts
+        var = lightmap.per_sample_variance_pair(_flat(a), _flat(b), h, n - h, _flat_mask(mask, a))
+        return _combine([a, b], [h, n - h]), mask, n, lightmap.expected_error(var, n), ESTIMATES["halves"]
+    values, mask = parts[0]
+    if kind == "ao":
+        var = lightmap.per_sample_variance_ao(_flat(values), _flat_mask(mask, values))
+        return values, mask, n, lightmap.expected_error(var, n), ESTIMATES["binomial"]
+    return values, mask, n, float("nan"), ESTIMATES["none"]
+
+
+def _denoised(values, mask):
+    filled, _ = lightmap.nearest_fill(values, mask)
+    from .denoise import denoise
+    return np.where((mask[..., None] if values.ndim == 3 else mask), denoise(filled), 0.0).astype(np.float32)
 
 
 def _bake_to_error(once, options):
@@ -586,7 +630,27 @@ def _set_bounces(cy, kind, options):
 
 
 def _bake_once(scene, group, kind, samples, seed, image, uv_name, options):
-    """One Cycles bake call; returns (values, mask, seconds inside the call) with E already multiplied by π.
+    """One Cycles bake call; returns (values, mask, seconds inside the call) with E already multiplied by π."""
+    if image is not None:
+        image.pixels.foreach_set(np.zeros(image.size[0] * image.size[1] * 4, np.float32))
+    seconds = _call_bake(scene, group, kind, samples, seed, uv_name if image is not None else None, options)
+    if image is not None:
+        values, mask = _read_image(image, kind)
+        return values, mask, seconds
+    scale = np.pi if kind == "irradiance" else 1.0
+    values = {}
+    for o in group:
+        attr = o.data.color_attributes[ATTRIBUTE[kind]]
+        c = np.zeros(len(attr.data) * 4, np.float32)
+        attr.data.foreach_get("color", c)
+        c = c.reshape(-1, 4)
+        values[o.name] = c[:, 0].copy() if kind == "ao" else c[:, :3] * scale
+    return values, None, seconds
+
+
+def _call_bake(scene, group, kind, samples, seed, uv_name, options):
+    """One ``object.bake`` of the objects ``group`` (into their active image nodes with ``uv_name``, else into
+    their active colour attributes); returns the seconds inside the call.
 
     Cycles: ``samples`` and ``seed``, no denoising, adaptive sampling or sample clamping (Blender clamps
     indirect light at 10 by default: a biased E where light is trapped, e.g. under a lamp near a ceiling)."""
@@ -598,11 +662,9 @@ def _bake_once(scene, group, kind, samples, seed, image, uv_name, options):
         if o.select_get(view_layer=vl) != want:
             o.select_set(want, view_layer=vl)
     vl.objects.active = group[0]
-    if image is not None:
-        image.pixels.foreach_set(np.zeros(image.size[0] * image.size[1] * 4, np.float32))
     kwargs = dict(margin=0, use_clear=False, use_selected_to_active=False, save_mode="INTERNAL",
-                  target="IMAGE_TEXTURES" if image is not None else "VERTEX_COLORS")
-    if image is not None:
+                  target="IMAGE_TEXTURES" if uv_name is not None else "VERTEX_COLORS")
+    if uv_name is not None:
         kwargs["uv_layer"] = uv_name
     if kind == "ao":
         kwargs["type"] = "AO"
@@ -620,23 +682,239 @@ def _bake_once(scene, group, kind, samples, seed, image, uv_name, options):
     seconds = time.perf_counter() - t
     if "FINISHED" not in result:
         raise ILError(f"Cycles bake did not finish ({', '.join(result)})")
-    scale = np.pi if kind == "irradiance" else 1.0
-    if image is not None:
-        w, h = image.size
-        px = np.zeros(w * h * 4, np.float32)
-        image.pixels.foreach_get(px)
-        px = px.reshape(h, w, 4)
-        mask = px[..., 3] > 0.5
-        values = px[..., 0] if kind == "ao" else px[..., :3] * scale
-        return values.astype(np.float32), mask, seconds
-    values = {}
-    for o in group:
-        attr = o.data.color_attributes[ATTRIBUTE[kind]]
-        c = np.zeros(len(attr.data) * 4, np.float32)
-        attr.data.foreach_get("color", c)
-        c = c.reshape(-1, 4)
-        values[o.name] = c[:, 0].copy() if kind == "ao" else c[:, :3] * scale
-    return values, None, seconds
+    return seconds
+
+
+def _read_image(image, kind):
+    """(values, covered mask) of a baked image (E multiplied by π)."""
+    w, h = image.size
+    px = np.zeros(w * h * 4, np.float32)
+    image.pixels.foreach_get(px)
+    px = px.reshape(h, w, 4)
+    mask = px[..., 3] > 0.5
+    values = px[..., 0].copy() if kind == "ao" else px[..., :3] * (np.pi if kind == "irradiance" else 1.0)
+    return values.astype(np.float32), mask
+
+
+# ------------------------------------------------------------------ batched bakes (one scene sync per call)
+
+BATCH_TEXELS = 1 << 22
+"""Most map texels one batched Cycles call bakes: its images live together (4 Mi texels: 64 MiB of float RGBA
+images, as much again read back), so a level never holds more than that beyond one map's arrays."""
+PROXY = "IL bake batch"
+PROXY_UV = "IL bake UV"
+_RAY_VISIBILITY = ("visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
+                   "visible_volume_scatter", "visible_shadow")
+
+
+def _batch_refusal(obj, layers, state, depsgraph, instanced):
+    """Why ``obj`` is baked by its own Cycles call instead of in a batch (:func:`bake_batch`), or None.
+
+    A batch stands a joined copy of the objects' evaluated meshes in for them, so an object is batched only
+    when that copy is the same surface to Cycles: positive scale (a mirrored object's winding would flip),
+    visible to every ray kind, no holdout or shadow catcher, no custom normals (they do not survive the join),
+    its light-map layer in the evaluated mesh, not hidden for render, and not part of a collection another
+    object instances (hiding it would hide the instances too)."""
+    if obj in state.render_hidden:
+        return "hidden for render"
+    if obj.matrix_world.determinant() <= 0:
+        return "negative scale"
+    if not all(getattr(obj, a, True) for a in _RAY_VISIBILITY) or obj.is_holdout or obj.is_shadow_catcher:
+        return "ray visibility"
+    if obj.name in instanced:
+        return "instanced"
+    me = obj.evaluated_get(depsgraph).data
+    if getattr(me, "has_custom_normals", False):
+        return "custom normals"
+    if layers.get(obj.name) not in me.uv_layers:
+        return "light-map layer not in the evaluated mesh"
+    return None
+
+
+def _instanced(scene):
+    """Names of the objects in a collection some object of the scene instances."""
+    names = set()
+    for o in scene.objects:
+        if o.instance_type == "COLLECTION" and o.instance_collection is not None:
+            names.update(x.name for x in o.instance_collection.all_objects)
+    return names
+
+
+def batches(scene, plan, layers, state, options):
+    """Split the image-target ``plan`` [(name, group, size, ...)] into (batches, singles): batches are lists of
+    plan entries whose maps share one Cycles call (at most BATCH_TEXELS texels each, at least one entry),
+    singles are baked by their own calls (target error: each map chooses its own samples; vertex target;
+    objects :func:`_batch_refusal` refuses)."""
+    if options.target != "image" or options.target_error is not None or not options.batch:
+        return [], list(plan)
+    scene.view_layers[0].update()
+    depsgraph = scene.view_layers[0].depsgraph
+    instanced = _instanced(scene)
+    batched, singles = [], []
+    for entry in plan:
+        group = entry[1]
+        if any(_batch_refusal(o, layers, state, depsgraph, instanced) for o in group):
+            singles.append(entry)
+        else:
+            batched.append(entry)
+    if len(batched) < 2:
+        return [], list(plan)
+    out, texels = [[]], 0
+    for entry in batched:
+        t = entry[2][0] * entry[2][1]
+        if out[-1] and texels + t > BATCH_TEXELS:
+            out.append([])
+            texels = 0
+        out[-1].append(entry)
+        texels += t
+    return out, singles
+
+
+class _Proxy:
+    """A temporary object whose mesh joins the batch's evaluated meshes in world space (modifiers applied),
+    one UV layer (each object's light-map layer) and one material slot per object slot, whose material's
+    active image node is that object's group image; the objects themselves are hidden for render while it
+    stands in for them. Cycles bakes every material's image in one call (one scene sync)."""
+
+    def __init__(self, scene, batch, kind, layers, temporary, images, state):
+        self.scene, self.batch, self.kind, self.layers = scene, batch, kind, layers
+        self.temporary, self.images, self.state = temporary, images, state
+        self.obj, self.hidden = None, []
+
+    def __enter__(self):
+        import bmesh
+        self.scene.view_layers[0].update()       # the light-map UVs written since the last evaluation
+        depsgraph = self.scene.view_layers[0].depsgraph
+        bm = bmesh.new()
+        materials_ = []
+        try:
+            for name, group, *_ in self.batch:
+                for o in group:
+                    me = bpy.data.meshes.new_from_object(o.evaluated_get(depsgraph), preserve_all_data_layers=True,
+                                                         depsgraph=depsgraph)
+                    try:
+                        tri = _triangulated(me, self.layers[o.name], o.matrix_world)
+                    finally:
+                        bpy.data.meshes.remove(me)
+                    try:
+                        slots = self.temporary.batch_slots(o, self.kind, name, self.images[name])
+                        index = np.zeros(len(tri.polygons), np.int32)
+                        tri.polygons.foreach_get("material_index", index)
+                        tri.polygons.foreach_set("material_index", len(materials_) + np.clip(index, 0, len(slots) - 1))
+                        materials_ += slots
+                        bm.from_mesh(tri)
+                    finally:
+                        bpy.data.meshes.remove(tri)
+            mesh = self.state.track(bpy.data.meshes, bpy.data.meshes.new(PROXY))
+            bm.to_mesh(mesh)
+        finally:
+            bm.free()
+        for mat in materials_:
+            mesh.materials.append(mat)
+        self.obj = self.state.track(bpy.data.objects, bpy.data.objects.new(PROXY, mesh))
+        self.scene.collection.objects.link(self.obj)
+        for _, group, *_ in self.batch:
+            for o in group:
+                if not o.hide_render:
+                    o.hide_render = True
+                    self.hidden.append(o)
+        return self
+
+    def __exit__(self, *exc):
+        for o in self.hidden:
+            o.hide_render = False
+        if self.obj is not None:
+            mesh = self.obj.data
+            bpy.data.objects.remove(self.obj)
+            bpy.data.meshes.remove(mesh)
+            self.scene.view_layers[0].update()
+        return False
+
+
+def _triangulated(me, layer, matrix):
+    """A mesh of ``me``'s loop triangles (the triangles Blender bakes, chosen in object space) in world space
+    (``matrix``): UVs of ``layer`` as PROXY_UV, material indices, flat faces and sharp edges kept."""
+    me.calc_loop_triangles()
+    t = len(me.loop_triangles)
+    tv = np.zeros(t * 3, np.int64)
+    tl = np.zeros(t * 3, np.int64)
+    tp = np.zeros(t, np.int64)
+    me.loop_triangles.foreach_get("vertices", tv)
+    me.loop_triangles.foreach_get("loops", tl)
+    me.loop_triangles.foreach_get("polygon_index", tp)
+    co = np.zeros(len(me.vertices) * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    uv = np.zeros(len(me.loops) * 2, np.float32)
+    me.uv_layers[layer].data.foreach_get("uv", uv)
+    mat = np.zeros(len(me.polygons), np.int32)
+    me.polygons.foreach_get("material_index", mat)
+    smooth = np.zeros(len(me.polygons), bool)
+    me.polygons.foreach_get("use_smooth", smooth)
+    ev = np.zeros(len(me.edges) * 2, np.int64)
+    me.edges.foreach_get("vertices", ev)
+    sharp = np.zeros(len(me.edges), bool)
+    me.edges.foreach_get("use_edge_sharp", sharp)
+    out = bpy.data.meshes.new("IL bake batch part")
+    out.vertices.add(len(me.vertices))
+    out.vertices.foreach_set("co", co)
+    out.loops.add(3 * t)
+    out.loops.foreach_set("vertex_index", tv)
+    out.polygons.add(t)
+    out.polygons.foreach_set("loop_start", np.arange(0, 3 * t, 3))
+    out.update(calc_edges=True)
+    out.polygons.foreach_set("material_index", mat[tp])
+    out.polygons.foreach_set("use_smooth", smooth[tp])
+    layer_out = out.uv_layers.new(name=PROXY_UV, do_init=False)
+    layer_out.data.foreach_set("uv", uv.reshape(-1, 2)[tl].ravel())
+    if sharp.any():
+        key = lambda e: np.minimum(e[:, 0], e[:, 1]) * (len(co) + 1) + np.maximum(e[:, 0], e[:, 1])
+        sharp_keys = set(key(ev.reshape(-1, 2)[sharp]).tolist())
+        new = np.zeros(len(out.edges) * 2, np.int64)
+        out.edges.foreach_get("vertices", new)
+        out.edges.foreach_set("use_edge_sharp", np.isin(key(new.reshape(-1, 2)), list(sharp_keys)))
+    out.transform(matrix)
+    out.update()
+    return out
+
+
+def bake_batch(scene, batch, kind, options, layers, temporary, state):
+    """Bake map ``kind`` of every group of ``batch`` (plan entries (name, group, size, ...)) in the Cycles calls
+    of one map (:func:`_calls`) through a :class:`_Proxy`; return ``{name: BakeResult}``.
+
+    Same texels, samples and seeds as the groups' own calls: Cycles seeds a bake sample by its pixel in its
+    image, so each image comes out as its own call makes it (tests/test_bake_level.py). The call's seconds
+    are shared among the groups by texels."""
+    t0 = time.perf_counter()
+    for o in state.render_hidden:               # hidden for render: seen by Cycles only for its own map
+        if not o.hide_render:
+            o.hide_render = True
+    images = {name: state.track(bpy.data.images, bpy.data.images.new(f"IL {kind} {name}", size[0], size[1],
+                                                                     float_buffer=True, alpha=True))
+              for name, _, size, *_ in batch}
+    parts = {name: [] for name in images}
+    cycles = 0.0
+    try:
+        with _Proxy(scene, batch, kind, layers, temporary, images, state) as proxy:
+            for samples, seed in _calls(kind, options):
+                for image in images.values():
+                    image.pixels.foreach_set(np.zeros(image.size[0] * image.size[1] * 4, np.float32))
+                cycles += _call_bake(scene, [proxy.obj], kind, samples, seed, PROXY_UV, options)
+                for name, image in images.items():
+                    parts[name].append(_read_image(image, kind))
+    finally:
+        for image in images.values():
+            bpy.data.images.remove(image)
+    texels = {name: size[0] * size[1] for name, _, size, *_ in batch}
+    total = sum(texels.values())
+    elapsed = time.perf_counter() - t0
+    results = {}
+    for name in list(parts):
+        values, mask, n, err, estimate = _estimated(kind, options, parts.pop(name))
+        if options.denoise:
+            values, estimate = _denoised(values, mask), estimate + DENOISED
+        share = texels[name] / total
+        results[name] = BakeResult(values, mask, n, elapsed * share, err, estimate, 0, cycles * share)
+    return results
 
 
 # ------------------------------------------------------------------ files
