@@ -85,3 +85,84 @@ def test_irradiance_does_not_depend_on_bake_order(tmp_path):
         a = exr.read_exr(str(tmp_path / "fwd" / f"{o.name}_irradiance.exr"))[0]
         b = exr.read_exr(str(tmp_path / "rev" / f"{o.name}_irradiance.exr"))[0]
         assert all(np.array_equal(a[c], b[c]) for c in "RGBA"), o.name
+
+
+def test_an_interrupted_bake_resumes_and_a_moved_object_alone_is_baked_again(tmp_path):
+    """Ctrl-C after two maps, then the same bake with Overwrite bakes only the maps that were missing (the finished
+    ones keep their files, byte for byte); moving one object re-bakes that object's maps only (the hash covers the
+    object, its materials, the lights and the options, not the other objects); Force bakes everything."""
+    objects = small_level()[:4]
+    out = tmp_path / "maps"
+    opts = BakeOptions(texel_density=8, samples=4, bounces=1)
+    steps = []
+
+    def stop_after_two(message):
+        steps.append(message)
+        if len([s for s in steps if ": ao" in s or ": irradiance" in s]) == 3:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        bake_lightmaps(objects, ["ao", "irradiance"], str(out), opts, on_step=stop_after_two)
+    done = sorted(p.name for p in out.glob("*.exr"))
+    assert len(done) == 2                                    # the third map was announced, not written
+    before = {name: (out / name).read_bytes() for name in done}
+    again = bake_lightmaps(objects, ["ao", "irradiance"], str(out), opts.replace(overwrite=True))
+    baked = {(o, m) for o, maps in again["objects"].items() for m in maps}
+    skipped = {(o, m) for o, maps in again["unchanged"].items() for m in maps}
+    assert len(baked) == 6 and len(skipped) == 2 and not baked & skipped
+    assert {f"{o}_{m}.exr" for o, m in skipped} == set(done)
+    assert all((out / name).read_bytes() == data for name, data in before.items())
+    assert len(list(out.glob("*.exr"))) == 8
+    assert "unchanged (skipped, inputs as baked) 2 map(s)" in again.summary
+    objects[3].location.x += 0.25
+    third = bake_lightmaps(objects, ["ao", "irradiance"], str(out), opts.replace(overwrite=True))
+    assert set(third["objects"]) == {objects[3].name} and len(third["unchanged"]) == 3
+    fourth = bake_lightmaps(objects, ["ao", "irradiance"], str(out), opts.replace(force=True))
+    assert len(fourth["objects"]) == 4 and not fourth["unchanged"]
+    bpy.data.lights[0].energy *= 2                            # lights change irradiance, not AO
+    fifth = bake_lightmaps(objects, ["ao", "irradiance"], str(out), opts.replace(overwrite=True))
+    assert {m for maps in fifth["objects"].values() for m in maps} == {"irradiance"}
+    assert all(maps == ["ao"] for maps in fifth["unchanged"].values()) and len(fifth["unchanged"]) == 4
+
+
+def test_two_shards_merged_give_the_files_of_one_run(tmp_path):
+    """Shards 1/2 and 2/2 bake disjoint shares (balanced by texels: the floor alone against the props) whose files
+    are those of one run with the same seeds (AO bit for bit, irradiance within float rounding: the objects of the
+    other shard are seen as themselves instead of the batch's world-space copy), and --merge joins the parts."""
+    objects = small_level()[:5]
+    opts = BakeOptions(texel_density=8, samples=4, bounces=1, keep_products=False)
+    one = bake_lightmaps(objects, ["ao", "irradiance"], str(tmp_path / "one"), opts)
+    parts = [bake_lightmaps(objects, ["ao", "irradiance"], str(tmp_path / "sharded"), opts.replace(shard=f"{k}/2"))
+             for k in (1, 2)]
+    names = [set(p["objects"]) for p in parts]
+    assert names[0] and names[1] and not names[0] & names[1] and names[0] | names[1] == set(one["objects"])
+    assert names[0] == {"Floor"}                              # 8² × 36 m² of floor against 5 small props
+    assert not (tmp_path / "sharded" / "bake_report.json").exists()
+    merged = pipeline.merge_reports(str(tmp_path / "sharded"))
+    assert set(merged["objects"]) == set(one["objects"]) and len(merged["shards"]) == 2
+    a, b = maps(tmp_path / "one", objects, ["ao", "irradiance"]), maps(tmp_path / "sharded", objects,
+                                                                         ["ao", "irradiance"])
+    for key, x in a.items():
+        y = b[key]
+        mask = x["A"] > 0.5
+        assert np.array_equal(mask, y["A"] > 0.5), key
+        if key[1] == "ao":
+            assert np.array_equal(x["Y"], y["Y"]), key
+        else:
+            assert abs(x["R"][mask].mean() - y["R"][mask].mean()) <= 1e-4 * x["R"][mask].mean(), key
+            assert np.all(np.abs(x["R"] - y["R"])[mask] <= 1e-2 * np.maximum(x["R"][mask], 1e-3)), key
+
+
+def test_script_jobs_run_shards_and_merge(tmp_path, script):
+    small_level()[:3]
+    blend = tmp_path / "level.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    out = tmp_path / "maps"
+    r = script("bake.py", blend, "--objects", "Floor", "Sphere", "Suzanne", "--maps", "ao", "--out", out,
+               "--texel-density", "6", "--samples", "2", "--jobs", "2")
+    assert r.returncode == 0, r.stderr
+    report = __import__("json").loads((out / "bake_report.json").read_text())
+    assert set(report["objects"]) == {"Floor", "Sphere", "Suzanne"} and len(report["shards"]) == 2
+    assert sorted(p.name for p in out.glob("*.exr")) == ["Floor_ao.exr", "Sphere_ao.exr", "Suzanne_ao.exr"]
+    r = script("bake.py", "--merge", tmp_path / "nothing")
+    assert r.returncode == 2 and "no shard reports" in r.stderr

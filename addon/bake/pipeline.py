@@ -1,6 +1,7 @@
 """The light-map pipeline: validate, UVs, temporary materials (white at the baked point), Cycles bakes, files,
 restore."""
 import contextlib
+import hashlib
 import json
 import math
 import os
@@ -20,9 +21,10 @@ from ..blender.progress import Progress
 from ..blender import materials, render, scene as sc
 from ..blender.state import SavedState, rna_settings, world_settings
 from . import cost, orientation, uv as uvmod
-from .options import BakeOptions, article, check_out_dir, validate_maps
+from .options import BakeOptions, article, check_out_dir, shard_of, validate_maps
 
 REPORT = "bake_report.json"
+SHARD_REPORT = "bake_report.shard-{k}-of-{n}.json"
 ATLAS = "atlas"
 ATTRIBUTE = {"ao": "IL AO", "irradiance": "IL Irradiance"}
 QUANTITY = {"ao": ("ambient occlusion k_A (1 = open)", "1"), "irradiance": ("irradiance E", "W/m^2")}
@@ -151,7 +153,7 @@ def validate(scene, objects, maps, out, options):
                 raise InputError(refusal)
     out = check_out_dir(out)
     if not options.overwrite:
-        for path in output_files(objects, maps, out, options):
+        for path in output_files(shard(objects, options)[0] if options.shard else objects, maps, out, options):
             if os.path.exists(path):
                 raise InputError(f"{path} exists: turn on Overwrite (--overwrite) to replace it")
     return objects, maps, out, skipped, flips
@@ -177,6 +179,133 @@ def output_files(objects, maps, out, options):
             else:
                 files.append(os.path.join(out, f"{name}_{m}_vertex.exr"))
     return files
+
+
+# ------------------------------------------------------------------ resume: what determines a map
+
+HASH_KEY = "il:input_hash"
+
+
+def _rna_digest(h, struct):
+    """A modifier's type and every setting (objects and node groups it uses by name, a node group's tree)."""
+    h.update(struct.bl_rna.identifier.encode())
+    for prop in struct.bl_rna.properties:
+        if prop.identifier in ("rna_type", "name", "is_override_data_editable", "show_expanded", "is_active",
+                               "show_viewport", "show_in_editmode", "show_on_cage", "persistent_uid"):
+            continue
+        value = getattr(struct, prop.identifier, None)
+        if hasattr(value, "name") and hasattr(value, "bl_rna"):
+            h.update(f"{prop.identifier}={value.name}".encode())
+            if isinstance(value, bpy.types.NodeTree):
+                _node_tree_digest(h, value)
+        elif isinstance(value, (int, float, str, bool)) or value is None:
+            h.update(f"{prop.identifier}={value!r}".encode())
+        elif hasattr(value, "__len__") and not hasattr(value, "bl_rna"):
+            try:
+                h.update(f"{prop.identifier}={tuple(value)!r}".encode())
+            except TypeError:
+                pass
+_HASHED_OPTIONS = ("resolution", "texel_density", "max_resolution", "samples", "target_error", "pilot_samples",
+                   "max_samples", "ao_distance", "margin", "denoise", "uv_layer", "target", "atlas", "seed")
+
+
+def _node_tree_digest(h, tree):
+    """Node types, their unlinked input values and the links of a node tree (what shades, not where nodes sit)."""
+    if tree is None:
+        h.update(b"-")
+        return
+    for n in sorted(tree.nodes, key=lambda n: n.name):
+        h.update(f"{n.name}:{n.bl_idname}".encode())
+        if getattr(n, "image", None) is not None:
+            h.update(n.image.name.encode())
+        for sock in n.inputs:
+            value = getattr(sock, "default_value", None)
+            if value is not None and not sock.is_linked:
+                h.update(repr(tuple(value) if hasattr(value, "__len__") else value).encode())
+    for link in tree.links:
+        h.update(f"{link.from_node.name}.{link.from_socket.identifier}>{link.to_node.name}.{link.to_socket.identifier}"
+                 .encode())
+
+
+def lighting_digest(scene):
+    """Digest of what lights the scene: every renderable light (type, colour, power, size, transform) and the world's
+    node tree."""
+    h = hashlib.blake2b(digest_size=16)
+    for o in sorted(scene.objects, key=lambda o: o.name):
+        if o.type == "LIGHT" and not o.hide_render:
+            d = o.data
+            h.update(f"{o.name}:{d.type}:{tuple(d.color)}:{d.energy}:{getattr(d, 'shadow_soft_size', 0)}:"
+                     f"{getattr(d, 'angle', 0)}:{getattr(d, 'spot_size', 0)}:{getattr(d, 'size', 0)}".encode())
+            h.update(np.array(o.matrix_world, np.float64).tobytes())
+            _node_tree_digest(h, d.node_tree if getattr(d, "use_nodes", False) else None)
+    world = scene.world
+    h.update(b"world" if world is not None else b"no world")
+    if world is not None:
+        _node_tree_digest(h, world.node_tree)
+    return h.hexdigest()
+
+
+def input_hash(scene, group, kind, options, lighting):
+    """Hash of what determines map ``kind`` of ``group``: each object's evaluated mesh, as its base mesh (positions
+    and triangles, exact), its modifiers' settings and the evaluated counts (the evaluated positions themselves
+    change in their last bit when a UV layer is added under a Subdivision; the UVs of ``options.uv_layer`` when
+    given), its transform and its materials' node trees, the
+    lights and world (``lighting``, :func:`lighting_digest`; irradiance only) and the options that change the map.
+    Other objects are not in it: moving an occluder leaves its neighbours' maps as they are (``force`` bakes them)."""
+    h = hashlib.blake2b(digest_size=16)
+    h.update(f"{kind}:{bpy.app.version_string}".encode())
+    for name in _HASHED_OPTIONS:
+        h.update(f"{name}={getattr(options, name)!r};".encode())
+    if kind != "ao":
+        h.update(f"bounces={options.bounces};{lighting}".encode())
+    depsgraph = scene.view_layers[0].depsgraph
+    for o in group:
+        h.update(o.name.encode())
+        if options.sizes and o.name in options.sizes:
+            h.update(repr(tuple(options.sizes[o.name])).encode())
+        h.update(np.array(o.matrix_world, np.float64).tobytes())
+        me = o.data
+        co = np.zeros(len(me.vertices) * 3, np.float32)
+        me.vertices.foreach_get("co", co)
+        me.calc_loop_triangles()
+        tris = np.zeros(len(me.loop_triangles) * 3, np.int32)
+        me.loop_triangles.foreach_get("vertices", tris)
+        h.update(co.tobytes())
+        h.update(tris.tobytes())
+        for mod in o.modifiers:
+            if mod.show_render:
+                _rna_digest(h, mod)
+        ev = o.evaluated_get(depsgraph).data
+        h.update(f"{len(ev.vertices)}:{len(ev.polygons)}".encode())
+        if options.uv_layer and options.uv_layer in me.uv_layers:
+            uv = np.zeros(len(me.loops) * 2, np.float32)
+            me.uv_layers[options.uv_layer].data.foreach_get("uv", uv)
+            h.update(uv.tobytes())
+        for slot in o.material_slots:
+            mat = slot.material
+            h.update((mat.name if mat else "-").encode())
+            if kind != "ao" and mat is not None:
+                h.update(repr(tuple(mat.diffuse_color)).encode())
+                _node_tree_digest(h, mat.node_tree)
+    return h.hexdigest()
+
+
+def stored_hash(path):
+    """The input hash in the header of a map file this pipeline wrote, or None."""
+    if not os.path.exists(path):
+        return None
+    try:
+        _, header = exr.read_exr(path)
+    except (OSError, RuntimeError, ValueError):
+        return None
+    value = header.get(HASH_KEY)
+    return value.decode() if isinstance(value, bytes) else value
+
+
+def _map_file(name, kind, out, options, group):
+    if options.target == "image":
+        return os.path.join(out, f"{name}_{kind}.exr")
+    return os.path.join(out, f"{group[0].name}_{kind}_vertex.exr")
 
 
 # ------------------------------------------------------------------ public entry point
@@ -206,18 +335,36 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     if options.denoise and options.target != "image":
         errors.warn("denoise ignored: the denoiser works on image maps, not on vertex colours")
     t_all = time.perf_counter()
+    everyone = list(objects)                   # show their bake materials to the others' bakes, baked or not
+    report_name = REPORT
+    if options.shard:
+        objects, report_name = shard(objects, options)
     groups = [(ATLAS, objects)] if (options.atlas and options.target == "image") else [(o.name, [o]) for o in objects]
-    steps = (1 if options.target == "image" else 0) + len(groups) * len(maps)
-    report = {"objects": {}, "skipped": dict(skipped)}
-    report_path = os.path.join(out, REPORT)
-    with Progress("bake", steps) as progress, SavedState(scene, objects, _settings(scene)) as state:
+    lighting = lighting_digest(scene)
+    digests = {(name, m): input_hash(scene, group, m, options, lighting) for name, group in groups for m in maps}
+    unchanged = {}
+    if options.overwrite and not options.force:
+        for name, group in groups:
+            for m in maps:
+                if stored_hash(_map_file(name, m, out, options, group)) == digests[(name, m)]:
+                    unchanged.setdefault(name, []).append(m)
+    groups = [(name, group) for name, group in groups if len(unchanged.get(name, ())) < len(maps)]
+    objects = [o for _, group in groups for o in group]
+    steps = (1 if options.target == "image" and groups else 0) + sum(len(maps) - len(unchanged.get(n, ()))
+                                                                        for n, _ in groups)
+    report = {"objects": {}, "skipped": dict(skipped), "unchanged": unchanged}
+    report_path = os.path.join(out, report_name)
+    if not groups:
+        report["seconds"] = time.perf_counter() - t_all
+        return JobResult(report, report_path, summary(report))
+    with Progress("bake", steps) as progress, SavedState(scene, everyone, _settings(scene)) as state:
         def step(message):
             progress.step(message)
             if on_step:
                 on_step(message)
 
-        _show(objects, state)
-        _flip_inside_out(scene, objects, flips, state)
+        _show(everyone, state)
+        _flip_inside_out(scene, everyone, flips, state)
         _setup_render(scene, options, state)
         layers, sides, margins = {}, {}, {}
         temporary = TemporaryMaterials(state)
@@ -244,7 +391,7 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
             if m == "ao":
                 _check_plausible(scene, name, group, result, options)
             margin = margins.get(group[0].name, int(options.margin))
-            entries = _write(name, group, m, result, out, options, layers, margin, overlap)
+            entries = _write(name, group, m, result, out, options, layers, margin, overlap, digests[(name, m)])
             part = {"objects": {}}
             for o in group:
                 entries[o.name]["seconds"] = round(result.seconds + time.perf_counter() - t_map, 4)  # files included
@@ -263,13 +410,18 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
             step(f"{name}: {m}" + (estimate or " (vertices)"))
 
         for m in maps:
-            temporary.assign(objects, m)       # every object shows the same materials to the others' bakes
+            temporary.assign(everyone, m)      # every object shows the same materials to the others' bakes
             for batch in batched:
+                batch = [entry for entry in batch if m not in unchanged.get(entry[0], ())]
+                if not batch:
+                    continue
                 results = bake_batch(scene, batch, m, options, layers, temporary, state)
                 for entry in batch:
                     announce(entry, m)
                     finish(entry, m, results.pop(entry[0]), time.perf_counter())
             for entry in singles:
+                if m in unchanged.get(entry[0], ()):
+                    continue
                 name, group, size = entry[:3]
                 announce(entry, m)
                 t_map = time.perf_counter()
@@ -283,10 +435,68 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     return JobResult(report, report_path, summary(report))
 
 
+def estimated_texels(obj, options):
+    """Texels of ``obj``'s map before its UVs exist: its fixed size, else T² × world area / 0.6 (a typical chart
+    coverage), else one; what shards balance."""
+    if options.sizes and obj.name in options.sizes:
+        w, h = options.sizes[obj.name]
+        return int(w) * int(h)
+    if options.texel_density is None:
+        return int(options.resolution) ** 2 if options.target == "image" else len(obj.data.vertices)
+    return float(options.texel_density) ** 2 * uvmod.world_area(obj) / 0.6
+
+
+def shard(objects, options):
+    """(objects of shard K of N, its report file name). Deterministic: objects by estimated texels (largest first,
+    then by name) each go to the shard with the fewest texels so far (ties: lowest index); an atlas is one map and
+    is baked whole by shard 1."""
+    k, n = shard_of(options.shard)
+    name = SHARD_REPORT.format(k=k, n=n)
+    if options.atlas and options.target == "image":
+        return (list(objects) if k == 1 else []), name
+    load = [0.0] * n
+    mine = []
+    for o in sorted(objects, key=lambda o: (-estimated_texels(o, options), o.name)):
+        i = min(range(n), key=lambda j: (load[j], j))
+        load[i] += estimated_texels(o, options)
+        if i == k - 1:
+            mine.append(o)
+    order = {o.name: i for i, o in enumerate(objects)}
+    return sorted(mine, key=lambda o: order[o.name]), name
+
+
+def merge_reports(folder):
+    """Join the shard report parts (bake_report.shard-K-of-N.json) of ``folder`` into its bake_report.json (entries
+    per object and map, "skipped" and "unchanged" unions, "seconds" the sum); return a JobResult."""
+    import glob
+    parts = sorted(glob.glob(os.path.join(glob.escape(folder), SHARD_REPORT.format(k="*", n="*"))))
+    if not parts:
+        raise InputError(f"no shard reports (bake_report.shard-K-of-N.json) in {folder}")
+    merged = {"objects": {}, "skipped": {}, "unchanged": {}, "seconds": 0.0, "shards": []}
+    for path in parts:
+        with open(path, encoding="utf-8") as f:
+            part = json.load(f)
+        for obj, maps in part.get("objects", {}).items():
+            merged["objects"].setdefault(obj, {}).update(maps)
+        merged["skipped"].update(part.get("skipped", {}))
+        for obj, maps in part.get("unchanged", {}).items():
+            merged["unchanged"].setdefault(obj, []).extend(m for m in maps if m not in merged["unchanged"].get(obj, []))
+        merged["seconds"] += float(part.get("seconds", 0.0))
+        merged["shards"].append(os.path.basename(path))
+        merged["blender_version"] = part.get("blender_version")
+    path = os.path.join(folder, REPORT)
+    with report_lock(folder):
+        write_json(path, merged)
+    return JobResult(merged, path, summary(merged) + f" ({len(parts)} shard reports merged)")
+
+
 def summary(report):
     """One line: what was baked and what was skipped, with the reason."""
     baked = ", ".join(f"{o} ({', '.join(maps)})" for o, maps in report["objects"].items()) or "nothing"
     line = f"baked {baked}"
+    if report.get("unchanged"):
+        line += f"; unchanged (skipped, inputs as baked) {sum(len(m) for m in report['unchanged'].values())} map(s): " \
+                + ", ".join(f"{o} ({', '.join(m)})" for o, m in report["unchanged"].items())
     if report.get("skipped"):
         line += "; skipped " + "; ".join(f"{n} ({why})" for n, why in report["skipped"].items())
     return line
@@ -962,7 +1172,7 @@ def _finite(name, kind, values):
                       f"light of infinite strength): nothing written")
 
 
-def _write(name, group, kind, result, out, options, layers, margin=None, overlap=None):
+def _write(name, group, kind, result, out, options, layers, margin=None, overlap=None, digest=None):
     """Write the files of one baked map (dilated by ``margin`` texels); return ``{object: report entry}``.
     ``overlap`` = ({object: fraction}, group fraction) of covered texels shared by several faces."""
     margin = int(options.margin) if margin is None else int(margin)
@@ -977,6 +1187,8 @@ def _write(name, group, kind, result, out, options, layers, margin=None, overlap
         covered = {o.name: float((lightmap.coverage_mask(uvmod.triangles_uv(o, layers[o.name]), w, h) & result.mask).mean())
                    for o in group} if len(group) > 1 else {group[0].name: float(result.mask.mean())}
         attrs = _attributes(kind, result, options, uv_name)
+        if digest:
+            attrs[HASH_KEY] = digest
         attrs["il:coverage"] = float(result.mask.mean())
         attrs["il:chart_area"] = float(sum(areas.values()))
         attrs["il:min_coverage"] = MIN_COVERAGE_TEXT
@@ -1002,6 +1214,8 @@ def _write(name, group, kind, result, out, options, layers, margin=None, overlap
         row = v[None, :] if v.ndim == 1 else v[None, :, :]
         path = os.path.join(out, f"{o.name}_{kind}_vertex.exr")
         attrs = _attributes(kind, result, options, None)
+        if digest:
+            attrs[HASH_KEY] = digest
         attrs["il:layout"] = "one texel per mesh vertex, in vertex order"
         exr.write_exr(path, _channels(kind, row, np.ones(row.shape[:2], np.float32)), attrs)
         attr = o.data.color_attributes.get(ATTRIBUTE[kind])
