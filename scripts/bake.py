@@ -45,6 +45,10 @@ def main(args):
                   f"{e['samples']} samples {e['seconds']:.2f} s est. error {err} ({kind})")
     print(result.summary)
     print(f"report: {result.path}")
+    if result.get("failed"):
+        from addon.core.errors import ILError
+        raise ILError(f"{len(result['failed'])} object(s) failed, the others are baked: "
+                      + "; ".join(f"{n}: {why}" for n, why in result["failed"].items()))
 
 
 def run_jobs(args):

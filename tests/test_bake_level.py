@@ -166,3 +166,53 @@ def test_script_jobs_run_shards_and_merge(tmp_path, script):
     assert sorted(p.name for p in out.glob("*.exr")) == ["Floor_ao.exr", "Sphere_ao.exr", "Suzanne_ao.exr"]
     r = script("bake.py", "--merge", tmp_path / "nothing")
     assert r.returncode == 2 and "no shard reports" in r.stderr
+
+
+def test_a_broken_object_fails_alone_and_the_script_exits_1(tmp_path, script):
+    """An invalid mesh among good ones: the others are baked, the report and the last line name it, exit code 1."""
+    small_level()[:2]
+    me = bpy.data.meshes.new("Broken")
+    me.from_pydata([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0.5, 0.5, 0)], [], [(0, 1, 2), (0, 3, 3)])
+    bpy.context.scene.collection.objects.link(bpy.data.objects.new("Broken", me))
+    blend = tmp_path / "level.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    out = tmp_path / "maps"
+    r = script("bake.py", blend, "--objects", "Floor", "Broken", "Sphere", "--maps", "ao", "--out", out,
+               "--texel-density", "6", "--samples", "2")
+    assert r.returncode == 1
+    last = r.stderr.strip().splitlines()[-1]
+    assert "1 object(s) failed, the others are baked: Broken:" in last and "is invalid" in last
+    assert sorted(p.name for p in out.glob("*.exr")) == ["Floor_ao.exr", "Sphere_ao.exr"]
+    report = __import__("json").loads((out / "bake_report.json").read_text())
+    assert set(report["objects"]) == {"Floor", "Sphere"} and "is invalid" in report["failed"]["Broken"]
+    assert "objects 1/2, texels" in r.stderr and "ETA" in r.stderr        # one progress line per map
+
+
+def test_a_map_that_fails_in_a_batch_leaves_the_others(tmp_path, monkeypatch):
+    objects = small_level()[:4]
+    real = pipeline._check_covered
+
+    def broken(name, *a):
+        if name == "Sphere":
+            raise pipeline.ILError("'Sphere' ao: injected failure")
+        return real(name, *a)
+
+    monkeypatch.setattr(pipeline, "_check_covered", broken)
+    result = bake_lightmaps(objects, ["ao"], str(tmp_path), BakeOptions(texel_density=6, samples=2))
+    assert set(result["objects"]) == {"Floor", "Suzanne", "Cube"}
+    assert result["failed"] == {"Sphere": "'Sphere' ao: injected failure"} and "FAILED 1" in result.summary
+    assert not (tmp_path / "Sphere_ao.exr").exists() and (tmp_path / "Cube_ao.exr").exists()
+
+
+def test_an_atlas_is_one_call_with_the_same_image(tmp_path, monkeypatch):
+    objects = small_level()[:4]
+    calls = []
+    real = pipeline._call_bake
+    monkeypatch.setattr(pipeline, "_call_bake", lambda *a, **k: calls.append(len(a[1])) or real(*a, **k))
+    opts = dict(texel_density=6, samples=4, atlas=True, keep_products=False)
+    bake_lightmaps(objects, ["ao"], str(tmp_path / "one"), BakeOptions(batch=False, **opts))
+    bake_lightmaps(objects, ["ao"], str(tmp_path / "batch"), BakeOptions(**opts))
+    assert calls == [4, 1]                 # Blender's multi-object call (a scene sync per object), then the proxy
+    a = exr.read_exr(str(tmp_path / "one" / "atlas_ao.exr"))[0]
+    b = exr.read_exr(str(tmp_path / "batch" / "atlas_ao.exr"))[0]
+    assert (a["A"] > 0).sum() > 500 and all(np.array_equal(a[c], b[c]) for c in "YA")

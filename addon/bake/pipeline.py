@@ -123,14 +123,22 @@ def validate(scene, objects, maps, out, options):
     objects, skipped = applicable(scene, objects, options)
     if not objects:
         raise InputError("nothing to bake: " + "; ".join(f"'{n}' is {why}" for n, why in skipped.items()))
+    failed, first = {}, None
     for o in objects:
         if o.mode != "OBJECT":
             raise InputError(f"'{o.name}' is in {o.mode.lower()} mode: switch to object mode first")
         if options.uv_layer and options.target == "image":
             uvmod.check_layer(o, options.uv_layer)
-        uvmod.check_valid(o)
-        if uvmod.world_area(o) <= 0:
-            raise InputError(f"mesh '{o.name}' has no surface area: all its faces are degenerate")
+        try:
+            uvmod.check_valid(o)
+            if uvmod.world_area(o) <= 0:
+                raise InputError(f"mesh '{o.name}' has no surface area: all its faces are degenerate")
+        except InputError as e:               # a bad mesh fails alone; the others are baked
+            failed[o.name] = str(e)
+            first = first or e
+    objects = [o for o in objects if o.name not in failed]
+    if not objects:
+        raise first
     flips, inward = orientation.check(scene, objects)
     if inward:
         skipped.update(inward)
@@ -156,7 +164,7 @@ def validate(scene, objects, maps, out, options):
         for path in output_files(shard(objects, options)[0] if options.shard else objects, maps, out, options):
             if os.path.exists(path):
                 raise InputError(f"{path} exists: turn on Overwrite (--overwrite) to replace it")
-    return objects, maps, out, skipped, flips
+    return objects, maps, out, skipped, flips, failed
 
 
 def _fixed_sizes(objects, options):
@@ -330,7 +338,7 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     """
     options = options or BakeOptions()
     scene = scene or bpy.context.scene
-    objects, maps, out, skipped, flips = validate(scene, objects, maps, out, options)
+    objects, maps, out, skipped, flips, failed = validate(scene, objects, maps, out, options)
     _say_skipped(skipped)
     if options.denoise and options.target != "image":
         errors.warn("denoise ignored: the denoiser works on image maps, not on vertex colours")
@@ -352,7 +360,7 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     objects = [o for _, group in groups for o in group]
     steps = (1 if options.target == "image" and groups else 0) + sum(len(maps) - len(unchanged.get(n, ()))
                                                                         for n, _ in groups)
-    report = {"objects": {}, "skipped": dict(skipped), "unchanged": unchanged}
+    report = {"objects": {}, "skipped": dict(skipped), "unchanged": unchanged, "failed": failed}
     report_path = os.path.join(out, report_name)
     if not groups:
         report["seconds"] = time.perf_counter() - t_all
@@ -368,21 +376,48 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
         _setup_render(scene, options, state)
         layers, sides, margins = {}, {}, {}
         temporary = TemporaryMaterials(state)
+        errors_ = []
+
+        def fail(name, error):
+            """Record a group's failure; the level goes on (the error itself is raised when nothing else is baked)."""
+            failed[name] = str(error)
+            errors_.append(error)
+            errors.warn(f"'{name}' failed: {error}")
+
         if options.target == "image":
             step("light-map UVs")
-            layers, sides, margins = uvmod.prepare(scene, objects, state, options, together=options.atlas)
+            if options.atlas:
+                layers, sides, margins = uvmod.prepare(scene, objects, state, options, together=True)
+            else:
+                for name, group in groups:
+                    try:
+                        made = uvmod.prepare(scene, group, state, options)
+                    except (InputError, ILError) as e:
+                        fail(name, e)
+                        continue
+                    for have, new in zip((layers, sides, margins), made):
+                        have.update(new)
         plan = []
         for name, group in groups:             # every size and coverage check before the first bake
-            size = _map_size(group, layers, sides, options)
-            areas, overlap = None, None
-            if size is not None:
-                refusal = cost.check(size[0], size[1], maps, options.denoise)
-                if refusal:
-                    raise InputError(f"'{name}': {refusal}")
-                areas = uvmod.check_coverage(group, layers, size)
-                overlap = uvmod.check_overlap(scene, group, layers, size)
+            if name in failed:
+                continue
+            try:
+                size = _map_size(group, layers, sides, options)
+                areas, overlap = None, None
+                if size is not None:
+                    refusal = cost.check(size[0], size[1], maps, options.denoise)
+                    if refusal:
+                        raise InputError(f"'{name}': {refusal}")
+                    areas = uvmod.check_coverage(group, layers, size)
+                    overlap = uvmod.check_overlap(scene, group, layers, size)
+            except (InputError, ILError) as e:
+                fail(name, e)
+                continue
             plan.append((name, group, size, areas, overlap))
+        if not plan:
+            raise errors_[0]
         batched, singles = batches(scene, plan, layers, state, options)
+        tracker = _Tracker(plan, maps, unchanged, options)
 
         def finish(entry, m, result, t_map):
             name, group, size, areas, overlap = entry
@@ -407,32 +442,95 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
                 peak = cost.peak_bytes(size[0], size[1], [m], options.denoise)
                 estimate = (f" {size[0]}x{size[1]} (about {budget.format_bytes(peak)}, "
                             f"{cost.seconds(size[0], size[1], [m], _planned_samples(options)):.2g} s)")
-            step(f"{name}: {m}" + (estimate or " (vertices)"))
+            step(f"{name}: {m}" + (estimate or " (vertices)") + tracker.line())
+            tracker.done(entry, m)
 
         for m in maps:
             temporary.assign(everyone, m)      # every object shows the same materials to the others' bakes
+            alone = []
             for batch in batched:
-                batch = [entry for entry in batch if m not in unchanged.get(entry[0], ())]
+                batch = [e for e in batch if m not in unchanged.get(e[0], ()) and e[0] not in failed]
                 if not batch:
                     continue
-                results = bake_batch(scene, batch, m, options, layers, temporary, state)
+                try:
+                    results = bake_batch(scene, batch, m, options, layers, temporary, state)
+                except ILError:
+                    alone += batch              # one of them breaks the shared call: bake each alone to find it
+                    continue
                 for entry in batch:
                     announce(entry, m)
-                    finish(entry, m, results.pop(entry[0]), time.perf_counter())
-            for entry in singles:
-                if m in unchanged.get(entry[0], ()):
+                    try:
+                        finish(entry, m, results.pop(entry[0]), time.perf_counter())
+                    except (InputError, ILError) as e:
+                        fail(entry[0], e)
+            for entry in alone + singles:
+                if m in unchanged.get(entry[0], ()) or entry[0] in failed:
                     continue
                 name, group, size = entry[:3]
                 announce(entry, m)
                 t_map = time.perf_counter()
-                result = bake_map(scene, group, m, options, layers, size, temporary.assign(group, m), state)
-                result.seconds = 0.0
-                finish(entry, m, result, t_map)
-        if options.keep_products:       # products stay only when the whole bake succeeded
-            state.keep |= {(o.data.name, uvmod.LIGHTMAP) for o in objects}
-            state.keep |= {(o.data.name, ATTRIBUTE[m]) for o in objects for m in maps}
+                try:
+                    result = bake_map(scene, group, m, options, layers, size, temporary.assign(group, m), state)
+                    result.seconds = 0.0
+                    finish(entry, m, result, t_map)
+                except (InputError, ILError) as e:
+                    fail(name, e)
+        if errors_ and not report["objects"]:
+            raise errors_[0]
+        if options.keep_products:       # products stay only when the whole bake succeeded (failed objects aside)
+            state.keep |= {(o.data.name, uvmod.LIGHTMAP) for o in objects if o.name not in failed}
+            state.keep |= {(o.data.name, ATTRIBUTE[m]) for o in objects for m in maps if o.name not in failed}
+        progress_line = tracker.final(report)
     report["seconds"] = time.perf_counter() - t_all
-    return JobResult(report, report_path, summary(report))
+    if failed:
+        _merge_report(report_path, {"objects": {}, "seconds": report["seconds"], "failed": failed})
+    return JobResult(report, report_path, summary(report) + progress_line)
+
+
+class _Tracker:
+    """Objects and texels done of a level bake, the elapsed time and the ETA from the texels per second so far."""
+
+    def __init__(self, plan, maps, unchanged, options):
+        self.t0 = time.perf_counter()
+        self.texels = {}
+        for name, group, size, *_ in plan:
+            per = size[0] * size[1] if size else sum(len(o.data.vertices) for o in group)
+            for m in maps:
+                if m not in unchanged.get(name, ()):
+                    self.texels[(name, m)] = per
+        self.total = sum(self.texels.values())
+        self.objects = {name for name, _ in self.texels}
+        self.finished, self.texels_done, self.objects_done = set(), 0, set()
+
+    def done(self, entry, m):
+        key = (entry[0], m)
+        if key in self.texels and key not in self.finished:
+            self.finished.add(key)
+            self.texels_done += self.texels[key]
+            if all((entry[0], k) in self.finished for n, k in self.texels if n == entry[0]):
+                self.objects_done.add(entry[0])
+
+    def line(self):
+        elapsed = time.perf_counter() - self.t0
+        rate = self.texels_done / elapsed if elapsed > 0 and self.texels_done else 0.0
+        eta = f"{(self.total - self.texels_done) / rate:.0f} s" if rate else "?"
+        text = (f" | objects {len(self.objects_done)}/{len(self.objects)}, texels {self.texels_done}/{self.total}, "
+                f"{elapsed:.1f} s, ETA {eta}")
+        try:
+            if not bpy.app.background and bpy.context.workspace is not None:
+                bpy.context.workspace.status_text_set(f"Light maps:{text[2:]}")
+        except (AttributeError, RuntimeError):
+            pass
+        return text
+
+    def final(self, report):
+        try:
+            if not bpy.app.background and bpy.context.workspace is not None:
+                bpy.context.workspace.status_text_set(None)
+        except (AttributeError, RuntimeError):
+            pass
+        elapsed = time.perf_counter() - self.t0
+        return f" ({self.texels_done} texels in {elapsed:.1f} s, {self.texels_done / max(elapsed, 1e-9):.0f} texels/s)"
 
 
 def estimated_texels(obj, options):
@@ -472,13 +570,14 @@ def merge_reports(folder):
     parts = sorted(glob.glob(os.path.join(glob.escape(folder), SHARD_REPORT.format(k="*", n="*"))))
     if not parts:
         raise InputError(f"no shard reports (bake_report.shard-K-of-N.json) in {folder}")
-    merged = {"objects": {}, "skipped": {}, "unchanged": {}, "seconds": 0.0, "shards": []}
+    merged = {"objects": {}, "skipped": {}, "unchanged": {}, "failed": {}, "seconds": 0.0, "shards": []}
     for path in parts:
         with open(path, encoding="utf-8") as f:
             part = json.load(f)
         for obj, maps in part.get("objects", {}).items():
             merged["objects"].setdefault(obj, {}).update(maps)
         merged["skipped"].update(part.get("skipped", {}))
+        merged.setdefault("failed", {}).update(part.get("failed", {}))
         for obj, maps in part.get("unchanged", {}).items():
             merged["unchanged"].setdefault(obj, []).extend(m for m in maps if m not in merged["unchanged"].get(obj, []))
         merged["seconds"] += float(part.get("seconds", 0.0))
@@ -499,6 +598,8 @@ def summary(report):
                 + ", ".join(f"{o} ({', '.join(m)})" for o, m in report["unchanged"].items())
     if report.get("skipped"):
         line += "; skipped " + "; ".join(f"{n} ({why})" for n, why in report["skipped"].items())
+    if report.get("failed"):
+        line += f"; FAILED {len(report['failed'])}: " + "; ".join(f"{n} ({why})" for n, why in report["failed"].items())
     return line
 
 
@@ -967,7 +1068,7 @@ def batches(scene, plan, layers, state, options):
             singles.append(entry)
         else:
             batched.append(entry)
-    if len(batched) < 2:
+    if sum(len(entry[1]) for entry in batched) < 2:      # one object: its own call is the same call
         return [], list(plan)
     out, texels = [[]], 0
     for entry in batched:
@@ -1249,6 +1350,10 @@ def _merge_report(path, report):
             objects.setdefault(name, {}).update(maps)
         merged = {"objects": objects, "seconds": round(report["seconds"], 4),
                   "blender_version": bpy.app.version_string}
+        failed = {k: v for k, v in old.get("failed", {}).items() if k not in report["objects"]}
+        failed.update(report.get("failed", {}))
+        if failed:
+            merged["failed"] = failed
         write_json(path, merged)
 
 
