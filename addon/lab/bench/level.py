@@ -45,9 +45,9 @@ def _add(scene, kind, **kw):
     return obj
 
 
-def build_level(scene, props=200, subdivision=2):
+def build_level(scene, props=200, subdivision=2, floor_levels=3):
     """Fill ``scene`` with a level made by Blender's operators: a floor (Subdivision), four walls (Bevel), ``props``
-    props cycling through every primitive kind (Subdivision on the monkeys, Bevel on cubes, Solidify on grids and
+    props cycling through every primitive kind (Subdivision on the floor and the monkeys, Bevel on cubes, Solidify on grids and
     planes), every tenth prop a linked duplicate of the one before, a "Crate stack" collection instanced by an
     empty, a sun and a point light. Returns the mesh objects to bake (the instance's objects are not in the scene)."""
     objects = []
@@ -56,7 +56,7 @@ def build_level(scene, props=200, subdivision=2):
         floor = _add(scene, "plane", size=side)
         floor.name = "Floor"
         m = floor.modifiers.new("Subdivision", "SUBSURF")
-        m.subdivision_type, m.levels, m.render_levels = "SIMPLE", 3, 3
+        m.subdivision_type, m.levels, m.render_levels = "SIMPLE", floor_levels, floor_levels
         objects.append(floor)
         for i, (x, y, sx, sy) in enumerate(((0, side / 2, side / 2, 0.1), (0, -side / 2, side / 2, 0.1),
                                             (side / 2, 0, 0.1, side / 2), (-side / 2, 0, 0.1, side / 2))):
@@ -84,6 +84,8 @@ def build_level(scene, props=200, subdivision=2):
                     kw["size"] = size
                 elif kind in ("uv_sphere", "ico_sphere", "circle"):
                     kw["radius"] = size / 2
+                    if kind == "uv_sphere":
+                        kw.update(segments=48, ring_count=24)
                 elif kind in ("cylinder", "cone"):
                     kw.update(radius1=size / 2, depth=size) if kind == "cone" else kw.update(radius=size / 2, depth=size)
                 elif kind == "torus":
@@ -225,7 +227,7 @@ def run(output_dir, quick=False, props=None, texel_density=None, samples=None):
     rows, figures = [], {}
     try:
         t = time.perf_counter()
-        objects = build_level(scene, props, subdivision=1 if quick else 2)
+        objects = build_level(scene, props, subdivision=1 if quick else 2, floor_levels=3 if quick else 8)
         tris = triangles(scene, objects)
         figures["objects"], figures["triangles"] = len(objects), tris
         figures["build_seconds"] = time.perf_counter() - t
