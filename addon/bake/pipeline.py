@@ -545,20 +545,24 @@ def estimated_texels(obj, options):
 
 
 def shard(objects, options):
-    """(objects of shard K of N, its report file name). Deterministic: objects by estimated texels (largest first,
-    then by name) each go to the shard with the fewest texels so far (ties: lowest index); an atlas is one map and
-    is baked whole by shard 1."""
+    """(objects of shard K of N, its report file name). Deterministic: objects (those sharing a mesh together: the
+    first one's light-map layer is reused by the others) by estimated texels, largest first, then by name, each go
+    to the shard with the fewest texels so far (ties: lowest index); an atlas is one map and is baked whole by
+    shard 1."""
     k, n = shard_of(options.shard)
     name = SHARD_REPORT.format(k=k, n=n)
     if options.atlas and options.target == "image":
         return (list(objects) if k == 1 else []), name
+    units = {}                    # objects sharing a mesh share its light-map layer: one shard bakes them all
+    for o in objects:
+        units.setdefault(o.data.name, []).append(o)
     load = [0.0] * n
     mine = []
-    for o in sorted(objects, key=lambda o: (-estimated_texels(o, options), o.name)):
+    for unit in sorted(units.values(), key=lambda u: (-sum(estimated_texels(o, options) for o in u), u[0].name)):
         i = min(range(n), key=lambda j: (load[j], j))
-        load[i] += estimated_texels(o, options)
+        load[i] += sum(estimated_texels(o, options) for o in unit)
         if i == k - 1:
-            mine.append(o)
+            mine += unit
     order = {o.name: i for i, o in enumerate(objects)}
     return sorted(mine, key=lambda o: order[o.name]), name
 
