@@ -2,8 +2,12 @@
 
     python scripts/bake.py scene.blend --objects Floor Box --maps ao irradiance --out out/maps
     blender -b scene.blend -P scripts/bake.py -- --objects Floor --maps ao --out out/maps --target-error 0.01
+    python scripts/bake.py scene.blend --objects ... --out out/maps --shard 2/8     (one share of a farm job)
+    python scripts/bake.py --merge out/maps                                        (join the shards' reports)
+    python scripts/bake.py scene.blend --objects ... --out out/maps --jobs 2       (2 shard processes here)
 """
 import os
+import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -11,9 +15,19 @@ import _cli  # noqa: E402
 
 
 def main(args):
+    from addon.core.errors import InputError
+    if args.merge:
+        from addon.bake.pipeline import merge_reports
+        result = merge_reports(os.path.abspath(args.merge))
+        print(result.summary)
+        print(f"report: {result.path}")
+        return
+    if not args.objects or not args.out:
+        raise InputError("--objects and --out are required (or --merge DIR)")
+    if args.jobs and args.jobs > 1:
+        return run_jobs(args)
     import bpy
     from addon.bake import BakeOptions, bake_lightmaps
-    from addon.core.errors import InputError
     options = _cli.options_from(BakeOptions, args)
     objects = []
     for name in args.objects:
@@ -31,13 +45,59 @@ def main(args):
                   f"{e['samples']} samples {e['seconds']:.2f} s est. error {err} ({kind})")
     print(result.summary)
     print(f"report: {result.path}")
+    if result.get("failed"):
+        from addon.core.errors import ILError
+        raise ILError(f"{len(result['failed'])} object(s) failed, the others are baked: "
+                      + "; ".join(f"{n}: {why}" for n, why in result["failed"].items()))
+
+
+def run_jobs(args):
+    """Run ``--jobs J`` shard processes of this script at once (shards 1/J .. J/J), then merge their reports."""
+    import bpy
+    from addon.bake.pipeline import merge_reports
+    from addon.core.errors import ILError
+    argv = _cli.script_argv()
+    rest, skip = [], False
+    for i, a in enumerate(argv):
+        if skip:
+            skip = False
+            continue
+        if a == "--jobs":
+            skip = True
+            continue
+        if a.startswith("--jobs="):
+            continue
+        rest.append(a)
+    script = os.path.abspath(__file__)
+    if args.blend:
+        rest.remove(args.blend)
+    blend = os.path.abspath(args.blend) if args.blend else bpy.data.filepath
+    if not blend:
+        raise ILError("--jobs needs a saved .blend file (the shard processes open it)")
+    inside = _cli._inside_blender()
+    procs = []
+    for k in range(1, args.jobs + 1):
+        shard = ["--shard", f"{k}/{args.jobs}"]
+        cmd = ([bpy.app.binary_path, "-b", blend, "-P", script, "--"] + rest + shard if inside
+               else [sys.executable, script, blend] + rest + shard)
+        procs.append(subprocess.Popen(cmd))
+    codes = [p.wait() for p in procs]
+    result = merge_reports(os.path.abspath(args.out))
+    print(result.summary)
+    print(f"report: {result.path}")
+    failed = [f"{k + 1}/{args.jobs} (exit {c})" for k, c in enumerate(codes) if c]
+    if failed:
+        raise ILError("shard(s) failed: " + ", ".join(failed))
 
 
 def build_parser():
     from addon.bake.options import BakeOptions
     p = _cli.parser("bake.py", "Bake ambient-occlusion and irradiance light maps with Cycles on the CPU.")
-    p.add_argument("--objects", nargs="+", required=True, metavar="NAME", help="mesh objects to bake")
-    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--objects", nargs="+", metavar="NAME", help="mesh objects to bake (required unless --merge)")
+    p.add_argument("--out", help="output folder (required unless --merge)")
+    p.add_argument("--merge", metavar="DIR", help="join the shard reports in DIR into DIR/bake_report.json and stop")
+    p.add_argument("--jobs", type=_cli.number(int, 1, 256), metavar="J",
+                   help="run J shard processes of this bake at once here and merge their reports")
     return _cli.add_options(p, BakeOptions)
 
 

@@ -51,12 +51,24 @@ class BakeOptions(Options):
     target: str = option("image", "Target", "image maps or vertex colours", choices=TARGET_CHOICES)
     atlas: bool = option(False, "Shared Atlas", "one shared map for all objects")
     seed: int = option(0, "Seed", "Cycles seed of the (first) bake", minimum=0, maximum=2 ** 31 - 1, ui=False)
-    overwrite: bool = option(False, "Overwrite", "replace existing output files")
+    overwrite: bool = option(False, "Overwrite", "replace existing output files; maps whose inputs are unchanged "
+                             "(the hash in their EXR header) are skipped: rerun an interrupted bake with it to resume")
+    force: bool = option(False, "Force", "bake every map again, also those whose inputs are unchanged (implies "
+                         "Overwrite)")
     keep_products: bool = option(True, "Keep Products", "leave the generated 'Lightmap' UV layer / vertex "
                                  "colour attributes on the meshes", cli=False, ui=False)
+    shard: str = option(None, "Shard", "bake only share K of N (K/N, 1-based) of the objects, balanced by texels; "
+                        "its report part is bake_report.shard-K-of-N.json (join the parts with --merge)", kind=str,
+                        metavar="K/N", ui=False)
+    batch: bool = option(True, "Batch", "bake the maps of many objects in one Cycles call (one scene sync) where "
+                         "the result is the same", cli=False, ui=False)
     sizes: dict = None
 
     def check(self):
+        if self.shard:
+            shard_of(self.shard)
+        if self.force:
+            self.overwrite = True
         if self.texel_density is None:
             self.resolution = int(self.resolution)
         if int(self.max_samples) < int(self.pilot_samples):
@@ -69,6 +81,17 @@ class BakeOptions(Options):
             for name, (w, h) in self.sizes.items():
                 if not (1 <= int(w) <= MAX_RESOLUTION and 1 <= int(h) <= MAX_RESOLUTION):
                     raise InputError(f"map size of '{name}' must be between 1 and {MAX_RESOLUTION}, got {w}x{h}")
+
+
+def shard_of(text):
+    """(K, N) of a shard "K/N" with 1 <= K <= N; InputError otherwise."""
+    try:
+        k, n = (int(x) for x in str(text).split("/"))
+    except ValueError:
+        raise InputError(f"shard must be K/N (e.g. 2/8), got {text!r}") from None
+    if not 1 <= k <= n:
+        raise InputError(f"shard K/N needs 1 <= K <= N, got {text}")
+    return k, n
 
 
 def article(word):

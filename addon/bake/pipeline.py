@@ -1,6 +1,7 @@
 """The light-map pipeline: validate, UVs, temporary materials (white at the baked point), Cycles bakes, files,
 restore."""
 import contextlib
+import hashlib
 import json
 import math
 import os
@@ -20,9 +21,10 @@ from ..blender.progress import Progress
 from ..blender import materials, render, scene as sc
 from ..blender.state import SavedState, rna_settings, world_settings
 from . import cost, orientation, uv as uvmod
-from .options import BakeOptions, article, check_out_dir, validate_maps
+from .options import BakeOptions, article, check_out_dir, shard_of, validate_maps
 
 REPORT = "bake_report.json"
+SHARD_REPORT = "bake_report.shard-{k}-of-{n}.json"
 ATLAS = "atlas"
 ATTRIBUTE = {"ao": "IL AO", "irradiance": "IL Irradiance"}
 QUANTITY = {"ao": ("ambient occlusion k_A (1 = open)", "1"), "irradiance": ("irradiance E", "W/m^2")}
@@ -121,14 +123,22 @@ def validate(scene, objects, maps, out, options):
     objects, skipped = applicable(scene, objects, options)
     if not objects:
         raise InputError("nothing to bake: " + "; ".join(f"'{n}' is {why}" for n, why in skipped.items()))
+    failed, first = {}, None
     for o in objects:
         if o.mode != "OBJECT":
             raise InputError(f"'{o.name}' is in {o.mode.lower()} mode: switch to object mode first")
         if options.uv_layer and options.target == "image":
             uvmod.check_layer(o, options.uv_layer)
-        uvmod.check_valid(o)
-        if uvmod.world_area(o) <= 0:
-            raise InputError(f"mesh '{o.name}' has no surface area: all its faces are degenerate")
+        try:
+            uvmod.check_valid(o)
+            if uvmod.world_area(o) <= 0:
+                raise InputError(f"mesh '{o.name}' has no surface area: all its faces are degenerate")
+        except InputError as e:               # a bad mesh fails alone; the others are baked
+            failed[o.name] = str(e)
+            first = first or e
+    objects = [o for o in objects if o.name not in failed]
+    if not objects:
+        raise first
     flips, inward = orientation.check(scene, objects)
     if inward:
         skipped.update(inward)
@@ -151,10 +161,10 @@ def validate(scene, objects, maps, out, options):
                 raise InputError(refusal)
     out = check_out_dir(out)
     if not options.overwrite:
-        for path in output_files(objects, maps, out, options):
+        for path in output_files(shard(objects, options)[0] if options.shard else objects, maps, out, options):
             if os.path.exists(path):
                 raise InputError(f"{path} exists: turn on Overwrite (--overwrite) to replace it")
-    return objects, maps, out, skipped, flips
+    return objects, maps, out, skipped, flips, failed
 
 
 def _fixed_sizes(objects, options):
@@ -179,6 +189,133 @@ def output_files(objects, maps, out, options):
     return files
 
 
+# ------------------------------------------------------------------ resume: what determines a map
+
+HASH_KEY = "il:input_hash"
+
+
+def _rna_digest(h, struct):
+    """A modifier's type and every setting (objects and node groups it uses by name, a node group's tree)."""
+    h.update(struct.bl_rna.identifier.encode())
+    for prop in struct.bl_rna.properties:
+        if prop.identifier in ("rna_type", "name", "is_override_data_editable", "show_expanded", "is_active",
+                               "show_viewport", "show_in_editmode", "show_on_cage", "persistent_uid"):
+            continue
+        value = getattr(struct, prop.identifier, None)
+        if hasattr(value, "name") and hasattr(value, "bl_rna"):
+            h.update(f"{prop.identifier}={value.name}".encode())
+            if isinstance(value, bpy.types.NodeTree):
+                _node_tree_digest(h, value)
+        elif isinstance(value, (int, float, str, bool)) or value is None:
+            h.update(f"{prop.identifier}={value!r}".encode())
+        elif hasattr(value, "__len__") and not hasattr(value, "bl_rna"):
+            try:
+                h.update(f"{prop.identifier}={tuple(value)!r}".encode())
+            except TypeError:
+                pass
+_HASHED_OPTIONS = ("resolution", "texel_density", "max_resolution", "samples", "target_error", "pilot_samples",
+                   "max_samples", "ao_distance", "margin", "denoise", "uv_layer", "target", "atlas", "seed")
+
+
+def _node_tree_digest(h, tree):
+    """Node types, their unlinked input values and the links of a node tree (what shades, not where nodes sit)."""
+    if tree is None:
+        h.update(b"-")
+        return
+    for n in sorted(tree.nodes, key=lambda n: n.name):
+        h.update(f"{n.name}:{n.bl_idname}".encode())
+        if getattr(n, "image", None) is not None:
+            h.update(n.image.name.encode())
+        for sock in n.inputs:
+            value = getattr(sock, "default_value", None)
+            if value is not None and not sock.is_linked:
+                h.update(repr(tuple(value) if hasattr(value, "__len__") else value).encode())
+    for link in tree.links:
+        h.update(f"{link.from_node.name}.{link.from_socket.identifier}>{link.to_node.name}.{link.to_socket.identifier}"
+                 .encode())
+
+
+def lighting_digest(scene):
+    """Digest of what lights the scene: every renderable light (type, colour, power, size, transform) and the world's
+    node tree."""
+    h = hashlib.blake2b(digest_size=16)
+    for o in sorted(scene.objects, key=lambda o: o.name):
+        if o.type == "LIGHT" and not o.hide_render:
+            d = o.data
+            h.update(f"{o.name}:{d.type}:{tuple(d.color)}:{d.energy}:{getattr(d, 'shadow_soft_size', 0)}:"
+                     f"{getattr(d, 'angle', 0)}:{getattr(d, 'spot_size', 0)}:{getattr(d, 'size', 0)}".encode())
+            h.update(np.array(o.matrix_world, np.float64).tobytes())
+            _node_tree_digest(h, d.node_tree if getattr(d, "use_nodes", False) else None)
+    world = scene.world
+    h.update(b"world" if world is not None else b"no world")
+    if world is not None:
+        _node_tree_digest(h, world.node_tree)
+    return h.hexdigest()
+
+
+def input_hash(scene, group, kind, options, lighting):
+    """Hash of what determines map ``kind`` of ``group``: each object's evaluated mesh, as its base mesh (positions
+    and triangles, exact), its modifiers' settings and the evaluated counts (the evaluated positions themselves
+    change in their last bit when a UV layer is added under a Subdivision; the UVs of ``options.uv_layer`` when
+    given), its transform and its materials' node trees, the
+    lights and world (``lighting``, :func:`lighting_digest`; irradiance only) and the options that change the map.
+    Other objects are not in it: moving an occluder leaves its neighbours' maps as they are (``force`` bakes them)."""
+    h = hashlib.blake2b(digest_size=16)
+    h.update(f"{kind}:{bpy.app.version_string}".encode())
+    for name in _HASHED_OPTIONS:
+        h.update(f"{name}={getattr(options, name)!r};".encode())
+    if kind != "ao":
+        h.update(f"bounces={options.bounces};{lighting}".encode())
+    depsgraph = scene.view_layers[0].depsgraph
+    for o in group:
+        h.update(o.name.encode())
+        if options.sizes and o.name in options.sizes:
+            h.update(repr(tuple(options.sizes[o.name])).encode())
+        h.update(np.array(o.matrix_world, np.float64).tobytes())
+        me = o.data
+        co = np.zeros(len(me.vertices) * 3, np.float32)
+        me.vertices.foreach_get("co", co)
+        me.calc_loop_triangles()
+        tris = np.zeros(len(me.loop_triangles) * 3, np.int32)
+        me.loop_triangles.foreach_get("vertices", tris)
+        h.update(co.tobytes())
+        h.update(tris.tobytes())
+        for mod in o.modifiers:
+            if mod.show_render:
+                _rna_digest(h, mod)
+        ev = o.evaluated_get(depsgraph).data
+        h.update(f"{len(ev.vertices)}:{len(ev.polygons)}".encode())
+        if options.uv_layer and options.uv_layer in me.uv_layers:
+            uv = np.zeros(len(me.loops) * 2, np.float32)
+            me.uv_layers[options.uv_layer].data.foreach_get("uv", uv)
+            h.update(uv.tobytes())
+        for slot in o.material_slots:
+            mat = slot.material
+            h.update((mat.name if mat else "-").encode())
+            if kind != "ao" and mat is not None:
+                h.update(repr(tuple(mat.diffuse_color)).encode())
+                _node_tree_digest(h, mat.node_tree)
+    return h.hexdigest()
+
+
+def stored_hash(path):
+    """The input hash in the header of a map file this pipeline wrote, or None."""
+    if not os.path.exists(path):
+        return None
+    try:
+        _, header = exr.read_exr(path)
+    except (OSError, RuntimeError, ValueError):
+        return None
+    value = header.get(HASH_KEY)
+    return value.decode() if isinstance(value, bytes) else value
+
+
+def _map_file(name, kind, out, options, group):
+    if options.target == "image":
+        return os.path.join(out, f"{name}_{kind}.exr")
+    return os.path.join(out, f"{group[0].name}_{kind}_vertex.exr")
+
+
 # ------------------------------------------------------------------ public entry point
 
 def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
@@ -201,76 +338,272 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     """
     options = options or BakeOptions()
     scene = scene or bpy.context.scene
-    objects, maps, out, skipped, flips = validate(scene, objects, maps, out, options)
+    objects, maps, out, skipped, flips, failed = validate(scene, objects, maps, out, options)
     _say_skipped(skipped)
     if options.denoise and options.target != "image":
         errors.warn("denoise ignored: the denoiser works on image maps, not on vertex colours")
     t_all = time.perf_counter()
+    everyone = list(objects)                   # show their bake materials to the others' bakes, baked or not
+    report_name = REPORT
+    if options.shard:
+        objects, report_name = shard(objects, options)
     groups = [(ATLAS, objects)] if (options.atlas and options.target == "image") else [(o.name, [o]) for o in objects]
-    steps = (1 if options.target == "image" else 0) + len(groups) * len(maps)
-    report = {"objects": {}, "skipped": dict(skipped)}
-    report_path = os.path.join(out, REPORT)
-    with Progress("bake", steps) as progress, SavedState(scene, objects, _settings(scene)) as state:
+    lighting = lighting_digest(scene)
+    digests = {(name, m): input_hash(scene, group, m, options, lighting) for name, group in groups for m in maps}
+    unchanged = {}
+    if options.overwrite and not options.force:
+        for name, group in groups:
+            for m in maps:
+                if stored_hash(_map_file(name, m, out, options, group)) == digests[(name, m)]:
+                    unchanged.setdefault(name, []).append(m)
+    groups = [(name, group) for name, group in groups if len(unchanged.get(name, ())) < len(maps)]
+    objects = [o for _, group in groups for o in group]
+    steps = (1 if options.target == "image" and groups else 0) + sum(len(maps) - len(unchanged.get(n, ()))
+                                                                        for n, _ in groups)
+    report = {"objects": {}, "skipped": dict(skipped), "unchanged": unchanged, "failed": failed}
+    report_path = os.path.join(out, report_name)
+    if not groups:
+        report["seconds"] = time.perf_counter() - t_all
+        return JobResult(report, report_path, summary(report))
+    with Progress("bake", steps) as progress, SavedState(scene, everyone, _settings(scene)) as state:
         def step(message):
             progress.step(message)
             if on_step:
                 on_step(message)
 
-        _show(objects, state)
-        _flip_inside_out(scene, objects, flips, state)
+        _show(everyone, state)
+        _flip_inside_out(scene, everyone, flips, state)
         _setup_render(scene, options, state)
         layers, sides, margins = {}, {}, {}
         temporary = TemporaryMaterials(state)
+        errors_ = []
+
+        def fail(name, error):
+            """Record a group's failure; the level goes on (the error itself is raised when nothing else is baked)."""
+            failed[name] = str(error)
+            errors_.append(error)
+            errors.warn(f"'{name}' failed: {error}")
+
         if options.target == "image":
             step("light-map UVs")
-            layers, sides, margins = uvmod.prepare(scene, objects, state, options, together=options.atlas)
+            if options.atlas:
+                layers, sides, margins = uvmod.prepare(scene, objects, state, options, together=True)
+            else:
+                for name, group in groups:
+                    try:
+                        made = uvmod.prepare(scene, group, state, options)
+                    except (InputError, ILError) as e:
+                        fail(name, e)
+                        continue
+                    for have, new in zip((layers, sides, margins), made):
+                        have.update(new)
         plan = []
         for name, group in groups:             # every size and coverage check before the first bake
-            size = _map_size(group, layers, sides, options)
-            areas, overlap = None, None
-            if size is not None:
-                refusal = cost.check(size[0], size[1], maps, options.denoise)
-                if refusal:
-                    raise InputError(f"'{name}': {refusal}")
-                areas = uvmod.check_coverage(group, layers, size)
-                overlap = uvmod.check_overlap(scene, group, layers, size)
-            plan.append((name, group, size, areas, overlap))
-        for name, group, size, areas, overlap in plan:
-            for m in maps:
-                estimate = ""
-                if size:
-                    peak = cost.peak_bytes(size[0], size[1], [m], options.denoise)
-                    estimate = (f" {size[0]}x{size[1]} (about {budget.format_bytes(peak)}, "
-                                f"{cost.seconds(size[0], size[1], [m], _planned_samples(options)):.2g} s)")
-                step(f"{name}: {m}" + (estimate or " (vertices)"))
-                t_map = time.perf_counter()
-                result = bake_map(scene, group, m, options, layers, size, temporary.assign(group, m), state)
+            if name in failed:
+                continue
+            try:
+                size = _map_size(group, layers, sides, options)
+                areas, overlap = None, None
                 if size is not None:
-                    _check_covered(name, group, m, result, layers, areas)
-                if m == "ao":
-                    _check_plausible(scene, name, group, result, options)
-                margin = margins.get(group[0].name, int(options.margin))
-                entries = _write(name, group, m, result, out, options, layers, margin, overlap)
-                part = {"objects": {}}
-                for o in group:
-                    entries[o.name]["seconds"] = round(time.perf_counter() - t_map, 4)    # files included
-                    report["objects"].setdefault(o.name, {})[m] = entries[o.name]
-                    part["objects"].setdefault(o.name, {})[m] = entries[o.name]
-                part["seconds"] = time.perf_counter() - t_all
-                _merge_report(report_path, part)      # finished maps are in the report, also if a later one fails
-        if options.keep_products:       # products stay only when the whole bake succeeded
-            state.keep |= {(o.data.name, uvmod.LIGHTMAP) for o in objects}
-            state.keep |= {(o.data.name, ATTRIBUTE[m]) for o in objects for m in maps}
+                    refusal = cost.check(size[0], size[1], maps, options.denoise)
+                    if refusal:
+                        raise InputError(f"'{name}': {refusal}")
+                    areas = uvmod.check_coverage(group, layers, size)
+                    overlap = uvmod.check_overlap(scene, group, layers, size)
+            except (InputError, ILError) as e:
+                fail(name, e)
+                continue
+            plan.append((name, group, size, areas, overlap))
+        if not plan:
+            raise errors_[0]
+        batched, singles = batches(scene, plan, layers, state, options)
+        tracker = _Tracker(plan, maps, unchanged, options)
+
+        def finish(entry, m, result, t_map):
+            name, group, size, areas, overlap = entry
+            if size is not None:
+                _check_covered(name, group, m, result, layers, areas)
+            if m == "ao":
+                _check_plausible(scene, name, group, result, options)
+            margin = margins.get(group[0].name, int(options.margin))
+            entries = _write(name, group, m, result, out, options, layers, margin, overlap, digests[(name, m)])
+            part = {"objects": {}}
+            for o in group:
+                entries[o.name]["seconds"] = round(result.seconds + time.perf_counter() - t_map, 4)  # files included
+                report["objects"].setdefault(o.name, {})[m] = entries[o.name]
+                part["objects"].setdefault(o.name, {})[m] = entries[o.name]
+            part["seconds"] = time.perf_counter() - t_all
+            _merge_report(report_path, part)      # finished maps are in the report, also if a later one fails
+
+        def announce(entry, m):
+            name, _, size = entry[:3]
+            estimate = ""
+            if size:
+                peak = cost.peak_bytes(size[0], size[1], [m], options.denoise)
+                estimate = (f" {size[0]}x{size[1]} (about {budget.format_bytes(peak)}, "
+                            f"{cost.seconds(size[0], size[1], [m], _planned_samples(options)):.2g} s)")
+            step(f"{name}: {m}" + (estimate or " (vertices)") + tracker.line())
+            tracker.done(entry, m)
+
+        for m in maps:
+            temporary.assign(everyone, m)      # every object shows the same materials to the others' bakes
+            alone = []
+            for batch in batched:
+                batch = [e for e in batch if m not in unchanged.get(e[0], ()) and e[0] not in failed]
+                if not batch:
+                    continue
+                try:
+                    results = bake_batch(scene, batch, m, options, layers, temporary, state)
+                except ILError:
+                    alone += batch              # one of them breaks the shared call: bake each alone to find it
+                    continue
+                for entry in batch:
+                    announce(entry, m)
+                    try:
+                        finish(entry, m, results.pop(entry[0]), time.perf_counter())
+                    except (InputError, ILError) as e:
+                        fail(entry[0], e)
+            for entry in alone + singles:
+                if m in unchanged.get(entry[0], ()) or entry[0] in failed:
+                    continue
+                name, group, size = entry[:3]
+                announce(entry, m)
+                t_map = time.perf_counter()
+                try:
+                    result = bake_map(scene, group, m, options, layers, size, temporary.assign(group, m), state)
+                    result.seconds = 0.0
+                    finish(entry, m, result, t_map)
+                except (InputError, ILError) as e:
+                    fail(name, e)
+        if errors_ and not report["objects"]:
+            raise errors_[0]
+        if options.keep_products:       # products stay only when the whole bake succeeded (failed objects aside)
+            state.keep |= {(o.data.name, uvmod.LIGHTMAP) for o in objects if o.name not in failed}
+            state.keep |= {(o.data.name, ATTRIBUTE[m]) for o in objects for m in maps if o.name not in failed}
+        progress_line = tracker.final(report)
     report["seconds"] = time.perf_counter() - t_all
-    return JobResult(report, report_path, summary(report))
+    if failed:
+        _merge_report(report_path, {"objects": {}, "seconds": report["seconds"], "failed": failed})
+    return JobResult(report, report_path, summary(report) + progress_line)
+
+
+class _Tracker:
+    """Objects and texels done of a level bake, the elapsed time and the ETA from the texels per second so far."""
+
+    def __init__(self, plan, maps, unchanged, options):
+        self.t0 = time.perf_counter()
+        self.texels = {}
+        for name, group, size, *_ in plan:
+            per = size[0] * size[1] if size else sum(len(o.data.vertices) for o in group)
+            for m in maps:
+                if m not in unchanged.get(name, ()):
+                    self.texels[(name, m)] = per
+        self.total = sum(self.texels.values())
+        self.objects = {name for name, _ in self.texels}
+        self.finished, self.texels_done, self.objects_done = set(), 0, set()
+
+    def done(self, entry, m):
+        key = (entry[0], m)
+        if key in self.texels and key not in self.finished:
+            self.finished.add(key)
+            self.texels_done += self.texels[key]
+            if all((entry[0], k) in self.finished for n, k in self.texels if n == entry[0]):
+                self.objects_done.add(entry[0])
+
+    def line(self):
+        elapsed = time.perf_counter() - self.t0
+        rate = self.texels_done / elapsed if elapsed > 0 and self.texels_done else 0.0
+        eta = f"{(self.total - self.texels_done) / rate:.0f} s" if rate else "?"
+        text = (f" | objects {len(self.objects_done)}/{len(self.objects)}, texels {self.texels_done}/{self.total}, "
+                f"{elapsed:.1f} s, ETA {eta}")
+        try:
+            if not bpy.app.background and bpy.context.workspace is not None:
+                bpy.context.workspace.status_text_set(f"Light maps:{text[2:]}")
+        except (AttributeError, RuntimeError):
+            pass
+        return text
+
+    def final(self, report):
+        try:
+            if not bpy.app.background and bpy.context.workspace is not None:
+                bpy.context.workspace.status_text_set(None)
+        except (AttributeError, RuntimeError):
+            pass
+        elapsed = time.perf_counter() - self.t0
+        return f" ({self.texels_done} texels in {elapsed:.1f} s, {self.texels_done / max(elapsed, 1e-9):.0f} texels/s)"
+
+
+def estimated_texels(obj, options):
+    """Texels of ``obj``'s map before its UVs exist: its fixed size, else T² × world area / 0.6 (a typical chart
+    coverage), else one; what shards balance."""
+    if options.sizes and obj.name in options.sizes:
+        w, h = options.sizes[obj.name]
+        return int(w) * int(h)
+    if options.texel_density is None:
+        return int(options.resolution) ** 2 if options.target == "image" else len(obj.data.vertices)
+    return float(options.texel_density) ** 2 * uvmod.world_area(obj) / 0.6
+
+
+def shard(objects, options):
+    """(objects of shard K of N, its report file name). Deterministic: objects (those sharing a mesh together: the
+    first one's light-map layer is reused by the others) by estimated texels, largest first, then by name, each go
+    to the shard with the fewest texels so far (ties: lowest index); an atlas is one map and is baked whole by
+    shard 1."""
+    k, n = shard_of(options.shard)
+    name = SHARD_REPORT.format(k=k, n=n)
+    if options.atlas and options.target == "image":
+        return (list(objects) if k == 1 else []), name
+    units = {}                    # objects sharing a mesh share its light-map layer: one shard bakes them all
+    for o in objects:
+        units.setdefault(o.data.name, []).append(o)
+    load = [0.0] * n
+    mine = []
+    for unit in sorted(units.values(), key=lambda u: (-sum(estimated_texels(o, options) for o in u), u[0].name)):
+        i = min(range(n), key=lambda j: (load[j], j))
+        load[i] += sum(estimated_texels(o, options) for o in unit)
+        if i == k - 1:
+            mine += unit
+    order = {o.name: i for i, o in enumerate(objects)}
+    return sorted(mine, key=lambda o: order[o.name]), name
+
+
+def merge_reports(folder):
+    """Join the shard report parts (bake_report.shard-K-of-N.json) of ``folder`` into its bake_report.json (entries
+    per object and map, "skipped" and "unchanged" unions, "seconds" the sum); return a JobResult."""
+    import glob
+    parts = sorted(glob.glob(os.path.join(glob.escape(folder), SHARD_REPORT.format(k="*", n="*"))))
+    if not parts:
+        raise InputError(f"no shard reports (bake_report.shard-K-of-N.json) in {folder}")
+    merged = {"objects": {}, "skipped": {}, "unchanged": {}, "failed": {}, "seconds": 0.0, "shards": []}
+    for path in parts:
+        with open(path, encoding="utf-8") as f:
+            part = json.load(f)
+        for obj, maps in part.get("objects", {}).items():
+            merged["objects"].setdefault(obj, {}).update(maps)
+        merged["skipped"].update(part.get("skipped", {}))
+        merged.setdefault("failed", {}).update(part.get("failed", {}))
+        for obj, maps in part.get("unchanged", {}).items():
+            merged["unchanged"].setdefault(obj, []).extend(m for m in maps if m not in merged["unchanged"].get(obj, []))
+        merged["seconds"] += float(part.get("seconds", 0.0))
+        merged["shards"].append(os.path.basename(path))
+        merged["blender_version"] = part.get("blender_version")
+    path = os.path.join(folder, REPORT)
+    with report_lock(folder):
+        write_json(path, merged)
+    return JobResult(merged, path, summary(merged) + f" ({len(parts)} shard reports merged)")
 
 
 def summary(report):
     """One line: what was baked and what was skipped, with the reason."""
     baked = ", ".join(f"{o} ({', '.join(maps)})" for o, maps in report["objects"].items()) or "nothing"
     line = f"baked {baked}"
+    if report.get("unchanged"):
+        line += f"; unchanged (skipped, inputs as baked) {sum(len(m) for m in report['unchanged'].values())} map(s): " \
+                + ", ".join(f"{o} ({', '.join(m)})" for o, m in report["unchanged"].items())
     if report.get("skipped"):
         line += "; skipped " + "; ".join(f"{n} ({why})" for n, why in report["skipped"].items())
+    if report.get("failed"):
+        line += f"; FAILED {len(report['failed'])}: " + "; ".join(f"{n} ({why})" for n, why in report["failed"].items())
     return line
 
 
@@ -378,8 +711,8 @@ class TemporaryMaterials:
 
     def __init__(self, state):
         self.state = state
-        self.ao = None
-        self.copies = {}          # original material (or None) -> (copy, image node)
+        self.ao = {}              # group key (None: per-object bakes) -> (material, image node)
+        self.copies = {}          # (original material or None, group key) -> (copy, image node)
 
     def assign(self, group, kind):
         """Put the ``kind`` materials on every slot of ``group``; return their image nodes."""
@@ -396,6 +729,17 @@ class TemporaryMaterials:
                     nodes.append(tex)
         return nodes
 
+    def batch_slots(self, obj, kind, key, image):
+        """The ``kind`` materials of ``obj``'s slots (one for an object without slots) for a batched bake, their
+        image nodes on ``image``: made once per group ``key`` and original material."""
+        originals = [mat for _, mat in self.state.slots[obj.name]] or [None]
+        out = []
+        for orig in originals:
+            mat, tex = self._ao(key) if kind == "ao" else self._irradiance(orig, key)
+            tex.image = image
+            out.append(mat)
+        return out
+
     def _new(self, name):
         return self.state.track(bpy.data.materials, materials.empty_material(name))
 
@@ -405,15 +749,15 @@ class TemporaryMaterials:
         nt.nodes.active = tex
         return tex
 
-    def _ao(self):
-        if self.ao is None:
+    def _ao(self, key=None):
+        if key not in self.ao:
             mat = materials.white_lambert("IL bake AO", self._new("IL bake AO"))
-            self.ao = (mat, self._image_node(mat.node_tree))
-        return self.ao
+            self.ao[key] = (mat, self._image_node(mat.node_tree))
+        return self.ao[key]
 
-    def _irradiance(self, orig):
-        if orig in self.copies:
-            return self.copies[orig]
+    def _irradiance(self, orig, key=None):
+        if (orig, key) in self.copies:
+            return self.copies[(orig, key)]
         if orig is None or (not compat.IS_5 and not orig.use_nodes) or orig.node_tree is None:
             # Cycles shades such a slot with a plain diffuse of the viewport colour (grey without material)
             mat = self._new(f"IL bake {orig.name if orig else 'default'}")
@@ -447,8 +791,8 @@ class TemporaryMaterials:
             nt.links.new(surface, mix.inputs[1])
         nt.links.new(materials.white_diffuse_node(nt).outputs["BSDF"], mix.inputs[2])
         nt.links.new(mix.outputs["Shader"], out.inputs["Surface"])
-        self.copies[orig] = (mat, self._image_node(nt))
-        return self.copies[orig]
+        self.copies[(orig, key)] = (mat, self._image_node(nt))
+        return self.copies[(orig, key)]
 
 
 def bake_map(scene, group, kind, options, layers, size, image_nodes, state):
@@ -492,30 +836,45 @@ def bake_map(scene, group, kind, options, layers, size, image_nodes, state):
     pilot = 0
     if options.target_error is not None:
         values, mask, n, pilot, err = _bake_to_error(once, options)
-        estimate = "pilots"
-    elif kind == "irradiance" and options.samples >= 2:
-        n = int(options.samples)
-        h = n // 2
-        (a, mask), (b, _) = once(h, options.seed), once(n - h, options.seed + 1)
-        var = lightmap.per_sample_variance_pair(_flat(a), _flat(b), h, n - h, _flat_mask(mask, a))
-        values, err, estimate = _combine([a, b], [h, n - h]), lightmap.expected_error(var, n), "halves"
+        estimate = ESTIMATES["pilots"]
     else:
-        n = int(options.samples)
-        values, mask = once(n, options.seed)
-        if kind == "ao":
-            var = lightmap.per_sample_variance_ao(_flat(values), _flat_mask(mask, values))
-            err, estimate = lightmap.expected_error(var, n), "binomial"
-        else:
-            err, estimate = float("nan"), "none"
-    estimate = ESTIMATES[estimate]
+        values, mask, n, err, estimate = _estimated(kind, options, [once(m, seed) for m, seed in _calls(kind, options)])
     if image is not None:
         bpy.data.images.remove(image)           # one map's image at a time (memory, cost.BYTES_PER_TEXEL)
     if image_target and options.denoise:
-        filled, _ = lightmap.nearest_fill(values, mask)
-        from .denoise import denoise
-        values = np.where((mask[..., None] if values.ndim == 3 else mask), denoise(filled), 0.0).astype(np.float32)
-        estimate += DENOISED
+        values, estimate = _denoised(values, mask), estimate + DENOISED
     return BakeResult(values, mask, n, time.perf_counter() - t0, err, estimate, pilot, timer["cycles"])
+
+
+def _calls(kind, options):
+    """[(samples, seed)] of the Cycles calls of a fixed-sample map: two independent halves for irradiance
+    (its error is measured from their difference), one call otherwise."""
+    n = int(options.samples)
+    if kind == "irradiance" and n >= 2:
+        return [(n // 2, int(options.seed)), (n - n // 2, int(options.seed) + 1)]
+    return [(n, int(options.seed))]
+
+
+def _estimated(kind, options, parts):
+    """(values, mask, samples, estimated error, estimate) of a fixed-sample map from its calls' (values, mask)
+    (:func:`_calls`): irradiance halves combined, error from their difference; AO the binomial bound."""
+    n = int(options.samples)
+    if len(parts) == 2:
+        h = n // 2
+        (a, mask), (b, _) = parts
+        var = lightmap.per_sample_variance_pair(_flat(a), _flat(b), h, n - h, _flat_mask(mask, a))
+        return _combine([a, b], [h, n - h]), mask, n, lightmap.expected_error(var, n), ESTIMATES["halves"]
+    values, mask = parts[0]
+    if kind == "ao":
+        var = lightmap.per_sample_variance_ao(_flat(values), _flat_mask(mask, values))
+        return values, mask, n, lightmap.expected_error(var, n), ESTIMATES["binomial"]
+    return values, mask, n, float("nan"), ESTIMATES["none"]
+
+
+def _denoised(values, mask):
+    filled, _ = lightmap.nearest_fill(values, mask)
+    from .denoise import denoise
+    return np.where((mask[..., None] if values.ndim == 3 else mask), denoise(filled), 0.0).astype(np.float32)
 
 
 def _bake_to_error(once, options):
@@ -586,7 +945,27 @@ def _set_bounces(cy, kind, options):
 
 
 def _bake_once(scene, group, kind, samples, seed, image, uv_name, options):
-    """One Cycles bake call; returns (values, mask, seconds inside the call) with E already multiplied by π.
+    """One Cycles bake call; returns (values, mask, seconds inside the call) with E already multiplied by π."""
+    if image is not None:
+        image.pixels.foreach_set(np.zeros(image.size[0] * image.size[1] * 4, np.float32))
+    seconds = _call_bake(scene, group, kind, samples, seed, uv_name if image is not None else None, options)
+    if image is not None:
+        values, mask = _read_image(image, kind)
+        return values, mask, seconds
+    scale = np.pi if kind == "irradiance" else 1.0
+    values = {}
+    for o in group:
+        attr = o.data.color_attributes[ATTRIBUTE[kind]]
+        c = np.zeros(len(attr.data) * 4, np.float32)
+        attr.data.foreach_get("color", c)
+        c = c.reshape(-1, 4)
+        values[o.name] = c[:, 0].copy() if kind == "ao" else c[:, :3] * scale
+    return values, None, seconds
+
+
+def _call_bake(scene, group, kind, samples, seed, uv_name, options):
+    """One ``object.bake`` of the objects ``group`` (into their active image nodes with ``uv_name``, else into
+    their active colour attributes); returns the seconds inside the call.
 
     Cycles: ``samples`` and ``seed``, no denoising, adaptive sampling or sample clamping (Blender clamps
     indirect light at 10 by default: a biased E where light is trapped, e.g. under a lamp near a ceiling)."""
@@ -598,11 +977,9 @@ def _bake_once(scene, group, kind, samples, seed, image, uv_name, options):
         if o.select_get(view_layer=vl) != want:
             o.select_set(want, view_layer=vl)
     vl.objects.active = group[0]
-    if image is not None:
-        image.pixels.foreach_set(np.zeros(image.size[0] * image.size[1] * 4, np.float32))
     kwargs = dict(margin=0, use_clear=False, use_selected_to_active=False, save_mode="INTERNAL",
-                  target="IMAGE_TEXTURES" if image is not None else "VERTEX_COLORS")
-    if image is not None:
+                  target="IMAGE_TEXTURES" if uv_name is not None else "VERTEX_COLORS")
+    if uv_name is not None:
         kwargs["uv_layer"] = uv_name
     if kind == "ao":
         kwargs["type"] = "AO"
@@ -620,23 +997,239 @@ def _bake_once(scene, group, kind, samples, seed, image, uv_name, options):
     seconds = time.perf_counter() - t
     if "FINISHED" not in result:
         raise ILError(f"Cycles bake did not finish ({', '.join(result)})")
-    scale = np.pi if kind == "irradiance" else 1.0
-    if image is not None:
-        w, h = image.size
-        px = np.zeros(w * h * 4, np.float32)
-        image.pixels.foreach_get(px)
-        px = px.reshape(h, w, 4)
-        mask = px[..., 3] > 0.5
-        values = px[..., 0] if kind == "ao" else px[..., :3] * scale
-        return values.astype(np.float32), mask, seconds
-    values = {}
-    for o in group:
-        attr = o.data.color_attributes[ATTRIBUTE[kind]]
-        c = np.zeros(len(attr.data) * 4, np.float32)
-        attr.data.foreach_get("color", c)
-        c = c.reshape(-1, 4)
-        values[o.name] = c[:, 0].copy() if kind == "ao" else c[:, :3] * scale
-    return values, None, seconds
+    return seconds
+
+
+def _read_image(image, kind):
+    """(values, covered mask) of a baked image (E multiplied by π)."""
+    w, h = image.size
+    px = np.zeros(w * h * 4, np.float32)
+    image.pixels.foreach_get(px)
+    px = px.reshape(h, w, 4)
+    mask = px[..., 3] > 0.5
+    values = px[..., 0].copy() if kind == "ao" else px[..., :3] * (np.pi if kind == "irradiance" else 1.0)
+    return values.astype(np.float32), mask
+
+
+# ------------------------------------------------------------------ batched bakes (one scene sync per call)
+
+BATCH_TEXELS = 1 << 22
+"""Most map texels one batched Cycles call bakes: its images live together (4 Mi texels: 64 MiB of float RGBA
+images, as much again read back), so a level never holds more than that beyond one map's arrays."""
+PROXY = "IL bake batch"
+PROXY_UV = "IL bake UV"
+_RAY_VISIBILITY = ("visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
+                   "visible_volume_scatter", "visible_shadow")
+
+
+def _batch_refusal(obj, layers, state, depsgraph, instanced):
+    """Why ``obj`` is baked by its own Cycles call instead of in a batch (:func:`bake_batch`), or None.
+
+    A batch stands a joined copy of the objects' evaluated meshes in for them, so an object is batched only
+    when that copy is the same surface to Cycles: positive scale (a mirrored object's winding would flip),
+    visible to every ray kind, no holdout or shadow catcher, no custom normals (they do not survive the join),
+    its light-map layer in the evaluated mesh, not hidden for render, and not part of a collection another
+    object instances (hiding it would hide the instances too)."""
+    if obj in state.render_hidden:
+        return "hidden for render"
+    if obj.matrix_world.determinant() <= 0:
+        return "negative scale"
+    if not all(getattr(obj, a, True) for a in _RAY_VISIBILITY) or obj.is_holdout or obj.is_shadow_catcher:
+        return "ray visibility"
+    if obj.name in instanced:
+        return "instanced"
+    me = obj.evaluated_get(depsgraph).data
+    if getattr(me, "has_custom_normals", False):
+        return "custom normals"
+    if layers.get(obj.name) not in me.uv_layers:
+        return "light-map layer not in the evaluated mesh"
+    return None
+
+
+def _instanced(scene):
+    """Names of the objects in a collection some object of the scene instances."""
+    names = set()
+    for o in scene.objects:
+        if o.instance_type == "COLLECTION" and o.instance_collection is not None:
+            names.update(x.name for x in o.instance_collection.all_objects)
+    return names
+
+
+def batches(scene, plan, layers, state, options):
+    """Split the image-target ``plan`` [(name, group, size, ...)] into (batches, singles): batches are lists of
+    plan entries whose maps share one Cycles call (at most BATCH_TEXELS texels each, at least one entry),
+    singles are baked by their own calls (target error: each map chooses its own samples; vertex target;
+    objects :func:`_batch_refusal` refuses)."""
+    if options.target != "image" or options.target_error is not None or not options.batch:
+        return [], list(plan)
+    scene.view_layers[0].update()
+    depsgraph = scene.view_layers[0].depsgraph
+    instanced = _instanced(scene)
+    batched, singles = [], []
+    for entry in plan:
+        group = entry[1]
+        if any(_batch_refusal(o, layers, state, depsgraph, instanced) for o in group):
+            singles.append(entry)
+        else:
+            batched.append(entry)
+    if sum(len(entry[1]) for entry in batched) < 2:      # one object: its own call is the same call
+        return [], list(plan)
+    out, texels = [[]], 0
+    for entry in batched:
+        t = entry[2][0] * entry[2][1]
+        if out[-1] and texels + t > BATCH_TEXELS:
+            out.append([])
+            texels = 0
+        out[-1].append(entry)
+        texels += t
+    return out, singles
+
+
+class _Proxy:
+    """A temporary object whose mesh joins the batch's evaluated meshes in world space (modifiers applied),
+    one UV layer (each object's light-map layer) and one material slot per object slot, whose material's
+    active image node is that object's group image; the objects themselves are hidden for render while it
+    stands in for them. Cycles bakes every material's image in one call (one scene sync)."""
+
+    def __init__(self, scene, batch, kind, layers, temporary, images, state):
+        self.scene, self.batch, self.kind, self.layers = scene, batch, kind, layers
+        self.temporary, self.images, self.state = temporary, images, state
+        self.obj, self.hidden = None, []
+
+    def __enter__(self):
+        import bmesh
+        self.scene.view_layers[0].update()       # the light-map UVs written since the last evaluation
+        depsgraph = self.scene.view_layers[0].depsgraph
+        bm = bmesh.new()
+        materials_ = []
+        try:
+            for name, group, *_ in self.batch:
+                for o in group:
+                    me = bpy.data.meshes.new_from_object(o.evaluated_get(depsgraph), preserve_all_data_layers=True,
+                                                         depsgraph=depsgraph)
+                    try:
+                        tri = _triangulated(me, self.layers[o.name], o.matrix_world)
+                    finally:
+                        bpy.data.meshes.remove(me)
+                    try:
+                        slots = self.temporary.batch_slots(o, self.kind, name, self.images[name])
+                        index = np.zeros(len(tri.polygons), np.int32)
+                        tri.polygons.foreach_get("material_index", index)
+                        tri.polygons.foreach_set("material_index", len(materials_) + np.clip(index, 0, len(slots) - 1))
+                        materials_ += slots
+                        bm.from_mesh(tri)
+                    finally:
+                        bpy.data.meshes.remove(tri)
+            mesh = self.state.track(bpy.data.meshes, bpy.data.meshes.new(PROXY))
+            bm.to_mesh(mesh)
+        finally:
+            bm.free()
+        for mat in materials_:
+            mesh.materials.append(mat)
+        self.obj = self.state.track(bpy.data.objects, bpy.data.objects.new(PROXY, mesh))
+        self.scene.collection.objects.link(self.obj)
+        for _, group, *_ in self.batch:
+            for o in group:
+                if not o.hide_render:
+                    o.hide_render = True
+                    self.hidden.append(o)
+        return self
+
+    def __exit__(self, *exc):
+        for o in self.hidden:
+            o.hide_render = False
+        if self.obj is not None:
+            mesh = self.obj.data
+            bpy.data.objects.remove(self.obj)
+            bpy.data.meshes.remove(mesh)
+            self.scene.view_layers[0].update()
+        return False
+
+
+def _triangulated(me, layer, matrix):
+    """A mesh of ``me``'s loop triangles (the triangles Blender bakes, chosen in object space) in world space
+    (``matrix``): UVs of ``layer`` as PROXY_UV, material indices, flat faces and sharp edges kept."""
+    me.calc_loop_triangles()
+    t = len(me.loop_triangles)
+    tv = np.zeros(t * 3, np.int64)
+    tl = np.zeros(t * 3, np.int64)
+    tp = np.zeros(t, np.int64)
+    me.loop_triangles.foreach_get("vertices", tv)
+    me.loop_triangles.foreach_get("loops", tl)
+    me.loop_triangles.foreach_get("polygon_index", tp)
+    co = np.zeros(len(me.vertices) * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    uv = np.zeros(len(me.loops) * 2, np.float32)
+    me.uv_layers[layer].data.foreach_get("uv", uv)
+    mat = np.zeros(len(me.polygons), np.int32)
+    me.polygons.foreach_get("material_index", mat)
+    smooth = np.zeros(len(me.polygons), bool)
+    me.polygons.foreach_get("use_smooth", smooth)
+    ev = np.zeros(len(me.edges) * 2, np.int64)
+    me.edges.foreach_get("vertices", ev)
+    sharp = np.zeros(len(me.edges), bool)
+    me.edges.foreach_get("use_edge_sharp", sharp)
+    out = bpy.data.meshes.new("IL bake batch part")
+    out.vertices.add(len(me.vertices))
+    out.vertices.foreach_set("co", co)
+    out.loops.add(3 * t)
+    out.loops.foreach_set("vertex_index", tv)
+    out.polygons.add(t)
+    out.polygons.foreach_set("loop_start", np.arange(0, 3 * t, 3))
+    out.update(calc_edges=True)
+    out.polygons.foreach_set("material_index", mat[tp])
+    out.polygons.foreach_set("use_smooth", smooth[tp])
+    layer_out = out.uv_layers.new(name=PROXY_UV, do_init=False)
+    layer_out.data.foreach_set("uv", uv.reshape(-1, 2)[tl].ravel())
+    if sharp.any():
+        key = lambda e: np.minimum(e[:, 0], e[:, 1]) * (len(co) + 1) + np.maximum(e[:, 0], e[:, 1])
+        sharp_keys = set(key(ev.reshape(-1, 2)[sharp]).tolist())
+        new = np.zeros(len(out.edges) * 2, np.int64)
+        out.edges.foreach_get("vertices", new)
+        out.edges.foreach_set("use_edge_sharp", np.isin(key(new.reshape(-1, 2)), list(sharp_keys)))
+    out.transform(matrix)
+    out.update()
+    return out
+
+
+def bake_batch(scene, batch, kind, options, layers, temporary, state):
+    """Bake map ``kind`` of every group of ``batch`` (plan entries (name, group, size, ...)) in the Cycles calls
+    of one map (:func:`_calls`) through a :class:`_Proxy`; return ``{name: BakeResult}``.
+
+    Same texels, samples and seeds as the groups' own calls: Cycles seeds a bake sample by its pixel in its
+    image, so each image comes out as its own call makes it (tests/test_bake_level.py). The call's seconds
+    are shared among the groups by texels."""
+    t0 = time.perf_counter()
+    for o in state.render_hidden:               # hidden for render: seen by Cycles only for its own map
+        if not o.hide_render:
+            o.hide_render = True
+    images = {name: state.track(bpy.data.images, bpy.data.images.new(f"IL {kind} {name}", size[0], size[1],
+                                                                     float_buffer=True, alpha=True))
+              for name, _, size, *_ in batch}
+    parts = {name: [] for name in images}
+    cycles = 0.0
+    try:
+        with _Proxy(scene, batch, kind, layers, temporary, images, state) as proxy:
+            for samples, seed in _calls(kind, options):
+                for image in images.values():
+                    image.pixels.foreach_set(np.zeros(image.size[0] * image.size[1] * 4, np.float32))
+                cycles += _call_bake(scene, [proxy.obj], kind, samples, seed, PROXY_UV, options)
+                for name, image in images.items():
+                    parts[name].append(_read_image(image, kind))
+    finally:
+        for image in images.values():
+            bpy.data.images.remove(image)
+    texels = {name: size[0] * size[1] for name, _, size, *_ in batch}
+    total = sum(texels.values())
+    elapsed = time.perf_counter() - t0
+    results = {}
+    for name in list(parts):
+        values, mask, n, err, estimate = _estimated(kind, options, parts.pop(name))
+        if options.denoise:
+            values, estimate = _denoised(values, mask), estimate + DENOISED
+        share = texels[name] / total
+        results[name] = BakeResult(values, mask, n, elapsed * share, err, estimate, 0, cycles * share)
+    return results
 
 
 # ------------------------------------------------------------------ files
@@ -684,7 +1277,7 @@ def _finite(name, kind, values):
                       f"light of infinite strength): nothing written")
 
 
-def _write(name, group, kind, result, out, options, layers, margin=None, overlap=None):
+def _write(name, group, kind, result, out, options, layers, margin=None, overlap=None, digest=None):
     """Write the files of one baked map (dilated by ``margin`` texels); return ``{object: report entry}``.
     ``overlap`` = ({object: fraction}, group fraction) of covered texels shared by several faces."""
     margin = int(options.margin) if margin is None else int(margin)
@@ -699,6 +1292,8 @@ def _write(name, group, kind, result, out, options, layers, margin=None, overlap
         covered = {o.name: float((lightmap.coverage_mask(uvmod.triangles_uv(o, layers[o.name]), w, h) & result.mask).mean())
                    for o in group} if len(group) > 1 else {group[0].name: float(result.mask.mean())}
         attrs = _attributes(kind, result, options, uv_name)
+        if digest:
+            attrs[HASH_KEY] = digest
         attrs["il:coverage"] = float(result.mask.mean())
         attrs["il:chart_area"] = float(sum(areas.values()))
         attrs["il:min_coverage"] = MIN_COVERAGE_TEXT
@@ -724,6 +1319,8 @@ def _write(name, group, kind, result, out, options, layers, margin=None, overlap
         row = v[None, :] if v.ndim == 1 else v[None, :, :]
         path = os.path.join(out, f"{o.name}_{kind}_vertex.exr")
         attrs = _attributes(kind, result, options, None)
+        if digest:
+            attrs[HASH_KEY] = digest
         attrs["il:layout"] = "one texel per mesh vertex, in vertex order"
         exr.write_exr(path, _channels(kind, row, np.ones(row.shape[:2], np.float32)), attrs)
         attr = o.data.color_attributes.get(ATTRIBUTE[kind])
@@ -757,6 +1354,10 @@ def _merge_report(path, report):
             objects.setdefault(name, {}).update(maps)
         merged = {"objects": objects, "seconds": round(report["seconds"], 4),
                   "blender_version": bpy.app.version_string}
+        failed = {k: v for k, v in old.get("failed", {}).items() if k not in report["objects"]}
+        failed.update(report.get("failed", {}))
+        if failed:
+            merged["failed"] = failed
         write_json(path, merged)
 
 

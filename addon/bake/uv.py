@@ -16,6 +16,8 @@ not fit (Blender's packer then leaves charts outside the unit square, or shrinks
 the margin is halved down to half a texel; a layout is accepted only when its charts cover the map
 (:data:`MIN_COVERAGE`).
 """
+import collections
+import hashlib
 import math
 
 import bmesh
@@ -96,14 +98,27 @@ UNION_SIDE = 1024
 """Side of the raster that measures the area of overlapping charts (their union)."""
 
 
+_AREAS = collections.OrderedDict()    # digest of a layout's UVs -> its chart area (the raster is the costly part)
+_AREAS_KEPT = 512
+
+
 def chart_area(tri_uv):
     """The charts' UV area inside the unit square, overlapping charts counted once: Σ |triangle area| of the
     clipped UVs, or, when that exceeds the fraction of a UNION_SIDE² raster's texel centres they cover (a
-    user's layer with mirrored or tiled charts), that fraction."""
-    tri = np.clip(tri_uv, 0.0, 1.0)
+    user's layer with mirrored or tiled charts), that fraction. Remembered per layout (the unwrap, the side
+    and the files ask for the same layout several times)."""
+    tri = np.ascontiguousarray(np.clip(tri_uv, 0.0, 1.0), np.float32)
+    key = hashlib.blake2b(tri.tobytes(), digest_size=16).digest() + bytes(str(tri.shape), "ascii")
+    if key in _AREAS:
+        _AREAS.move_to_end(key)
+        return _AREAS[key]
     total = lightmap.uv_area(tri)
     union = float(lightmap.coverage_mask(tri, UNION_SIDE, UNION_SIDE).mean()) if total > 0 else 0.0
-    return total if total <= union * 1.02 else union
+    area = total if total <= union * 1.02 else union
+    _AREAS[key] = area
+    while len(_AREAS) > _AREAS_KEPT:
+        _AREAS.popitem(last=False)
+    return area
 
 
 def coverage_ratio(tri_uv, width, height):

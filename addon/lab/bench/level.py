@@ -1,0 +1,283 @@
+"""Level benchmark: a generated level (walls, floor, props of every primitive kind, modifiers, linked duplicates,
+a collection instance) baked AO + irradiance per object and as an atlas.
+
+Measured in one run: the pipeline's wall time against Blender's bare ``object.bake`` calls for the same maps
+(same UV layers, image sizes, samples), peak RSS, texels per second, and the atlas's utilisation (covered texels /
+map texels) against Blender's ``uv.pack_islands`` on the same charts.
+"""
+import os
+import resource
+import shutil
+import time
+
+import bpy
+import numpy as np
+
+from ...bake import uv as uvmod
+from ...bake.options import BakeOptions
+from ...bake.pipeline import bake_lightmaps
+from ...blender import render
+from ...blender.scene import remove_scene
+from ...core import lightmap
+from .result import BenchResult
+
+KEY = "level"
+TITLE = "Light maps of a level: pipeline against bare Cycles bakes"
+
+PRIMITIVES = ("cube", "uv_sphere", "ico_sphere", "cylinder", "cone", "torus", "monkey", "grid", "circle", "plane")
+MAPS = ("ao", "irradiance")
+
+
+def peak_rss():
+    """Peak resident set size of this process in bytes (``getrusage``; kilobytes on Linux)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+
+def _add(scene, kind, **kw):
+    """A primitive added by its operator (into the context's scene), moved into ``scene``."""
+    if kind == "circle":
+        kw["fill_type"] = "NGON"
+    getattr(bpy.ops.mesh, f"primitive_{kind}_add")(**kw)
+    obj = bpy.context.view_layer.objects.active
+    for c in list(obj.users_collection):
+        c.objects.unlink(obj)
+    scene.collection.objects.link(obj)
+    return obj
+
+
+def build_level(scene, props=200, subdivision=2, floor_levels=3):
+    """Fill ``scene`` with a level made by Blender's operators: a floor (Subdivision), four walls (Bevel), ``props``
+    props cycling through every primitive kind (Subdivision on the floor and the monkeys, Bevel on cubes, Solidify on grids and
+    planes), every tenth prop a linked duplicate of the one before, a "Crate stack" collection instanced by an
+    empty, a sun and a point light. Returns the mesh objects to bake (the instance's objects are not in the scene)."""
+    objects = []
+    if True:
+        side = max(8.0, 1.6 * props ** 0.5)
+        floor = _add(scene, "plane", size=side)
+        floor.name = "Floor"
+        m = floor.modifiers.new("Subdivision", "SUBSURF")
+        m.subdivision_type, m.levels, m.render_levels = "SIMPLE", floor_levels, floor_levels
+        objects.append(floor)
+        for i, (x, y, sx, sy) in enumerate(((0, side / 2, side / 2, 0.1), (0, -side / 2, side / 2, 0.1),
+                                            (side / 2, 0, 0.1, side / 2), (-side / 2, 0, 0.1, side / 2))):
+            wall = _add(scene, "cube", location=(x, y, 1.0), scale=(sx, sy, 1.0))
+            wall.name = f"Wall {i}"
+            bevel = wall.modifiers.new("Bevel", "BEVEL")
+            bevel.width, bevel.segments = 0.05, 2
+            objects.append(wall)
+        grid = int(np.ceil(props ** 0.5))
+        step = (side - 2.0) / grid
+        rng = np.random.default_rng(13)
+        for i in range(props):
+            x, y = -side / 2 + 1.0 + step * (i % grid + 0.5), -side / 2 + 1.0 + step * (i // grid + 0.5)
+            size = float(rng.uniform(0.3, 0.6) * min(step, 1.5))
+            loc = (x, y, size / 2)
+            if i % 10 == 9:
+                obj = objects[-1].copy()          # linked duplicate: same mesh, its own transform
+                obj.location = loc
+                obj.rotation_euler = (0, 0, float(rng.uniform(0, 6.28)))
+                scene.collection.objects.link(obj)
+            else:
+                kind = PRIMITIVES[i % len(PRIMITIVES)]
+                kw = {"location": loc, "rotation": (0, 0, float(rng.uniform(0, 6.28)))}
+                if kind in ("cube", "monkey", "grid", "plane"):
+                    kw["size"] = size
+                elif kind in ("uv_sphere", "ico_sphere", "circle"):
+                    kw["radius"] = size / 2
+                    if kind == "uv_sphere":
+                        kw.update(segments=48, ring_count=24)
+                elif kind in ("cylinder", "cone"):
+                    kw.update(radius1=size / 2, depth=size) if kind == "cone" else kw.update(radius=size / 2, depth=size)
+                elif kind == "torus":
+                    kw.update(major_radius=size / 2, minor_radius=size / 6)
+                obj = _add(scene, kind, **kw)
+                if kind == "monkey":
+                    sub = obj.modifiers.new("Subdivision", "SUBSURF")
+                    sub.levels = sub.render_levels = subdivision
+                elif kind == "cube":
+                    obj.modifiers.new("Bevel", "BEVEL").width = size / 10
+                elif kind in ("grid", "plane", "circle"):
+                    obj.modifiers.new("Solidify", "SOLIDIFY").thickness = size / 10
+            obj.name = f"Prop {i:03d}"
+            objects.append(obj)
+        crates = bpy.data.collections.new("Crate stack")
+        for k in range(3):
+            me = bpy.data.meshes.new(f"Crate {k}")
+            crate = bpy.data.objects.new(f"Crate {k}", me)
+            import bmesh
+            bm = bmesh.new()
+            bmesh.ops.create_cube(bm, size=0.5)
+            bm.to_mesh(me)
+            bm.free()
+            crate.location = (0, 0, 0.25 + 0.5 * k)
+            crates.objects.link(crate)
+        empty = bpy.data.objects.new("Crate stack instance", None)
+        empty.instance_type, empty.instance_collection = "COLLECTION", crates
+        empty.location = (side / 2 - 1.0, side / 2 - 1.0, 0)
+        scene.collection.objects.link(empty)
+    for kind, energy, loc in (("SUN", 3.0, (0, 0, 10)), ("POINT", 2000.0, (0, 0, 4))):
+        light = bpy.data.objects.new(f"IL level {kind.lower()}", bpy.data.lights.new(f"IL level {kind.lower()}", kind))
+        light.data.energy, light.location = energy, loc
+        light.rotation_euler = (0.6, 0.2, 0.4)
+        scene.collection.objects.link(light)
+    world = bpy.data.worlds.new("IL level sky")
+    if hasattr(world, "use_nodes") and not world.node_tree:
+        world.use_nodes = True
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.2, 0.25, 0.3, 1)
+    scene.world = world
+    return objects
+
+
+def triangles(scene, objects):
+    scene.view_layers[0].update()
+    dg = scene.view_layers[0].depsgraph
+    n = 0
+    for o in objects:
+        me = o.evaluated_get(dg).data
+        me.calc_loop_triangles()
+        n += len(me.loop_triangles)
+    return n
+
+
+def bare_bakes(scene, objects, report, options):
+    """Blender's bare bake of every map in ``report``: per map kind one ``object.bake`` call with every object
+    selected, each object's material carrying its own image of the report's size, its "Lightmap" layer, the same
+    samples (no halves, no checks, no files). Returns {map kind: seconds}."""
+    vl = scene.view_layers[0]
+    render.use_cycles_cpu(scene)
+    seconds = {}
+    mats, images = [], []
+    for kind in MAPS:
+        for o in objects:
+            w, h = report["objects"][o.name][kind]["resolution"]
+            img = bpy.data.images.new(f"bare {o.name}", w, h, float_buffer=True, alpha=True)
+            mat = bpy.data.materials.new(f"bare {o.name}")
+            mat.use_nodes = True
+            node = mat.node_tree.nodes.new("ShaderNodeTexImage")
+            node.image = img
+            mat.node_tree.nodes.active = node
+            o.active_material = mat
+            mats.append(mat)
+            images.append(img)
+        render.cycles_cpu(scene, int(options.samples), 0, clamp=0.0)
+        scene.cycles.diffuse_bounces = 0 if kind == "ao" else int(options.bounces)
+        scene.cycles.max_bounces = 0 if kind == "ao" else max(1, int(options.bounces))
+        for o in vl.objects:
+            o.select_set(o in objects, view_layer=vl)
+        vl.objects.active = objects[0]
+        ctx = dict(scene=scene, view_layer=vl, active_object=objects[0], object=objects[0],
+                   selected_objects=list(objects), selected_editable_objects=list(objects))
+        kw = {"type": "AO"} if kind == "ao" else {"type": "DIFFUSE", "pass_filter": {"DIRECT", "INDIRECT"}}
+        t = time.perf_counter()
+        with bpy.context.temp_override(**ctx):
+            bpy.ops.object.bake(margin=0, use_clear=False, save_mode="INTERNAL", target="IMAGE_TEXTURES",
+                                uv_layer=uvmod.LIGHTMAP, **kw)
+        seconds[kind] = time.perf_counter() - t
+        for img in images:
+            bpy.data.images.remove(img)
+        images.clear()
+    for mat in mats:
+        bpy.data.materials.remove(mat)
+    return seconds
+
+
+def pack_islands_utilisation(objects, side, margin):
+    """Covered texels / map texels of the objects' "Lightmap" charts re-packed together by Blender's
+    ``uv.pack_islands`` (same margin as a fraction of the side, bounding boxes, rotation; concave and convex shapes
+    took minutes for a few hundred charts) in a ``side``² map. Packed on copies of the meshes in the context's
+    scene (edit mode works on the context's view layer)."""
+    scene = bpy.context.scene
+    vl = bpy.context.view_layer
+    copies = []
+    try:
+        for o in objects:
+            me = o.data.copy()
+            me.uv_layers.active = me.uv_layers[uvmod.LIGHTMAP]
+            copy = bpy.data.objects.new(f"IL pack {o.name}", me)
+            scene.collection.objects.link(copy)
+            copies.append(copy)
+        for o in vl.objects:
+            o.select_set(o in copies)
+        vl.objects.active = copies[0]
+        bpy.ops.object.mode_set(mode="EDIT")
+        try:
+            bpy.ops.mesh.select_all(action="SELECT")
+            bpy.ops.uv.select_all(action="SELECT")
+            bpy.ops.uv.pack_islands(margin_method="FRACTION", margin=uvmod.margin_fraction(margin, side),
+                                    rotate=True, shape_method="AABB")
+        finally:
+            bpy.ops.object.mode_set(mode="OBJECT")
+        tri = np.concatenate([uvmod.triangles_uv(o, uvmod.LIGHTMAP) for o in copies])
+        return float(lightmap.coverage_mask(tri, side, side).mean())
+    finally:
+        for copy in copies:
+            me = copy.data
+            bpy.data.objects.remove(copy)
+            bpy.data.meshes.remove(me)
+
+
+def run(output_dir, quick=False, props=None, texel_density=None, samples=None):
+    """Build the level in a new scene, bake it per object (pipeline, then bare) and as an atlas; return the table
+    and figures (``level`` rows: one per measurement)."""
+    props = props or (24 if quick else 200)
+    density = texel_density or 10.0
+    samples = samples or (4 if quick else 8)
+    os.makedirs(output_dir, exist_ok=True)
+    scene = bpy.data.scenes.new("IL level")
+    rows, figures = [], {}
+    try:
+        t = time.perf_counter()
+        objects = build_level(scene, props, subdivision=1 if quick else 2, floor_levels=3 if quick else 8)
+        tris = triangles(scene, objects)
+        figures["objects"], figures["triangles"] = len(objects), tris
+        figures["build_seconds"] = time.perf_counter() - t
+        rss0 = peak_rss()
+        options = BakeOptions(texel_density=density, samples=samples, bounces=2, margin=2, overwrite=True,
+                              max_resolution=1024)
+        per_object = os.path.join(output_dir, "per_object")
+        shutil.rmtree(per_object, ignore_errors=True)
+        t = time.perf_counter()
+        report = bake_lightmaps(objects, list(MAPS), per_object, options, scene=scene)
+        wall = time.perf_counter() - t
+        print(f"level: {len(objects)} objects, {tris} triangles; pipeline {wall:.1f} s", flush=True)
+        rss_pipeline = peak_rss()
+        baked = [o for o in objects if o.name in report["objects"]]
+        texels = sum(e["resolution"][0] * e["resolution"][1] for maps in report["objects"].values()
+                     for e in maps.values())
+        covered = sum(e["coverage"] * e["resolution"][0] * e["resolution"][1] for maps in report["objects"].values()
+                      for e in maps.values())
+        cycles = sum(e["cycles_seconds"] for maps in report["objects"].values() for e in maps.values())
+        bare = bare_bakes(scene, baked, report, options)
+        rss_bare = peak_rss()
+        bare_total = sum(bare.values())
+        print(f"level: bare bakes {bare_total:.1f} s", flush=True)
+        rows.append({"run": "per object", "objects": len(baked), "triangles": tris, "map_texels": texels,
+                     "pipeline_seconds": round(wall, 3), "pipeline_cycles_seconds": round(cycles, 3),
+                     "bare_seconds": round(bare_total, 3), "pipeline_over_bare": round(wall / bare_total, 3),
+                     "texels_per_second": round(texels / wall), "covered_texels_per_second": round(covered / wall),
+                     "peak_rss_mib": round(rss_pipeline / 2 ** 20, 1)})
+        atlas_dir = os.path.join(output_dir, "atlas")
+        shutil.rmtree(atlas_dir, ignore_errors=True)
+        t = time.perf_counter()
+        atlas = bake_lightmaps(objects, list(MAPS), atlas_dir, options.replace(atlas=True, max_resolution=2048),
+                               scene=scene)
+        atlas_wall = time.perf_counter() - t
+        print(f"level: atlas bake {atlas_wall:.1f} s", flush=True)
+        members = [o for o in objects if o.name in atlas["objects"]]
+        entry = atlas["objects"][members[0].name]["ao"]
+        side = entry["resolution"][0]
+        used = float(sum(atlas["objects"][o.name]["ao"]["coverage"] for o in members))
+        packed = pack_islands_utilisation(members, side, entry["margin"])
+        rows.append({"run": "atlas", "objects": len(members), "triangles": tris, "map_texels": 2 * side * side,
+                     "pipeline_seconds": round(atlas_wall, 3), "texels_per_second": round(2 * side * side / atlas_wall),
+                     "atlas_side": side, "utilisation": round(used, 4), "pack_islands_utilisation": round(packed, 4),
+                     "peak_rss_mib": round(peak_rss() / 2 ** 20, 1)})
+        figures.update({"pipeline_over_bare": wall / bare_total, "peak_rss_before_bake_mib": rss0 / 2 ** 20,
+                        "peak_rss_pipeline_mib": rss_pipeline / 2 ** 20, "peak_rss_bare_mib": rss_bare / 2 ** 20,
+                        "texel_density": density, "samples": samples, "skipped": dict(report.get("skipped", {})),
+                        "atlas_skipped": len(atlas.get("skipped", {}))})
+    finally:
+        remove_scene(scene)
+    keys = list(dict.fromkeys(k for row in rows for k in row))
+    rows = [{k: row.get(k, "") for k in keys} for row in rows]
+    return BenchResult(tables={"level": rows}, figures=figures)

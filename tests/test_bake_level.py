@@ -1,0 +1,218 @@
+"""Level bakes: many objects per Cycles call (batches), resume, shards, failures (issue 13)."""
+import bpy
+import numpy as np
+import pytest
+
+from addon.bake import BakeOptions, bake_lightmaps
+from addon.bake import pipeline
+from addon.core.io import exr
+
+
+def small_level():
+    """A floor under a light with props as users add them: a smooth UV sphere, a subdivided Suzanne, a rotated and
+    scaled cube, a linked duplicate of the sphere and a mirrored (negative scale) cylinder."""
+    bpy.ops.mesh.primitive_plane_add(size=6)
+    floor = bpy.context.object
+    floor.name = "Floor"
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(-1.5, 0, 0.5), segments=16, ring_count=8)
+    bpy.ops.object.shade_smooth()
+    sphere = bpy.context.object
+    bpy.ops.mesh.primitive_monkey_add(size=1, location=(1.2, 0.5, 0.6))
+    monkey = bpy.context.object
+    mod = monkey.modifiers.new("Subdivision", "SUBSURF")
+    mod.levels = mod.render_levels = 1
+    bpy.ops.mesh.primitive_cube_add(size=0.6, location=(0, -1.5, 0.4), rotation=(0.3, 0.2, 0.7), scale=(1, 1.5, 0.8))
+    cube = bpy.context.object
+    twin = sphere.copy()
+    twin.location = (-1.5, 1.4, 0.5)
+    bpy.context.scene.collection.objects.link(twin)
+    bpy.ops.mesh.primitive_cylinder_add(radius=0.3, depth=0.8, location=(1.5, -1.2, 0.4), vertices=12)
+    mirrored = bpy.context.object
+    mirrored.scale = (-1, 1, 1)
+    grey = bpy.data.materials.new("Grey")
+    for o in (floor, sphere, monkey, cube, mirrored):
+        o.data.materials.append(grey)
+    bpy.ops.object.light_add(type="POINT", location=(0, 0, 3))
+    bpy.context.object.data.energy = 300
+    return [floor, sphere, monkey, cube, twin, mirrored]
+
+
+def maps(folder, objects, kinds):
+    return {(o.name, k): exr.read_exr(str(folder / f"{o.name}_{k}.exr"))[0] for o in objects for k in kinds}
+
+
+def test_batched_bake_gives_the_per_object_images(tmp_path, monkeypatch):
+    """One Cycles call per map kind (the mirrored cylinder alone: a joined copy would flip its winding) gives
+    the images of one call per object: AO bit for bit (Cycles seeds a sample by its pixel), irradiance within the
+    float rounding of world-space vertices (relative 1e-2 per texel, 1e-4 on the mean), same covered texels."""
+    objects = small_level()
+    calls = []
+    real = pipeline._call_bake
+    monkeypatch.setattr(pipeline, "_call_bake", lambda *a, **k: calls.append([o.name for o in a[1]]) or real(*a, **k))
+    kinds = ["ao", "irradiance"]
+    opts = dict(texel_density=12, samples=8, bounces=2, keep_products=False)
+    bake_lightmaps(objects, kinds, str(tmp_path / "one"), BakeOptions(batch=False, **opts))
+    assert len(calls) == 6 * 3                           # AO once, irradiance two halves, per object
+    calls.clear()
+    bake_lightmaps(objects, kinds, str(tmp_path / "batch"), BakeOptions(**opts))
+    proxies = [c for c in calls if c[0] == pipeline.PROXY]
+    assert len(proxies) == 3 and len(calls) == 6         # batch: AO once, irradiance twice; the cylinder alone
+    assert [c[0] for c in calls if c[0] != pipeline.PROXY] == ["Cylinder"] * 3
+    one, batch = maps(tmp_path / "one", objects, kinds), maps(tmp_path / "batch", objects, kinds)
+    for (name, kind), a in one.items():
+        b = batch[(name, kind)]
+        mask = a["A"] > 0.5
+        assert np.array_equal(mask, b["A"] > 0.5), name
+        assert mask.sum() > 50
+        if kind == "ao":
+            assert np.array_equal(a["Y"], b["Y"]), name
+        else:
+            for c in "RGB":
+                x, y = a[c][mask], b[c][mask]
+                assert abs(x.mean() - y.mean()) <= 1e-4 * x.mean(), (name, c)
+                assert np.all(np.abs(x - y) <= 1e-2 * np.maximum(x, 1e-3)), (name, c)
+    assert bpy.data.objects.get(pipeline.PROXY) is None and bpy.data.meshes.get(pipeline.PROXY) is None
+    assert all(not o.hide_render for o in objects)
+
+
+def test_irradiance_does_not_depend_on_bake_order(tmp_path):
+    """Each object's bounce light comes from the same materials whichever object was baked first."""
+    objects = small_level()[:4]
+    opts = BakeOptions(texel_density=10, samples=8, bounces=2, keep_products=False, batch=False)
+    bake_lightmaps(objects, ["irradiance"], str(tmp_path / "fwd"), opts)
+    bake_lightmaps(objects[::-1], ["irradiance"], str(tmp_path / "rev"), opts)
+    for o in objects:
+        a = exr.read_exr(str(tmp_path / "fwd" / f"{o.name}_irradiance.exr"))[0]
+        b = exr.read_exr(str(tmp_path / "rev" / f"{o.name}_irradiance.exr"))[0]
+        assert all(np.array_equal(a[c], b[c]) for c in "RGBA"), o.name
+
+
+def test_an_interrupted_bake_resumes_and_a_moved_object_alone_is_baked_again(tmp_path):
+    """Ctrl-C after two maps, then the same bake with Overwrite bakes only the maps that were missing (the finished
+    ones keep their files, byte for byte); moving one object re-bakes that object's maps only (the hash covers the
+    object, its materials, the lights and the options, not the other objects); Force bakes everything."""
+    objects = small_level()[:4]
+    out = tmp_path / "maps"
+    opts = BakeOptions(texel_density=8, samples=4, bounces=1)
+    steps = []
+
+    def stop_after_two(message):
+        steps.append(message)
+        if len([s for s in steps if ": ao" in s or ": irradiance" in s]) == 3:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        bake_lightmaps(objects, ["ao", "irradiance"], str(out), opts, on_step=stop_after_two)
+    done = sorted(p.name for p in out.glob("*.exr"))
+    assert len(done) == 2                                    # the third map was announced, not written
+    before = {name: (out / name).read_bytes() for name in done}
+    again = bake_lightmaps(objects, ["ao", "irradiance"], str(out), opts.replace(overwrite=True))
+    baked = {(o, m) for o, maps in again["objects"].items() for m in maps}
+    skipped = {(o, m) for o, maps in again["unchanged"].items() for m in maps}
+    assert len(baked) == 6 and len(skipped) == 2 and not baked & skipped
+    assert {f"{o}_{m}.exr" for o, m in skipped} == set(done)
+    assert all((out / name).read_bytes() == data for name, data in before.items())
+    assert len(list(out.glob("*.exr"))) == 8
+    assert "unchanged (skipped, inputs as baked) 2 map(s)" in again.summary
+    objects[3].location.x += 0.25
+    third = bake_lightmaps(objects, ["ao", "irradiance"], str(out), opts.replace(overwrite=True))
+    assert set(third["objects"]) == {objects[3].name} and len(third["unchanged"]) == 3
+    fourth = bake_lightmaps(objects, ["ao", "irradiance"], str(out), opts.replace(force=True))
+    assert len(fourth["objects"]) == 4 and not fourth["unchanged"]
+    bpy.data.lights[0].energy *= 2                            # lights change irradiance, not AO
+    fifth = bake_lightmaps(objects, ["ao", "irradiance"], str(out), opts.replace(overwrite=True))
+    assert {m for maps in fifth["objects"].values() for m in maps} == {"irradiance"}
+    assert all(maps == ["ao"] for maps in fifth["unchanged"].values()) and len(fifth["unchanged"]) == 4
+
+
+def test_two_shards_merged_give_the_files_of_one_run(tmp_path):
+    """Shards 1/2 and 2/2 bake disjoint shares (balanced by texels: the floor alone against the props) whose files
+    are those of one run with the same seeds (AO bit for bit, irradiance within float rounding: the objects of the
+    other shard are seen as themselves instead of the batch's world-space copy), and --merge joins the parts."""
+    objects = small_level()[:5]
+    opts = BakeOptions(texel_density=8, samples=4, bounces=1, keep_products=False)
+    one = bake_lightmaps(objects, ["ao", "irradiance"], str(tmp_path / "one"), opts)
+    parts = [bake_lightmaps(objects, ["ao", "irradiance"], str(tmp_path / "sharded"), opts.replace(shard=f"{k}/2"))
+             for k in (1, 2)]
+    names = [set(p["objects"]) for p in parts]
+    assert names[0] and names[1] and not names[0] & names[1] and names[0] | names[1] == set(one["objects"])
+    assert names[0] == {"Floor"}                              # 8² × 36 m² of floor against 5 small props
+    assert not (tmp_path / "sharded" / "bake_report.json").exists()
+    merged = pipeline.merge_reports(str(tmp_path / "sharded"))
+    assert set(merged["objects"]) == set(one["objects"]) and len(merged["shards"]) == 2
+    a, b = maps(tmp_path / "one", objects, ["ao", "irradiance"]), maps(tmp_path / "sharded", objects,
+                                                                         ["ao", "irradiance"])
+    for key, x in a.items():
+        y = b[key]
+        mask = x["A"] > 0.5
+        assert np.array_equal(mask, y["A"] > 0.5), key
+        if key[1] == "ao":
+            assert np.array_equal(x["Y"], y["Y"]), key
+        else:
+            assert abs(x["R"][mask].mean() - y["R"][mask].mean()) <= 1e-4 * x["R"][mask].mean(), key
+            assert np.all(np.abs(x["R"] - y["R"])[mask] <= 1e-2 * np.maximum(x["R"][mask], 1e-3)), key
+
+
+def test_script_jobs_run_shards_and_merge(tmp_path, script):
+    small_level()[:3]
+    blend = tmp_path / "level.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    out = tmp_path / "maps"
+    r = script("bake.py", blend, "--objects", "Floor", "Sphere", "Suzanne", "--maps", "ao", "--out", out,
+               "--texel-density", "6", "--samples", "2", "--jobs", "2")
+    assert r.returncode == 0, r.stderr
+    report = __import__("json").loads((out / "bake_report.json").read_text())
+    assert set(report["objects"]) == {"Floor", "Sphere", "Suzanne"} and len(report["shards"]) == 2
+    assert sorted(p.name for p in out.glob("*.exr")) == ["Floor_ao.exr", "Sphere_ao.exr", "Suzanne_ao.exr"]
+    r = script("bake.py", "--merge", tmp_path / "nothing")
+    assert r.returncode == 2 and "no shard reports" in r.stderr
+
+
+def test_a_broken_object_fails_alone_and_the_script_exits_1(tmp_path, script):
+    """An invalid mesh among good ones: the others are baked, the report and the last line name it, exit code 1."""
+    small_level()[:2]
+    me = bpy.data.meshes.new("Broken")
+    me.from_pydata([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0.5, 0.5, 0)], [], [(0, 1, 2), (0, 3, 3)])
+    bpy.context.scene.collection.objects.link(bpy.data.objects.new("Broken", me))
+    blend = tmp_path / "level.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    out = tmp_path / "maps"
+    r = script("bake.py", blend, "--objects", "Floor", "Broken", "Sphere", "--maps", "ao", "--out", out,
+               "--texel-density", "6", "--samples", "2")
+    assert r.returncode == 1
+    last = r.stderr.strip().splitlines()[-1]
+    assert "1 object(s) failed, the others are baked: Broken:" in last and "is invalid" in last
+    assert sorted(p.name for p in out.glob("*.exr")) == ["Floor_ao.exr", "Sphere_ao.exr"]
+    report = __import__("json").loads((out / "bake_report.json").read_text())
+    assert set(report["objects"]) == {"Floor", "Sphere"} and "is invalid" in report["failed"]["Broken"]
+    assert "objects 1/2, texels" in r.stderr and "ETA" in r.stderr        # one progress line per map
+
+
+def test_a_map_that_fails_in_a_batch_leaves_the_others(tmp_path, monkeypatch):
+    objects = small_level()[:4]
+    real = pipeline._check_covered
+
+    def broken(name, *a):
+        if name == "Sphere":
+            raise pipeline.ILError("'Sphere' ao: injected failure")
+        return real(name, *a)
+
+    monkeypatch.setattr(pipeline, "_check_covered", broken)
+    result = bake_lightmaps(objects, ["ao"], str(tmp_path), BakeOptions(texel_density=6, samples=2))
+    assert set(result["objects"]) == {"Floor", "Suzanne", "Cube"}
+    assert result["failed"] == {"Sphere": "'Sphere' ao: injected failure"} and "FAILED 1" in result.summary
+    assert not (tmp_path / "Sphere_ao.exr").exists() and (tmp_path / "Cube_ao.exr").exists()
+
+
+def test_an_atlas_is_one_call_with_the_same_image(tmp_path, monkeypatch):
+    objects = small_level()[:4]
+    calls = []
+    real = pipeline._call_bake
+    monkeypatch.setattr(pipeline, "_call_bake", lambda *a, **k: calls.append(len(a[1])) or real(*a, **k))
+    opts = dict(texel_density=6, samples=4, atlas=True, keep_products=False)
+    bake_lightmaps(objects, ["ao"], str(tmp_path / "one"), BakeOptions(batch=False, **opts))
+    bake_lightmaps(objects, ["ao"], str(tmp_path / "batch"), BakeOptions(**opts))
+    assert calls == [4, 1]                 # Blender's multi-object call (a scene sync per object), then the proxy
+    a = exr.read_exr(str(tmp_path / "one" / "atlas_ao.exr"))[0]
+    b = exr.read_exr(str(tmp_path / "batch" / "atlas_ao.exr"))[0]
+    assert (a["A"] > 0).sum() > 500 and all(np.array_equal(a[c], b[c]) for c in "YA")
