@@ -55,7 +55,7 @@ def main(args):
                   cache_dir=cache, blur=o.blur, seed=o.seed)
     if args.blend:
         result = lab.compare(bpy.context.scene, o.methods, out,
-                             resolution=args.resolution if args.resolution is not None else None, **kwargs)
+                             resolution=args.resolution, **kwargs)
     else:
         result = lab.run_builtin(args.scene or "corner", o.methods, out, resolution=o.resolution, **kwargs)
     print(f"ssao: {result.path}")

@@ -4,7 +4,7 @@ import bpy
 from bpy.props import StringProperty
 
 from ..blender import compat
-from ..core.errors import InputError
+from ..core.errors import InputError, warn
 from ..lab.options import EnvmapOptions, RadiosityOptions
 from .panel import Sidebar
 from . import polls, props
@@ -89,7 +89,7 @@ class IL_OT_radiosity(JobOperator, bpy.types.Operator):
         o = props.options(RadiosityOptions, self)
         chart = charts.available()
         if not chart:
-            self.report({"WARNING"}, charts.MISSING)
+            warn(charts.MISSING)
         return radiosity.run(bpy.path.abspath(self.output_dir), scene=context.scene, solver=o.solver,
                              max_edge=o.max_edge, adaptive=o.adaptive, samples=o.samples, compare=o.compare,
                              chart=chart)
