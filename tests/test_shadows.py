@@ -5,6 +5,7 @@ import os
 import bpy
 import numpy as np
 import pytest
+from mathutils import Vector
 
 from addon.core import camera
 from addon.core.io import png
@@ -268,7 +269,7 @@ def test_rasterised_shadow_map_includes_collection_instances_as_cycles_does():
     p = shadows.check_params({})
     with ShadowFrame(scene, scene["il_shadow_light"], 48) as s:
         s.render_reference()
-        assert [o.name for o in s.casters] == [scene["il_shadow_receiver"]]
+        assert [x.name for x in s.surfaces] == [scene["il_shadow_receiver"], "Sphere (instanced by Sphere Instance)"]
         (raster,), _ = s.depth_maps(128, "raster")
         (cycles,), _ = s.depth_maps(128, "cycles")
         masks = [shadows.shadowmap_mask(s, [m], p)[0] for m in (raster, cycles)]
@@ -278,3 +279,113 @@ def test_rasterised_shadow_map_includes_collection_instances_as_cycles_does():
     assert np.all(np.abs(raster.depth - cycles.depth)[~sky] <= 1e-5 * np.maximum(cycles.depth[~sky], 1.0))
     np.testing.assert_array_equal(masks[0], masks[1])
     assert shadowed > 0.02 and 1 - masks[0][s.reach].mean() > 0.02         # the instance's shadow is there
+
+
+def _operator_scene(light):
+    """A scene made as a user makes it, with Blender's operators: a floor; a collection "Props" (a cube
+    with a default Subdivision -- viewport level 1, render level 2 -- and a sphere) excluded from the view
+    layer and placed twice with Add > Collection Instance (once rotated, once mirrored by a negative
+    scale); a cylinder and its Alt-D linked duplicate with an Array modifier; a plane whose
+    geometry-nodes modifier puts a cube instance on each of its four vertices; a camera and ``light``."""
+    scene = bpy.context.scene
+    scene.render.resolution_x = scene.render.resolution_y = 64
+
+    def added():
+        return bpy.context.view_layer.objects.active
+
+    bpy.ops.mesh.primitive_plane_add(size=10.0)
+    added().name = "Floor"
+    props = bpy.data.collections.new("Props")
+    scene.collection.children.link(props)
+    bpy.ops.mesh.primitive_cube_add(size=0.6, location=(0.0, 0.0, 0.5))
+    cube = added()
+    bpy.ops.object.modifier_add(type="SUBSURF")
+    assert (cube.modifiers[-1].levels, cube.modifiers[-1].render_levels) == (1, 2)
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.3, location=(0.0, 0.9, 0.8))
+    for o in (cube, added()):
+        for c in list(o.users_collection):
+            c.objects.unlink(o)
+        props.objects.link(o)
+    bpy.context.view_layer.layer_collection.children["Props"].exclude = True     # only the instances render
+    bpy.ops.object.collection_instance_add(collection="Props", location=(-1.2, -0.5, 0.0))
+    bpy.ops.object.collection_instance_add(collection="Props", location=(1.0, 0.3, 0.2), rotation=(0.0, 0.0, 0.7))
+    added().scale = (-1.0, 1.0, 1.0)
+    bpy.ops.mesh.primitive_cylinder_add(radius=0.25, depth=0.8, location=(0.0, -1.5, 0.4))
+    bpy.ops.object.select_all(action="DESELECT")
+    added().select_set(True)
+    bpy.ops.object.duplicate_move_linked(TRANSFORM_OT_translate={"value": (0.0, 2.6, 0.3)})
+    bpy.ops.object.modifier_add(type="ARRAY")
+    bpy.ops.mesh.primitive_plane_add(size=1.2, location=(-1.8, 1.8, 1.3))
+    scatter = added()
+    scatter.name = "Scatter"
+    bpy.ops.object.modifier_add(type="NODES")
+    tree = bpy.data.node_groups.new("Cubes on points", "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    nodes = {k: tree.nodes.new(t) for k, t in (("in", "NodeGroupInput"), ("out", "NodeGroupOutput"),
+                                               ("cube", "GeometryNodeMeshCube"),
+                                               ("place", "GeometryNodeInstanceOnPoints"))}
+    nodes["cube"].inputs["Size"].default_value = (0.3, 0.3, 0.3)
+    tree.links.new(nodes["in"].outputs[0], nodes["place"].inputs["Points"])
+    tree.links.new(nodes["cube"].outputs["Mesh"], nodes["place"].inputs["Instance"])
+    tree.links.new(nodes["place"].outputs["Instances"], nodes["out"].inputs[0])
+    scatter.modifiers[-1].node_group = tree
+    loc = Vector((0.5, -4.5, 3.6))
+    bpy.ops.object.camera_add(location=loc, rotation=(Vector((0.0, 0.3, 0.3)) - loc).to_track_quat("-Z", "Y").to_euler())
+    scene.camera = added()
+    bpy.ops.object.light_add(type=light.upper(), location=(1.0, -1.0, 4.5), rotation=(0.5, 0.2, 0.4))
+    added().name = "Lamp"
+    return scene
+
+
+def _make_real(scene):
+    """The same geometry without instances: Object > Apply > Make Instances Real on the collection
+    instances; a Realize Instances node at the end of the scatter's node tree, its modifier applied (the
+    cube instances become the scatter's mesh)."""
+    bpy.ops.object.select_all(action="DESELECT")
+    for o in scene.objects:
+        if o.instance_type == "COLLECTION":
+            o.select_set(True)
+    assert bpy.ops.object.duplicates_make_real() == {"FINISHED"}
+    assert not any(o.instance_type == "COLLECTION" for o in scene.objects)
+    scatter = scene.objects["Scatter"]
+    tree = scatter.modifiers[-1].node_group
+    out = next(n for n in tree.nodes if n.bl_idname == "NodeGroupOutput")
+    realize = tree.nodes.new("GeometryNodeRealizeInstances")
+    tree.links.new(out.inputs[0].links[0].from_socket, realize.inputs[0])
+    tree.links.new(realize.outputs[0], out.inputs[0])
+    bpy.context.view_layer.objects.active = scatter
+    assert bpy.ops.object.modifier_apply(modifier=scatter.modifiers[-1].name) == {"FINISHED"}
+    assert len(scatter.data.polygons) == 4 * 6
+
+
+@pytest.mark.parametrize("light", ["sun", "point"])
+def test_every_method_sees_instances_as_the_same_objects_made_real(light, tmp_path):
+    """Collection, geometry-nodes and Alt-D copies cast in every method as they do in Cycles: each mask is
+    pixel for pixel the one of the same scene after Make Instances Real, the reference too."""
+    methods = "raytraced,planar,shadowmap,volume_zpass,volume_zfail"
+    scene = _operator_scene(light)
+    with ShadowFrame(scene, "Lamp", 64) as s:
+        names = sorted(x.name for x in s.surfaces)
+    assert names == sorted(["Floor", "Cylinder", "Cylinder.001"]
+                           + ["Cube (instanced by Props)", "Sphere (instanced by Props)",
+                              "Cube (instanced by Props.001)", "Sphere (instanced by Props.001)"]
+                           + ["Mesh (instanced by Scatter)"] * 4)       # the excluded originals are not there
+    reports, masks = {}, {}
+    for tag in ("instanced", "real"):
+        if tag == "real":
+            _make_real(scene)
+        out = tmp_path / tag
+        reports[tag] = shadows.compare(scene, "Lamp", methods, out, resolution=64, shadowmap_size=1024)["methods"]
+        masks[tag] = {m: png.decode_png((out / f"{m}_mask.png").read_bytes()) for m in methods.split(",")}
+    for m in methods.split(","):
+        np.testing.assert_array_equal(masks["instanced"][m], masks["real"][m], err_msg=m)
+        assert reports["instanced"][m]["error"] == reports["real"][m]["error"], m
+    ref = masks["instanced"]["raytraced"] > 127
+    receiver = reports["instanced"]["raytraced"]["receiver_pixels"]
+    assert 0.04 < 1 - ref.sum() / receiver < 0.5                       # the props' shadows are in the frame
+    rep = reports["instanced"]
+    assert rep["volume_zfail"]["error"] <= 0.002 and rep["volume_zpass"]["error"] <= 0.002
+    assert rep["shadowmap"]["error"] <= 0.005
+    assert rep["planar"]["error"] <= 0.02                              # shadows falling on the props are missed
+    assert rep["volume_zfail"]["params"]["skipped_open_meshes"] == ["Floor"]

@@ -58,13 +58,14 @@ def _planar(s, p):
         raise InputError(f"no mesh named '{name}' to receive planar shadows: name the receiver plane "
                          "(Receiver field, --receiver)")
     receiver = s.user_scene.objects[name]
-    v, t = s.triangles(receiver)
-    tri = v[t]
+    surface = s.surface_of(receiver)
+    if surface is None:
+        raise InputError(f"the receiver '{name}' has no faces the render sees (hidden for render, or no faces)")
+    tri = surface.verts[surface.tris]
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     big = int(np.argmax(np.linalg.norm(n, axis=1)))
     plane = shadow_planar.plane_from_point_normal(tri[big, 0], n[big])
-    casters = [o for o in s.casters if o != receiver]
-    tris = np.concatenate([v_[t_] for v_, t_ in (s.triangles(o) for o in casters)]) if casters else np.zeros((0, 3, 3))
+    tris = s.caster_triangles(exclude=receiver)
     cover = shadow_planar.planar_shadow_mask(tris, plane, s.light.h, s.world_to_view, s.proj,
                                              s.width, s.height, s.depth, offset=p["offset"])
     return s.reach & ~cover, {"receiver": name, "offset": p["offset"], "plane": [round(float(x), 6) for x in plane]}
@@ -90,19 +91,20 @@ def _shadowmap(s, p):
 
 
 def volume_inputs(s):
-    """Closed casters' volume triangles; open meshes are skipped (documented fallback) and listed."""
+    """Closed surfaces' volume triangles (every object and instance, ShadowFrame.surfaces); open meshes
+    are skipped (documented fallback) and listed once by name."""
     vols, skipped, tris, sil = [], [], 0, 0
     _, radius = s._scene_radius()
     distance = 1e3 * max(1.0, radius)
-    for o in s.casters:
-        v, t = s.triangles(o)
-        if not shadow_volume.is_closed(t):
-            skipped.append(o.name)
+    for x in s.surfaces:
+        if not shadow_volume.is_closed(x.tris):
+            skipped.append(x.name)
             continue
-        vt, ns = shadow_volume.volume_triangles(v, t, s.light.h, distance, o.name)
+        vt, ns = shadow_volume.volume_triangles(x.verts, x.tris, s.light.h, distance, x.name)
         vols.append(vt)
-        tris += len(t)
+        tris += len(x.tris)
         sil += ns
+    skipped = list(dict.fromkeys(skipped))
     if not vols:
         raise InputError("shadow volumes need at least one closed mesh; open meshes found: " + ", ".join(skipped))
     return np.concatenate(vols), {"occluder_triangles": tris, "silhouette_edges": sil,
