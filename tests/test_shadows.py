@@ -1,5 +1,6 @@
 """Shadow lab end to end: every method's mask against Cycles' hard ray-traced mask on the same pixels."""
 import json
+import math
 import os
 
 import bpy
@@ -331,7 +332,8 @@ def _operator_scene(light):
     tree.links.new(nodes["place"].outputs["Instances"], nodes["out"].inputs[0])
     scatter.modifiers[-1].node_group = tree
     loc = Vector((0.5, -4.5, 3.6))
-    bpy.ops.object.camera_add(location=loc, rotation=(Vector((0.0, 0.3, 0.3)) - loc).to_track_quat("-Z", "Y").to_euler())
+    aim = (Vector((0.0, 0.3, 0.3)) - loc).to_track_quat("-Z", "Y").to_euler()
+    bpy.ops.object.camera_add(location=loc, rotation=aim)
     scene.camera = added()
     bpy.ops.object.light_add(type=light.upper(), location=(1.0, -1.0, 4.5), rotation=(0.5, 0.2, 0.4))
     added().name = "Lamp"
@@ -389,3 +391,36 @@ def test_every_method_sees_instances_as_the_same_objects_made_real(light, tmp_pa
     assert rep["shadowmap"]["error"] <= 0.005
     assert rep["planar"]["error"] <= 0.02                              # shadows falling on the props are missed
     assert rep["volume_zfail"]["params"]["skipped_open_meshes"] == ["Floor"]
+
+
+def test_shadow_map_budget_on_this_machine_follows_the_raster(script, tmp_path):
+    """On this machine's memory: the raster renders a sun map one texel wider than a Cycles render of it would
+    be allowed (refused for depth_source="cycles" before any work); a point light's six 16384² faces next to
+    a frame that leaves them 6 GiB short are refused by the script in one line, exit 2, nothing written."""
+    from addon.core import budget
+    from addon.core.shadow import depth_map
+    memory = budget.memory_budget()
+    frame = 32 * 32 * depth_map.BYTES_PER_PIXEL
+    size = math.isqrt((memory - frame) // (depth_map.BYTES_PER_TEXEL_RENDER + depth_map.BYTES_PER_TEXEL_KEPT)) + 1
+    if size > depth_map.MAX_SIZE:
+        pytest.skip(f"{budget.format_bytes(memory)} usable: every shadow-map size fits a Cycles render too")
+    with pytest.raises(InputError, match=f"shadow-map size {size} .* the largest shadow-map size that fits is"):
+        shadows.compare_builtin("sphere", "sun", "raytraced,shadowmap", tmp_path / "c", depth_source="cycles",
+                                resolution=32, shadowmap_size=size)
+    assert list(bpy.data.scenes) == [bpy.context.scene] and not (tmp_path / "c").exists()
+    rep = shadows.compare_builtin("sphere", "sun", "raytraced,shadowmap", tmp_path / "r", resolution=32,
+                                  shadowmap_size=size)
+    assert rep["methods"]["shadowmap"]["params"]["size"] == size
+    assert rep["methods"]["shadowmap"]["error"] <= 0.01
+    faces = 6 * 16384 ** 2 * depth_map.BYTES_PER_TEXEL_KEPT
+    short = max(memory - faces + (6 << 30), 64 * 64 * depth_map.BYTES_PER_PIXEL)    # frame: 6 GiB too much
+    res = math.isqrt(short // depth_map.BYTES_PER_PIXEL)
+    if res > depth_map.MAX_RESOLUTION:
+        pytest.skip(f"{budget.format_bytes(memory)} usable: six 16384² faces fit next to any frame")
+    r = script("shadows.py", "--scene", "sphere", "--light-type", "point", "--methods", "raytraced,shadowmap",
+               "--resolution", res, "--shadowmap-size", 16384, "--out", tmp_path / "o")
+    lines = [line for line in r.stderr.strip().splitlines() if not line.startswith("[")]
+    assert r.returncode == 2 and len(lines) == 1, r.stderr
+    assert (f"shadow-map size 16384 (6 maps from the raster depth source, {res}x{res} pixels) needs about"
+            in lines[0] and "the largest shadow-map size that fits is" in lines[0]), lines[0]
+    assert not (tmp_path / "o").exists()

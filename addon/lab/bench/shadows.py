@@ -188,7 +188,7 @@ def speed(resolution=512, map_size=2048, repeats=3):
     """
     rows = []
     res = resolution
-    shadow_map.check_cost(res, res, map_size, 1)
+    shadow_map.check_cost(res, res, map_size, 1, "cycles")      # both sources are rendered
     scene = shadow_scenes.build("sphere", "sun", (res, res), segments=102, rings=50)   # 10 000 triangles
     try:
         with ShadowFrame(scene, scene["il_shadow_light"], res) as s:

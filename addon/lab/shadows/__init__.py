@@ -26,7 +26,7 @@ from ...blender.progress import Progress
 from ...blender import scene as sc
 from ..options import SHADOW_METHOD_CHOICES, ShadowOptions
 from . import scenes
-from .frame import DEPTH_SOURCES, ShadowFrame
+from .frame import ShadowFrame
 
 METHODS = tuple(m[0] for m in SHADOW_METHOD_CHOICES)
 #: The shadow map's depth by default: "raster" (numpy, the casters' triangles) or "cycles" (Depth pass).
@@ -45,10 +45,11 @@ def check_params(params):
 
 
 def check_cost(frame, methods, p):
-    """core.shadow.depth_map.check_cost for the frame's size and, with "shadowmap", its maps."""
+    """core.shadow.depth_map.check_cost for the frame's size and, with "shadowmap", its maps from
+    ``p["depth_source"]``."""
     faces = 6 if frame.light.kind == "POINT" else 1
     depth_map.check_cost(frame.width, frame.height, p["shadowmap_size"] if "shadowmap" in methods else None,
-                          faces)
+                          faces, p["depth_source"])
 
 
 # -- methods ------------------------------------------------------------------------------------
@@ -151,7 +152,7 @@ def run_method(s, method, p):
 def compare(scene, light, methods, out, depth_source=DEPTH_SOURCE, **params):
     """Run ``methods`` on ``scene`` lit by the light named ``light``; write images and the report; return it.
 
-    ``depth_source`` is where the shadow map's depth comes from (frame.DEPTH_SOURCES), the rest are
+    ``depth_source`` is where the shadow map's depth comes from (core.shadow.depth_map.DEPTH_SOURCES), the rest are
     lab.options.ShadowOptions.
 
     Everything is computed before the first file is written (an error or Ctrl-C leaves no partial set);
@@ -160,9 +161,7 @@ def compare(scene, light, methods, out, depth_source=DEPTH_SOURCE, **params):
     """
     methods = parse_methods(methods)
     p = check_params(params)
-    if depth_source not in DEPTH_SOURCES:
-        raise InputError(f"unknown depth source '{depth_source}' (choose from {', '.join(DEPTH_SOURCES)})")
-    p["depth_source"] = depth_source
+    p["depth_source"] = depth_map.check_source(depth_source)
     report = {"scene": scene.name, "light": light, "reference": {}, "methods": {}}
     images = {}
     frame = ShadowFrame(scene, light, p["resolution"], p["samples"])
@@ -210,7 +209,7 @@ def compare_builtin(name, light_kind, methods, out, keep=False, depth_source=DEP
     methods = parse_methods(methods)
     p = check_params(params)
     depth_map.check_cost(p["resolution"], p["resolution"], p["shadowmap_size"] if "shadowmap" in methods else None,
-                          6 if light_kind == "point" else 1)
+                          6 if light_kind == "point" else 1, depth_source)
     scene = scenes.build(name, light_kind, (p["resolution"], p["resolution"]))
     try:
         return compare(scene, scene["il_shadow_light"], methods, out, depth_source, **params)

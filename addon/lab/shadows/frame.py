@@ -4,8 +4,9 @@ depth maps, EEVEE and Workbench masks, and the occluders' triangles -- all on on
 The user's scene is never rendered or edited directly: a temporary scene links the objects its
 render draws (blender.scene.rendered_objects: not hidden for render, not in an excluded or
 render-disabled collection; minus every other light; instancers bring their instances), gets its
-own camera settings, passes and a white diffuse material override, and is removed afterwards. The light's own settings (LIGHT_SETTINGS) are set for the lab
-and put back on exit by blender.state.SavedState, also after an error.
+own camera settings, passes and a white diffuse material override, and is removed afterwards. The
+light's own settings (LIGHT_SETTINGS) are set for the lab and put back on exit by
+blender.state.SavedState, also after an error.
 """
 import contextlib
 import math
@@ -25,8 +26,8 @@ from ...blender.state import SavedState
 
 #: The light's settings the lab changes (radius 0, no blend, shadows on, no EEVEE jitter), put back on exit.
 LIGHT_SETTINGS = ("shadow_soft_size", "angle", "spot_blend", "use_shadow", "use_shadow_jitter")
-#: Where a shadow map's depth comes from (ShadowFrame.depth_maps): numpy rasteriser (default) or Cycles.
-DEPTH_SOURCES = ("raster", "cycles")
+#: Where a shadow map's depth comes from (ShadowFrame.depth_maps; core.shadow.depth_map.DEPTH_SOURCES).
+DEPTH_SOURCES = depth_map.DEPTH_SOURCES
 #: Pixel filter width of every lab render (pixels): every sample through the pixel centre.
 FILTER_WIDTH = 0.01
 
@@ -272,8 +273,7 @@ class ShadowFrame:
         """
         if size < 2 or size > 16384:
             raise InputError(f"--shadowmap-size must be between 2 and 16384, got {size}")
-        if source not in DEPTH_SOURCES:
-            raise InputError(f"unknown depth source '{source}' (choose from {', '.join(DEPTH_SOURCES)})")
+        depth_map.check_source(source)
         t = time.perf_counter()
         maps = []
         cams = self.light_cameras()
