@@ -424,3 +424,54 @@ def test_shadow_map_budget_on_this_machine_follows_the_raster(script, tmp_path):
     assert (f"shadow-map size 16384 (6 maps from the raster depth source, {res}x{res} pixels) needs about"
             in lines[0] and "the largest shadow-map size that fits is" in lines[0]), lines[0]
     assert not (tmp_path / "o").exists()
+
+
+def test_surfaces_are_what_the_render_draws_not_the_viewport():
+    """Render visibility and render settings decide, as in Cycles: a collection disabled in viewports still
+    renders, itself and through its instance, one disabled in renders does neither; an object disabled
+    in viewports renders, one hidden for render does not; a Subdivision gives its render level. The raster
+    depth map has the same sky texels as Cycles' Depth pass; a light nobody renders is refused."""
+    scene = bpy.context.scene
+    scene.render.resolution_x = scene.render.resolution_y = 32
+    bpy.ops.mesh.primitive_plane_add(size=10.0)
+    for name, flag, x in (("No Viewport", "hide_viewport", -2.0), ("No Render", "hide_render", 2.0)):
+        col = bpy.data.collections.new(name)
+        scene.collection.children.link(col)
+        bpy.ops.mesh.primitive_cube_add(size=0.8, location=(0.0, 5.0, 0.4))
+        cube = bpy.context.view_layer.objects.active
+        cube.name = f"{name} Cube"
+        for c in list(cube.users_collection):
+            c.objects.unlink(cube)
+        col.objects.link(cube)
+        setattr(col, flag, True)
+        bpy.ops.object.collection_instance_add(collection=name, location=(x, -5.0, 0.0))
+    bpy.ops.mesh.primitive_cube_add(size=0.8, location=(0.0, 0.0, 0.4))
+    sub = bpy.context.view_layer.objects.active
+    sub.name = "Subdivided"
+    bpy.ops.object.modifier_add(type="SUBSURF")                 # levels 1, render levels 2
+    sub.hide_viewport = True
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.4, location=(0.0, 1.5, 0.4))
+    bpy.context.view_layer.objects.active.hide_render = True
+    bpy.ops.object.camera_add(location=(0.0, -9.0, 9.0), rotation=(math.radians(45), 0.0, 0.0))
+    scene.camera = bpy.context.view_layer.objects.active
+    bpy.ops.object.light_add(type="SUN", rotation=(0.4, 0.3, 0.0))
+    lamp = bpy.context.view_layer.objects.active
+    with ShadowFrame(scene, lamp.name, 32) as s:
+        tris = {x.name: len(x.tris) for x in s.surfaces}
+        s.render_reference()
+        (raster,), _ = s.depth_maps(64, "raster")
+        (cycles,), _ = s.depth_maps(64, "cycles")
+    assert tris == {"Plane": 2, "No Viewport Cube": 12, "No Viewport Cube (instanced by No Viewport)": 12,
+                    "Subdivided": 6 * 16 * 2}
+    sky = cycles.depth >= 0.5 * camera.SKY_DEPTH
+    np.testing.assert_array_equal(raster.depth >= 0.5 * camera.SKY_DEPTH, sky)
+    assert np.all(np.abs(raster.depth - cycles.depth)[~sky] <= 1e-5 * np.maximum(cycles.depth[~sky], 1.0))
+    hidden = bpy.data.collections.new("Lights Off")
+    scene.collection.children.link(hidden)
+    hidden.objects.link(lamp)
+    scene.collection.objects.unlink(lamp)
+    hidden.hide_render = True
+    with pytest.raises(InputError, match=f"light '{lamp.name}' is not rendered"):
+        with ShadowFrame(scene, lamp.name, 32):
+            pass
+    assert list(bpy.data.scenes) == [scene]
