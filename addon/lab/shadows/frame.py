@@ -163,6 +163,7 @@ class ShadowFrame:
         SURFACE_TYPES type with triangles in world space, as Cycles renders them -- the one set of
         triangles the planar, volume and raster shadow-map methods use -- and ``skipped``, what Cycles
         renders that is not triangulated. :meth:`__enter__` calls it once."""
+        self.tmp.camera = self.user_scene.camera         # a render needs one; depth_maps leaves none
         self.surfaces, other = render.with_render_depsgraph(
             self.tmp, lambda dg: sc.evaluated_surfaces(dg, SURFACE_TYPES))
         # a metaball's surface lives in its family's basis object
