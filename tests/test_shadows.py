@@ -1,10 +1,12 @@
 """Shadow lab end to end: every method's mask against Cycles' hard ray-traced mask on the same pixels."""
 import json
+import math
 import os
 
 import bpy
 import numpy as np
 import pytest
+from mathutils import Vector
 
 from addon.core import camera
 from addon.core.io import png
@@ -268,7 +270,7 @@ def test_rasterised_shadow_map_includes_collection_instances_as_cycles_does():
     p = shadows.check_params({})
     with ShadowFrame(scene, scene["il_shadow_light"], 48) as s:
         s.render_reference()
-        assert [o.name for o in s.casters] == [scene["il_shadow_receiver"]]
+        assert [x.name for x in s.surfaces] == [scene["il_shadow_receiver"], "Sphere (instanced by Sphere Instance)"]
         (raster,), _ = s.depth_maps(128, "raster")
         (cycles,), _ = s.depth_maps(128, "cycles")
         masks = [shadows.shadowmap_mask(s, [m], p)[0] for m in (raster, cycles)]
@@ -278,3 +280,198 @@ def test_rasterised_shadow_map_includes_collection_instances_as_cycles_does():
     assert np.all(np.abs(raster.depth - cycles.depth)[~sky] <= 1e-5 * np.maximum(cycles.depth[~sky], 1.0))
     np.testing.assert_array_equal(masks[0], masks[1])
     assert shadowed > 0.02 and 1 - masks[0][s.reach].mean() > 0.02         # the instance's shadow is there
+
+
+def _operator_scene(light):
+    """A scene made as a user makes it, with Blender's operators: a floor; a collection "Props" (a cube
+    with a default Subdivision -- viewport level 1, render level 2 -- and a sphere) excluded from the view
+    layer and placed twice with Add > Collection Instance (once rotated, once mirrored by a negative
+    scale); a cylinder and its Alt-D linked duplicate with an Array modifier; a plane whose
+    geometry-nodes modifier puts a cube instance on each of its four vertices; a camera and ``light``."""
+    scene = bpy.context.scene
+    scene.render.resolution_x = scene.render.resolution_y = 64
+
+    def added():
+        return bpy.context.view_layer.objects.active
+
+    bpy.ops.mesh.primitive_plane_add(size=10.0)
+    added().name = "Floor"
+    props = bpy.data.collections.new("Props")
+    scene.collection.children.link(props)
+    bpy.ops.mesh.primitive_cube_add(size=0.6, location=(0.0, 0.0, 0.5))
+    cube = added()
+    bpy.ops.object.modifier_add(type="SUBSURF")
+    assert (cube.modifiers[-1].levels, cube.modifiers[-1].render_levels) == (1, 2)
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.3, location=(0.0, 0.9, 0.8))
+    for o in (cube, added()):
+        for c in list(o.users_collection):
+            c.objects.unlink(o)
+        props.objects.link(o)
+    bpy.context.view_layer.layer_collection.children["Props"].exclude = True     # only the instances render
+    bpy.ops.object.collection_instance_add(collection="Props", location=(-1.2, -0.5, 0.0))
+    bpy.ops.object.collection_instance_add(collection="Props", location=(1.0, 0.3, 0.2), rotation=(0.0, 0.0, 0.7))
+    added().scale = (-1.0, 1.0, 1.0)
+    bpy.ops.mesh.primitive_cylinder_add(radius=0.25, depth=0.8, location=(0.0, -1.5, 0.4))
+    bpy.ops.object.select_all(action="DESELECT")
+    added().select_set(True)
+    bpy.ops.object.duplicate_move_linked(TRANSFORM_OT_translate={"value": (0.0, 2.6, 0.3)})
+    bpy.ops.object.modifier_add(type="ARRAY")
+    bpy.ops.mesh.primitive_plane_add(size=1.2, location=(-1.8, 1.8, 1.3))
+    scatter = added()
+    scatter.name = "Scatter"
+    bpy.ops.object.modifier_add(type="NODES")
+    tree = bpy.data.node_groups.new("Cubes on points", "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    nodes = {k: tree.nodes.new(t) for k, t in (("in", "NodeGroupInput"), ("out", "NodeGroupOutput"),
+                                               ("cube", "GeometryNodeMeshCube"),
+                                               ("place", "GeometryNodeInstanceOnPoints"))}
+    nodes["cube"].inputs["Size"].default_value = (0.3, 0.3, 0.3)
+    tree.links.new(nodes["in"].outputs[0], nodes["place"].inputs["Points"])
+    tree.links.new(nodes["cube"].outputs["Mesh"], nodes["place"].inputs["Instance"])
+    tree.links.new(nodes["place"].outputs["Instances"], nodes["out"].inputs[0])
+    scatter.modifiers[-1].node_group = tree
+    loc = Vector((0.5, -4.5, 3.6))
+    aim = (Vector((0.0, 0.3, 0.3)) - loc).to_track_quat("-Z", "Y").to_euler()
+    bpy.ops.object.camera_add(location=loc, rotation=aim)
+    scene.camera = added()
+    bpy.ops.object.light_add(type=light.upper(), location=(1.0, -1.0, 4.5), rotation=(0.5, 0.2, 0.4))
+    added().name = "Lamp"
+    return scene
+
+
+def _make_real(scene):
+    """The same geometry without instances: Object > Apply > Make Instances Real on the collection
+    instances; a Realize Instances node at the end of the scatter's node tree, its modifier applied (the
+    cube instances become the scatter's mesh)."""
+    bpy.ops.object.select_all(action="DESELECT")
+    for o in scene.objects:
+        if o.instance_type == "COLLECTION":
+            o.select_set(True)
+    assert bpy.ops.object.duplicates_make_real() == {"FINISHED"}
+    assert not any(o.instance_type == "COLLECTION" for o in scene.objects)
+    scatter = scene.objects["Scatter"]
+    tree = scatter.modifiers[-1].node_group
+    out = next(n for n in tree.nodes if n.bl_idname == "NodeGroupOutput")
+    realize = tree.nodes.new("GeometryNodeRealizeInstances")
+    tree.links.new(out.inputs[0].links[0].from_socket, realize.inputs[0])
+    tree.links.new(realize.outputs[0], out.inputs[0])
+    bpy.context.view_layer.objects.active = scatter
+    assert bpy.ops.object.modifier_apply(modifier=scatter.modifiers[-1].name) == {"FINISHED"}
+    assert len(scatter.data.polygons) == 4 * 6
+
+
+@pytest.mark.parametrize("light", ["sun", "point"])
+def test_every_method_sees_instances_as_the_same_objects_made_real(light, tmp_path):
+    """Collection, geometry-nodes and Alt-D copies cast in every method as they do in Cycles: each mask is
+    pixel for pixel the one of the same scene after Make Instances Real, the reference too."""
+    methods = "raytraced,planar,shadowmap,volume_zpass,volume_zfail"
+    scene = _operator_scene(light)
+    with ShadowFrame(scene, "Lamp", 64) as s:
+        names = sorted(x.name for x in s.surfaces)
+    assert names == sorted(["Floor", "Cylinder", "Cylinder.001"]
+                           + ["Cube (instanced by Props)", "Sphere (instanced by Props)",
+                              "Cube (instanced by Props.001)", "Sphere (instanced by Props.001)"]
+                           + ["Mesh (instanced by Scatter)"] * 4)       # the excluded originals are not there
+    reports, masks = {}, {}
+    for tag in ("instanced", "real"):
+        if tag == "real":
+            _make_real(scene)
+        out = tmp_path / tag
+        reports[tag] = shadows.compare(scene, "Lamp", methods, out, resolution=64, shadowmap_size=1024)["methods"]
+        masks[tag] = {m: png.decode_png((out / f"{m}_mask.png").read_bytes()) for m in methods.split(",")}
+    for m in methods.split(","):
+        np.testing.assert_array_equal(masks["instanced"][m], masks["real"][m], err_msg=m)
+        assert reports["instanced"][m]["error"] == reports["real"][m]["error"], m
+    ref = masks["instanced"]["raytraced"] > 127
+    receiver = reports["instanced"]["raytraced"]["receiver_pixels"]
+    assert 0.04 < 1 - ref.sum() / receiver < 0.5                       # the props' shadows are in the frame
+    rep = reports["instanced"]
+    assert rep["volume_zfail"]["error"] <= 0.002 and rep["volume_zpass"]["error"] <= 0.002
+    assert rep["shadowmap"]["error"] <= 0.005
+    assert rep["planar"]["error"] <= 0.02                              # shadows falling on the props are missed
+    assert rep["volume_zfail"]["params"]["skipped_open_meshes"] == ["Floor"]
+
+
+def test_shadow_map_budget_on_this_machine_follows_the_raster(script, tmp_path):
+    """On this machine's memory: the raster renders a sun map one texel wider than a Cycles render of it would
+    be allowed (refused for depth_source="cycles" before any work); a point light's six 16384² faces next to
+    a frame that leaves them 6 GiB short are refused by the script in one line, exit 2, nothing written."""
+    from addon.core import budget
+    from addon.core.shadow import depth_map
+    memory = budget.memory_budget()
+    frame = 32 * 32 * depth_map.BYTES_PER_PIXEL
+    size = math.isqrt((memory - frame) // (depth_map.BYTES_PER_TEXEL_RENDER + depth_map.BYTES_PER_TEXEL_KEPT)) + 1
+    if size > depth_map.MAX_SIZE:
+        pytest.skip(f"{budget.format_bytes(memory)} usable: every shadow-map size fits a Cycles render too")
+    with pytest.raises(InputError, match=f"shadow-map size {size} .* the largest shadow-map size that fits is"):
+        shadows.compare_builtin("sphere", "sun", "raytraced,shadowmap", tmp_path / "c", depth_source="cycles",
+                                resolution=32, shadowmap_size=size)
+    assert list(bpy.data.scenes) == [bpy.context.scene] and not (tmp_path / "c").exists()
+    rep = shadows.compare_builtin("sphere", "sun", "raytraced,shadowmap", tmp_path / "r", resolution=32,
+                                  shadowmap_size=size)
+    assert rep["methods"]["shadowmap"]["params"]["size"] == size
+    assert rep["methods"]["shadowmap"]["error"] <= 0.01
+    faces = 6 * 16384 ** 2 * depth_map.BYTES_PER_TEXEL_KEPT
+    short = max(memory - faces + (6 << 30), 64 * 64 * depth_map.BYTES_PER_PIXEL)    # frame: 6 GiB too much
+    res = math.isqrt(short // depth_map.BYTES_PER_PIXEL)
+    if res > depth_map.MAX_RESOLUTION:
+        pytest.skip(f"{budget.format_bytes(memory)} usable: six 16384² faces fit next to any frame")
+    r = script("shadows.py", "--scene", "sphere", "--light-type", "point", "--methods", "raytraced,shadowmap",
+               "--resolution", res, "--shadowmap-size", 16384, "--out", tmp_path / "o")
+    lines = [line for line in r.stderr.strip().splitlines() if not line.startswith("[")]
+    assert r.returncode == 2 and len(lines) == 1, r.stderr
+    assert (f"shadow-map size 16384 (6 maps from the raster depth source, {res}x{res} pixels) needs about"
+            in lines[0] and "the largest shadow-map size that fits is" in lines[0]), lines[0]
+    assert not (tmp_path / "o").exists()
+
+
+def test_surfaces_are_what_the_render_draws_not_the_viewport():
+    """Render visibility and render settings decide, as in Cycles: a collection disabled in viewports still
+    renders, itself and through its instance, one disabled in renders does neither; an object disabled
+    in viewports renders, one hidden for render does not; a Subdivision gives its render level. The raster
+    depth map has the same sky texels as Cycles' Depth pass; a light nobody renders is refused."""
+    scene = bpy.context.scene
+    scene.render.resolution_x = scene.render.resolution_y = 32
+    bpy.ops.mesh.primitive_plane_add(size=10.0)
+    for name, flag, x in (("No Viewport", "hide_viewport", -2.0), ("No Render", "hide_render", 2.0)):
+        col = bpy.data.collections.new(name)
+        scene.collection.children.link(col)
+        bpy.ops.mesh.primitive_cube_add(size=0.8, location=(0.0, 5.0, 0.4))
+        cube = bpy.context.view_layer.objects.active
+        cube.name = f"{name} Cube"
+        for c in list(cube.users_collection):
+            c.objects.unlink(cube)
+        col.objects.link(cube)
+        setattr(col, flag, True)
+        bpy.ops.object.collection_instance_add(collection=name, location=(x, -5.0, 0.0))
+    bpy.ops.mesh.primitive_cube_add(size=0.8, location=(0.0, 0.0, 0.4))
+    sub = bpy.context.view_layer.objects.active
+    sub.name = "Subdivided"
+    bpy.ops.object.modifier_add(type="SUBSURF")                 # levels 1, render levels 2
+    sub.hide_viewport = True
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.4, location=(0.0, 1.5, 0.4))
+    bpy.context.view_layer.objects.active.hide_render = True
+    bpy.ops.object.camera_add(location=(0.0, -9.0, 9.0), rotation=(math.radians(45), 0.0, 0.0))
+    scene.camera = bpy.context.view_layer.objects.active
+    bpy.ops.object.light_add(type="SUN", rotation=(0.4, 0.3, 0.0))
+    lamp = bpy.context.view_layer.objects.active
+    with ShadowFrame(scene, lamp.name, 32) as s:
+        tris = {x.name: len(x.tris) for x in s.surfaces}
+        s.render_reference()
+        (raster,), _ = s.depth_maps(64, "raster")
+        (cycles,), _ = s.depth_maps(64, "cycles")
+    assert tris == {"Plane": 2, "No Viewport Cube": 12, "No Viewport Cube (instanced by No Viewport)": 12,
+                    "Subdivided": 6 * 16 * 2}
+    sky = cycles.depth >= 0.5 * camera.SKY_DEPTH
+    np.testing.assert_array_equal(raster.depth >= 0.5 * camera.SKY_DEPTH, sky)
+    assert np.all(np.abs(raster.depth - cycles.depth)[~sky] <= 1e-5 * np.maximum(cycles.depth[~sky], 1.0))
+    hidden = bpy.data.collections.new("Lights Off")
+    scene.collection.children.link(hidden)
+    hidden.objects.link(lamp)
+    scene.collection.objects.unlink(lamp)
+    hidden.hide_render = True
+    with pytest.raises(InputError, match=f"light '{lamp.name}' is not rendered"):
+        with ShadowFrame(scene, lamp.name, 32):
+            pass
+    assert list(bpy.data.scenes) == [scene]

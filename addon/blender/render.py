@@ -132,3 +132,58 @@ def camera_matrices(scene, camera=None):
                                   scale_x=r.pixel_aspect_x, scale_y=r.pixel_aspect_y)
     world_to_view = np.array(cam.matrix_world.inverted(), dtype=np.float64)
     return world_to_view, np.array(proj, dtype=np.float64), width, height
+
+
+class _DepsgraphReader(bpy.types.RenderEngine):
+    """A render engine that draws nothing: it hands the render-mode depsgraph to ``call``."""
+    bl_idname = "IL_DEPSGRAPH_READER"
+    bl_label = "Illumination Lab depsgraph reader"
+    call = None
+    outcome = None
+
+    def render(self, depsgraph):
+        cls = type(self)
+        try:
+            cls.outcome = (True, cls.call(depsgraph))
+        except BaseException as e:           # noqa: BLE001 - Blender would print and swallow it
+            cls.outcome = (False, e)
+
+
+def with_render_depsgraph(scene, call):
+    """``call(depsgraph)`` on ``scene``'s render-mode depsgraph -- what a final render evaluates: modifiers'
+    render settings (a Subdivision's render levels), render visibility of objects, collections and
+    instancers -- and its result. The viewport's depsgraph (``view_layer.depsgraph``) evaluates the
+    viewport settings instead. A 4x4 render with a stand-in engine (registered only meanwhile); the
+    scene's engine and resolution are put back."""
+    r = scene.render
+    if scene.camera is None:
+        raise ILError(f"scene '{scene.name}' has no camera")
+    cls = _DepsgraphReader
+    registered = "bl_rna" in cls.__dict__
+    if not registered:
+        bpy.utils.register_class(cls)
+    cls.call, cls.outcome = call, None
+    had_result = _render_results()
+    try:
+        with SavedState(scene, settings=[(r, "engine"), (r, "resolution_x"), (r, "resolution_y"),
+                                         (r, "resolution_percentage")]):
+            r.engine = cls.bl_idname
+            r.resolution_x = r.resolution_y = 4
+            r.resolution_percentage = 100
+            scene.view_layers[0].update()
+            with interrupt.blender_call():
+                bpy.ops.render.render(scene=scene.name)
+    finally:
+        cls.call = None
+        if not had_result:
+            for image in _render_results():
+                bpy.data.images.remove(image)
+        if not registered:
+            bpy.utils.unregister_class(cls)
+    if cls.outcome is None:
+        raise ILError(f"scene '{scene.name}' could not be evaluated for rendering")
+    ok, value = cls.outcome
+    cls.outcome = None
+    if not ok:
+        raise value
+    return value

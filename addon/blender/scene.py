@@ -159,6 +159,67 @@ def evaluated_triangles(obj, depsgraph):
     return co.reshape(-1, 3), tris.reshape(-1, 3)
 
 
+def rendered_objects(scene):
+    """The objects ``scene`` renders itself (instances aside), in ``scene.objects`` order: those of its
+    master collection and of collections neither excluded from its first view layer nor disabled in
+    renders (the collection or a parent), themselves not hidden for render."""
+    seen = set()
+
+    def walk(lc):
+        if lc.exclude or lc.collection.hide_render:
+            return
+        seen.update(o.name for o in lc.collection.objects if not o.hide_render)
+        for child in lc.children:
+            walk(child)
+
+    walk(scene.view_layers[0].layer_collection)
+    return [o for o in scene.objects if o.name in seen]
+
+
+class Surface:
+    """One rendered copy of an evaluated mesh: ``name`` (the object's, or "<object> (instanced by
+    <instancer>)"), ``obj`` (the original object; the instancer for geometry-nodes instances),
+    ``instance`` (True for a copy made by an instancer), world-space ``verts`` (V, 3) and ``tris`` (T, 3),
+    counter-clockwise seen from outside also under a mirroring matrix."""
+    __slots__ = ("name", "obj", "instance", "verts", "tris")
+
+    def __init__(self, name, obj, instance, verts, tris):
+        self.name, self.obj, self.instance, self.verts, self.tris = name, obj, instance, verts, tris
+
+
+def evaluated_surfaces(depsgraph, types):
+    """([Surface], [(name, type)]): every object and instance ``depsgraph.object_instances`` yields --
+    linked duplicates, collection instances, vertex/face and particle instancing, geometry-nodes
+    instances -- at its instance ``matrix_world``: those of ``types`` with triangles become surfaces
+    (each evaluated mesh is read once however many copies it has), those of other types are listed. Give it a
+    render-mode depsgraph (blender.render.with_render_depsgraph) to get what a render draws; copies
+    whose ``show_self`` is off (an instancer or particle emitter not shown) are left out, as Cycles does."""
+    surfaces, other, meshes = [], [], {}
+    for inst in depsgraph.object_instances:
+        ob = inst.object
+        original = ob.original
+        if not inst.show_self:
+            continue
+        if inst.is_instance:
+            parent = inst.parent.name
+            name = f"{ob.data.name if ob.name == parent and ob.data else ob.name} (instanced by {parent})"
+        else:
+            name = ob.name
+        if ob.type not in types:
+            other.append((name, ob.type))
+            continue
+        key = (original.as_pointer(), ob.data.as_pointer() if ob.data else 0)
+        if key not in meshes:
+            meshes[key] = evaluated_triangles(ob, depsgraph)
+        v, t = meshes[key]
+        if not len(t):
+            continue            # nothing to render: no faces, or only the instances it makes
+        m = np.array(inst.matrix_world, np.float64)
+        surfaces.append(Surface(name, original, bool(inst.is_instance), v @ m[:3, :3].T + m[:3, 3],
+                                t[:, ::-1] if np.linalg.det(m[:3, :3]) < 0 else t))
+    return surfaces, other
+
+
 def black_world(name="IL temporary world"):
     """A world that emits nothing, as Cycles renders a scene without a world. ``bpy.data.worlds.new`` gives
     5.0 worlds a node tree whose Background is grey (0.05, strength 1), which ``world.color`` does not

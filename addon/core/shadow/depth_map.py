@@ -14,7 +14,7 @@ import numpy as np
 from .. import budget
 from ..camera import world_to_pixels
 from ..errors import InputError
-from .raster import rasterize_depth
+from .raster import CHUNK, rasterize_depth
 
 #: tan θ is clamped here (θ about 84°) so grazing receivers get a finite bias.
 MAX_TAN = 10.0
@@ -23,26 +23,61 @@ MAX_TAN = 10.0
 MAX_RESOLUTION = 8192
 MAX_SIZE = 16384
 #: Cost estimates of a comparison (measured on 2 cores, rounded up; README "Limits"): peak bytes per
-#: camera pixel (Cycles' passes, the float64 per-pixel arrays; 550 measured at 1024²), peak bytes per
-#: texel while Cycles renders one map (80 measured at 4096²), bytes kept per texel of each map
-#: (float64 depth), Cycles seconds per map texel (0.4-0.6e-6 measured).
+#: camera pixel (Cycles' passes, the float64 per-pixel arrays; 550 measured at 1024²) and bytes kept per
+#: texel of each map (float64 depth).
 BYTES_PER_PIXEL = 800
-BYTES_PER_TEXEL_RENDER = 120
 BYTES_PER_TEXEL_KEPT = 8
+#: Depth source "cycles": peak bytes per texel while Cycles renders one map (80 measured at 4096²) and
+#: Cycles seconds per map texel (0.4-0.6e-6 measured).
+BYTES_PER_TEXEL_RENDER = 120
 SECONDS_PER_TEXEL = 1e-6
+#: Depth source "raster" (core.shadow.raster.rasterize_depth; tracemalloc peaks and times on 2 cores at load
+#: 3.5-6, 512²-16384², 10k-triangle scenes with 1.0-1.1 covered triangles per texel and 32 stacked quads with
+#: 32): nothing per texel beyond the 8 bytes of the map it fills; about 60 bytes per texel-triangle pair in
+#: flight (rows, spans, fragments), at most raster.CHUNK pairs at once (working set 20-120 MiB measured,
+#: growing with the map's rows); seconds per texel and per covered texel-triangle pair (fit: 12 and 11 ns).
+RASTER_BYTES_PER_PAIR = 80
+RASTER_SECONDS_PER_TEXEL = 3e-8
+RASTER_SECONDS_PER_PAIR = 3e-8
+#: Covered triangles per map texel a raster's time is planned for (the built-in scenes have 0.6-1.1); even so
+#: six 16384² faces take about 30 min of the 2-hour limit: the raster's bound is memory.
+RASTER_PAIRS_PER_TEXEL = 32
+#: Where a shadow map's depth comes from: the numpy rasteriser (default) or Cycles' Depth pass.
+DEPTH_SOURCES = ("raster", "cycles")
 
 
-def check_cost(width, height, size=None, faces=1):
+def check_source(source):
+    """``source`` if it is one of DEPTH_SOURCES, else InputError."""
+    if source not in DEPTH_SOURCES:
+        raise InputError(f"unknown depth source '{source}' (choose from {', '.join(DEPTH_SOURCES)})")
+    return source
+
+
+def map_cost(size, faces=1, source="raster"):
+    """(bytes, seconds) of ``faces`` depth maps of ``size``² texels from ``source``, beyond the frame.
+
+    raster: 8 faces N² + CHUNK RASTER_BYTES_PER_PAIR bytes, faces N² (t_texel + RASTER_PAIRS_PER_TEXEL t_pair)
+    seconds; cycles: N² (BYTES_PER_TEXEL_RENDER + 8 faces) bytes, faces N² SECONDS_PER_TEXEL seconds."""
+    check_source(source)
+    texels = faces * size * size
+    if source == "cycles":
+        return size * size * BYTES_PER_TEXEL_RENDER + texels * BYTES_PER_TEXEL_KEPT, texels * SECONDS_PER_TEXEL
+    return (texels * BYTES_PER_TEXEL_KEPT + CHUNK * RASTER_BYTES_PER_PAIR,
+            texels * (RASTER_SECONDS_PER_TEXEL + RASTER_PAIRS_PER_TEXEL * RASTER_SECONDS_PER_PAIR))
+
+
+def check_cost(width, height, size=None, faces=1, source="raster"):
     """Refuse (InputError naming the largest value that fits) a frame of ``width`` x ``height`` pixels,
-    or ``faces`` shadow maps of ``size``² texels, whose estimated memory or time does not fit."""
+    or ``faces`` shadow maps of ``size``² texels from depth ``source`` (:func:`map_cost`), whose estimated
+    memory or time does not fit."""
     aspect = height / width
     frame = lambda w: w * max(1, round(w * aspect)) * BYTES_PER_PIXEL  # noqa: E731
     budget.check("resolution", int(width), lambda w: (frame(w), 0.0), 8)
+    check_source(source)
     if size:
         budget.check("shadow-map size", int(size),
-                     lambda n: (frame(width) + n * n * (BYTES_PER_TEXEL_RENDER + faces * BYTES_PER_TEXEL_KEPT),
-                                faces * n * n * SECONDS_PER_TEXEL), 2,
-                     f"({faces} map{'s' if faces > 1 else ''}, {width}x{height} pixels)")
+                     lambda n: (frame(width) + map_cost(n, faces, source)[0], map_cost(n, faces, source)[1]), 2,
+                     f"({faces} map{'s' if faces > 1 else ''} from the {source} depth source, {width}x{height} pixels)")
 
 
 def check_pcf(k):

@@ -188,7 +188,7 @@ def speed(resolution=512, map_size=2048, repeats=3):
     """
     rows = []
     res = resolution
-    shadow_map.check_cost(res, res, map_size, 1)
+    shadow_map.check_cost(res, res, map_size, 1, "cycles")      # both sources are rendered
     scene = shadow_scenes.build("sphere", "sun", (res, res), segments=102, rings=50)   # 10 000 triangles
     try:
         with ShadowFrame(scene, scene["il_shadow_light"], res) as s:
@@ -208,7 +208,7 @@ def speed(resolution=512, map_size=2048, repeats=3):
                          f"(best of {max(repeats, 5)})", raster_s, 0.3))
             rows.append((f"  Cycles / raster = {cycles_s / raster_s:.0f}x", None, None))
             rows += _agreement(s, cycles_maps, raster_maps)
-            tri_s = min(_timed(s.caster_triangles) for _ in range(3))
+            tri_s = min(_timed(s.gather_surfaces) for _ in range(3))
             rows.append((f"  of which the casters' triangles from the depsgraph", tri_s, None))
             n, f = map_size * map_size, stats["fragments"]
             rows.append((f"  limit: one z-buffer minimum over the {f} fragments ({f / n:.2f} per texel, "

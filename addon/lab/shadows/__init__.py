@@ -26,7 +26,7 @@ from ...blender.progress import Progress
 from ...blender import scene as sc
 from ..options import SHADOW_METHOD_CHOICES, ShadowOptions
 from . import scenes
-from .frame import DEPTH_SOURCES, ShadowFrame
+from .frame import ShadowFrame
 
 METHODS = tuple(m[0] for m in SHADOW_METHOD_CHOICES)
 #: The shadow map's depth by default: "raster" (numpy, the casters' triangles) or "cycles" (Depth pass).
@@ -45,10 +45,11 @@ def check_params(params):
 
 
 def check_cost(frame, methods, p):
-    """core.shadow.depth_map.check_cost for the frame's size and, with "shadowmap", its maps."""
+    """core.shadow.depth_map.check_cost for the frame's size and, with "shadowmap", its maps from
+    ``p["depth_source"]``."""
     faces = 6 if frame.light.kind == "POINT" else 1
     depth_map.check_cost(frame.width, frame.height, p["shadowmap_size"] if "shadowmap" in methods else None,
-                          faces)
+                          faces, p["depth_source"])
 
 
 # -- methods ------------------------------------------------------------------------------------
@@ -58,13 +59,14 @@ def _planar(s, p):
         raise InputError(f"no mesh named '{name}' to receive planar shadows: name the receiver plane "
                          "(Receiver field, --receiver)")
     receiver = s.user_scene.objects[name]
-    v, t = s.triangles(receiver)
-    tri = v[t]
+    surface = s.surface_of(receiver)
+    if surface is None:
+        raise InputError(f"the receiver '{name}' has no faces the render sees (hidden for render, or no faces)")
+    tri = surface.verts[surface.tris]
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     big = int(np.argmax(np.linalg.norm(n, axis=1)))
     plane = shadow_planar.plane_from_point_normal(tri[big, 0], n[big])
-    casters = [o for o in s.casters if o != receiver]
-    tris = np.concatenate([v_[t_] for v_, t_ in (s.triangles(o) for o in casters)]) if casters else np.zeros((0, 3, 3))
+    tris = s.caster_triangles(exclude=receiver)
     cover = shadow_planar.planar_shadow_mask(tris, plane, s.light.h, s.world_to_view, s.proj,
                                              s.width, s.height, s.depth, offset=p["offset"])
     return s.reach & ~cover, {"receiver": name, "offset": p["offset"], "plane": [round(float(x), 6) for x in plane]}
@@ -90,19 +92,20 @@ def _shadowmap(s, p):
 
 
 def volume_inputs(s):
-    """Closed casters' volume triangles; open meshes are skipped (documented fallback) and listed."""
+    """Closed surfaces' volume triangles (every object and instance, ShadowFrame.surfaces); open meshes
+    are skipped (documented fallback) and listed once by name."""
     vols, skipped, tris, sil = [], [], 0, 0
     _, radius = s._scene_radius()
     distance = 1e3 * max(1.0, radius)
-    for o in s.casters:
-        v, t = s.triangles(o)
-        if not shadow_volume.is_closed(t):
-            skipped.append(o.name)
+    for x in s.surfaces:
+        if not shadow_volume.is_closed(x.tris):
+            skipped.append(x.name)
             continue
-        vt, ns = shadow_volume.volume_triangles(v, t, s.light.h, distance, o.name)
+        vt, ns = shadow_volume.volume_triangles(x.verts, x.tris, s.light.h, distance, x.name)
         vols.append(vt)
-        tris += len(t)
+        tris += len(x.tris)
         sil += ns
+    skipped = list(dict.fromkeys(skipped))
     if not vols:
         raise InputError("shadow volumes need at least one closed mesh; open meshes found: " + ", ".join(skipped))
     return np.concatenate(vols), {"occluder_triangles": tris, "silhouette_edges": sil,
@@ -149,7 +152,7 @@ def run_method(s, method, p):
 def compare(scene, light, methods, out, depth_source=DEPTH_SOURCE, **params):
     """Run ``methods`` on ``scene`` lit by the light named ``light``; write images and the report; return it.
 
-    ``depth_source`` is where the shadow map's depth comes from (frame.DEPTH_SOURCES), the rest are
+    ``depth_source`` is where the shadow map's depth comes from (core.shadow.depth_map.DEPTH_SOURCES), the rest are
     lab.options.ShadowOptions.
 
     Everything is computed before the first file is written (an error or Ctrl-C leaves no partial set);
@@ -158,9 +161,7 @@ def compare(scene, light, methods, out, depth_source=DEPTH_SOURCE, **params):
     """
     methods = parse_methods(methods)
     p = check_params(params)
-    if depth_source not in DEPTH_SOURCES:
-        raise InputError(f"unknown depth source '{depth_source}' (choose from {', '.join(DEPTH_SOURCES)})")
-    p["depth_source"] = depth_source
+    p["depth_source"] = depth_map.check_source(depth_source)
     report = {"scene": scene.name, "light": light, "reference": {}, "methods": {}}
     images = {}
     frame = ShadowFrame(scene, light, p["resolution"], p["samples"])
@@ -208,7 +209,7 @@ def compare_builtin(name, light_kind, methods, out, keep=False, depth_source=DEP
     methods = parse_methods(methods)
     p = check_params(params)
     depth_map.check_cost(p["resolution"], p["resolution"], p["shadowmap_size"] if "shadowmap" in methods else None,
-                          6 if light_kind == "point" else 1)
+                          6 if light_kind == "point" else 1, depth_source)
     scene = scenes.build(name, light_kind, (p["resolution"], p["resolution"]))
     try:
         return compare(scene, scene["il_shadow_light"], methods, out, depth_source, **params)

@@ -1,10 +1,12 @@
 """The bpy side of the shadow lab: a private render scene, the ray-traced reference, light-view
 depth maps, EEVEE and Workbench masks, and the occluders' triangles -- all on one pixel grid.
 
-The user's scene is never rendered or edited directly: a temporary scene links the same objects
-(minus every other light), gets its own camera settings, passes and a white diffuse material
-override, and is removed afterwards. The light's own settings (LIGHT_SETTINGS) are set for the lab
-and put back on exit by blender.state.SavedState, also after an error.
+The user's scene is never rendered or edited directly: a temporary scene links the objects its
+render draws (blender.scene.rendered_objects: not hidden for render, not in an excluded or
+render-disabled collection; minus every other light; instancers bring their instances), gets its
+own camera settings, passes and a white diffuse material override, and is removed afterwards. The
+light's own settings (LIGHT_SETTINGS) are set for the lab and put back on exit by
+blender.state.SavedState, also after an error.
 """
 import contextlib
 import math
@@ -24,14 +26,16 @@ from ...blender.state import SavedState
 
 #: The light's settings the lab changes (radius 0, no blend, shadows on, no EEVEE jitter), put back on exit.
 LIGHT_SETTINGS = ("shadow_soft_size", "angle", "spot_blend", "use_shadow", "use_shadow_jitter")
-#: Where a shadow map's depth comes from (ShadowFrame.depth_maps): numpy rasteriser (default) or Cycles.
-DEPTH_SOURCES = ("raster", "cycles")
+#: Where a shadow map's depth comes from (ShadowFrame.depth_maps; core.shadow.depth_map.DEPTH_SOURCES).
+DEPTH_SOURCES = depth_map.DEPTH_SOURCES
 #: Pixel filter width of every lab render (pixels): every sample through the pixel centre.
 FILTER_WIDTH = 0.01
 
 #: Object types Cycles renders as a surface that Blender evaluates to a mesh (triangulated for the
 #: planar and volume methods); other renderable types are listed as skipped.
 SURFACE_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
+#: Object types that draw nothing in a render (never listed as skipped).
+NOT_RENDERED = {"LIGHT", "CAMERA", "EMPTY", "SPEAKER", "LIGHT_PROBE", "LATTICE", "ARMATURE"}
 
 
 class LightInfo:
@@ -103,7 +107,7 @@ class ShadowFrame:
         rx, ry = scene.render.resolution_x, scene.render.resolution_y
         self.width = self.resolution
         self.height = max(1, round(self.resolution * ry / rx))
-        self.skipped = []
+        self.surfaces, self.skipped = [], []
         self.tmp = None
         self._made = []
         self._restore = contextlib.ExitStack()
@@ -133,8 +137,12 @@ class ShadowFrame:
         data.use_shadow = True
         tmp = bpy.data.scenes.new("IL Shadow Lab")
         self.tmp = tmp
-        for obj in user.objects:
-            if obj.hide_render or (obj.type == "LIGHT" and obj != self.light.obj):
+        rendered = sc.rendered_objects(user)
+        if self.light.obj not in rendered:
+            raise InputError(f"light '{self.light.obj.name}' is not rendered (hidden for render, or in a collection "
+                             "excluded from the view layer or disabled in renders)")
+        for obj in rendered:
+            if obj.type == "LIGHT" and obj != self.light.obj:
                 continue
             tmp.collection.objects.link(obj)
         tmp.camera = user.camera
@@ -144,17 +152,23 @@ class ShadowFrame:
         mat = _white_diffuse()
         self._made.append(mat)
         tmp.view_layers[0].material_override = mat
-        self.casters = []
-        for o in tmp.objects:
-            if o.type in {"LIGHT", "CAMERA", "EMPTY", "SPEAKER", "LIGHT_PROBE", "LATTICE", "ARMATURE"}:
-                continue
-            if o.type in SURFACE_TYPES and len(self.triangles(o)[1]):
-                self.casters.append(o)
-            elif o.type != "META":       # a metaball's surface lives in its family's basis object
-                self.skipped.append(o.name)
-        if not self.casters:
+        self.gather_surfaces()
+        if not self.surfaces:
             raise InputError(f"scene '{user.name}' has no visible mesh"
                              + (f" (not usable: {', '.join(self.skipped)})" if self.skipped else ""))
+
+    def gather_surfaces(self):
+        """Read the private scene's render-mode depsgraph (blender.render.with_render_depsgraph,
+        blender.scene.evaluated_surfaces): set and return ``surfaces``, every object and instance of a
+        SURFACE_TYPES type with triangles in world space, as Cycles renders them -- the one set of
+        triangles the planar, volume and raster shadow-map methods use -- and ``skipped``, what Cycles
+        renders that is not triangulated. :meth:`__enter__` calls it once."""
+        self.tmp.camera = self.user_scene.camera         # a render needs one; depth_maps leaves none
+        self.surfaces, other = render.with_render_depsgraph(
+            self.tmp, lambda dg: sc.evaluated_surfaces(dg, SURFACE_TYPES))
+        # a metaball's surface lives in its family's basis object
+        self.skipped = list(dict.fromkeys(n for n, t in other if t not in NOT_RENDERED and t != "META"))
+        return self.surfaces
 
     def close(self):
         """Remove the private scene (the user's objects stay: they live in the user's scene too), the
@@ -222,9 +236,11 @@ class ShadowFrame:
         return obj
 
     def _scene_radius(self):
-        pts = np.array([list(o.matrix_world @ Vector(c)) for o in self.casters for c in o.bound_box])
-        centre = (pts.min(0) + pts.max(0)) / 2
-        return centre, float(np.linalg.norm(pts - centre, axis=1).max())
+        """Centre and radius of the box bounding every surface's vertices."""
+        pts = np.concatenate([x.verts for x in self.surfaces])
+        lo, hi = pts.min(0), pts.max(0)
+        centre = (lo + hi) / 2
+        return centre, float(np.linalg.norm(hi - lo) / 2)
 
     def light_cameras(self):
         """Cameras at the light: a fitted orthographic one (sun), the spot cone, or six cube faces."""
@@ -258,8 +274,7 @@ class ShadowFrame:
         """
         if size < 2 or size > 16384:
             raise InputError(f"--shadowmap-size must be between 2 and 16384, got {size}")
-        if source not in DEPTH_SOURCES:
-            raise InputError(f"unknown depth source '{source}' (choose from {', '.join(DEPTH_SOURCES)})")
+        depth_map.check_source(source)
         t = time.perf_counter()
         maps = []
         cams = self.light_cameras()
@@ -286,32 +301,15 @@ class ShadowFrame:
                 bpy.data.cameras.remove(data)
         return maps, time.perf_counter() - t
 
-    def caster_triangles(self):
-        """(T, 3, 3) world-space triangles of every surface the private scene renders: each evaluated
-        object and instance (collection instances, geometry-nodes instances) of a SURFACE_TYPES type,
-        as Cycles sees them."""
-        vl = self.tmp.view_layers[0]
-        vl.update()
-        dg = vl.depsgraph
-        parts = []
-        for inst in dg.object_instances:
-            if inst.object.type not in SURFACE_TYPES:
-                continue
-            v, t = sc.evaluated_triangles(inst.object, dg)
-            if len(t):
-                m = np.array(inst.matrix_world, np.float64)
-                parts.append((v @ m[:3, :3].T + m[:3, 3])[t])
+    def caster_triangles(self, exclude=None):
+        """(T, 3, 3) world-space triangles of every surface (:meth:`gather_surfaces`), without the
+        object ``exclude`` itself (its instances stay)."""
+        parts = [x.verts[x.tris] for x in self.surfaces if x.instance or x.obj != exclude]
         return np.concatenate(parts) if parts else np.zeros((0, 3, 3))
 
-    def triangles(self, obj):
-        """World-space (V, 3) vertices and (T, 3) triangles of an object's evaluated mesh."""
-        self.tmp.view_layers[0].update()
-        v, t = sc.evaluated_triangles(obj, self.tmp.view_layers[0].depsgraph)
-        m = np.array(obj.matrix_world, np.float64)
-        v = v @ m[:3, :3].T + m[:3, 3]
-        if np.linalg.det(m[:3, :3]) < 0:
-            t = t[:, ::-1]
-        return v, t
+    def surface_of(self, obj):
+        """The :class:`blender.scene.Surface` of ``obj`` itself (not an instance of it), or None."""
+        return next((x for x in self.surfaces if not x.instance and x.obj == obj), None)
 
     def engine_mask(self, engine):
         """EEVEE or Workbench's own shadow: (lit mask, seconds) from two renders, shadows on and off.

@@ -294,3 +294,64 @@ def test_rasterised_depth_is_clipped_at_the_near_and_far_planes():
     w2v, proj, _, _ = _look_down((0.0, 0.0, 2.0), ortho=2.0)
     quad = np.array([[[-1, -1, 0], [1, -1, 0], [1, 1, 0]], [[-1, -1, 0], [1, 1, 0], [-1, 1, 0]]], float)
     np.testing.assert_allclose(raster.rasterize_depth(quad, w2v, proj, 64, 64, 1e-3), 2.0)
+
+
+def _height_field(n=72, size=6.0):
+    """An n x n grid of bumps as 2 n² small triangles (10 368 at n = 72): about one triangle per texel row."""
+    x = np.linspace(-size / 2, size / 2, n + 1)
+    gx, gy = np.meshgrid(x, x)
+    p = np.stack([gx, gy, 0.3 * np.sin(3 * gx) * np.cos(2 * gy)], -1)
+    a, b, c, d = p[:-1, :-1], p[:-1, 1:], p[1:, :-1], p[1:, 1:]
+    return np.concatenate([np.stack([a, b, d], -2).reshape(-1, 3, 3), np.stack([a, d, c], -2).reshape(-1, 3, 3)])
+
+
+@pytest.mark.parametrize("scene, n", [("height field", 512), ("height field", 2048), ("32 stacked quads", 1024)])
+def test_raster_depth_map_peak_memory_is_within_its_budget(scene, n):
+    """tracemalloc's peak while rasterising (numpy reports its buffers to it) is the map's 8 bytes a texel
+    plus a working set of texel-triangle pairs that the chunks bound, whatever the map size or the number
+    of triangles covering a texel: never above depth_map.map_cost's bytes."""
+    import tracemalloc
+    if scene == "height field":
+        tris = _height_field()
+    else:
+        quad = np.array([[[-3, -3, 0], [3, -3, 0], [3, 3, 0]], [[-3, -3, 0], [3, 3, 0], [-3, 3, 0]]], float)
+        tris = np.concatenate([quad + (0, 0, 0.05 * k) for k in range(32)])
+    w2v, proj, _, _ = _look_down((0.0, 0.0, 5.0), ortho=6.0)
+    stats = {}
+    tracemalloc.start()
+    try:
+        depth = raster.rasterize_depth(tris, w2v, proj, n, n, 1e-3, 100.0, stats=stats)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert (depth < camera.SKY_DEPTH).all()                                # every texel covered
+    assert stats["fragments"] >= (32 if "quads" in scene else 1) * n * n
+    budget_bytes, _ = depth_map.map_cost(n, 1, "raster")
+    assert 8 * n * n <= peak <= budget_bytes, (peak, budget_bytes)
+    assert peak - 8 * n * n <= raster.CHUNK * depth_map.RASTER_BYTES_PER_PAIR
+
+
+def test_shadow_map_budget_follows_the_depth_source(monkeypatch):
+    """With 8 GiB usable: one raster map of 16384² (2 GiB) is accepted where a Cycles render of it (120 B a
+    texel) is refused; six raster faces (12 GiB) are refused in one line naming the largest size that fits,
+    N = floor(sqrt((8 GiB - frame - working set) / (6 x 8 B))), which fits while N + 1 does not."""
+    from addon.core import budget
+    memory = 8 << 30
+    monkeypatch.setattr(budget, "memory_budget", lambda: memory)
+    frame = 128 * 128 * depth_map.BYTES_PER_PIXEL
+    depth_map.check_cost(128, 128, 16384, 1, "raster")
+    with pytest.raises(InputError) as e:
+        depth_map.check_cost(128, 128, 16384, 1, "cycles")
+    assert f"the largest shadow-map size that fits is {math.isqrt((memory - frame) // 128)}" in str(e.value)
+    with pytest.raises(InputError) as e:
+        depth_map.check_cost(128, 128, 16384, 6, "raster")
+    msg = str(e.value)
+    best = math.isqrt((memory - frame - raster.CHUNK * depth_map.RASTER_BYTES_PER_PAIR) // 48)
+    assert "\n" not in msg and msg.startswith("shadow-map size 16384 (6 maps from the raster depth source, "
+                                              "128x128 pixels) needs about 12.2 GiB of memory (8 GiB usable here)")
+    assert msg.endswith(f"the largest shadow-map size that fits is {best}")
+    depth_map.check_cost(128, 128, best, 6, "raster")
+    with pytest.raises(InputError):
+        depth_map.check_cost(128, 128, best + 1, 6, "raster")
+    with pytest.raises(InputError, match="unknown depth source 'gpu'"):
+        depth_map.check_cost(128, 128, 64, 1, "gpu")
