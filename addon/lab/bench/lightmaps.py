@@ -67,27 +67,25 @@ def analytic_floor_ao(scene, n):
     # polygonal sphere: use the radius of the sphere of equal volume-ish (mean of in- and circumradius)
     radius *= 0.5 * (1 + math.cos(math.pi / 48))
     c = (np.arange(n) + 0.5) / n * 8.0 - 4.0
-    ref = np.ones((n, n))
-    mask = np.zeros((n, n), bool)
+    y, x = np.meshgrid(c, c, indexing="ij")
+    p = np.stack([x.ravel(), y.ravel(), np.zeros(n * n)], axis=1)
     centre_b = corners.mean(axis=0)
-    for i, y in enumerate(c):
-        for j, x in enumerate(c):
-            p = np.array([x, y, 0.0])
-            db = centre_b - p
-            ab = max(_angle(db, q - p) for q in corners)
-            ds = centre_s - p
-            dist = np.linalg.norm(ds)
-            as_ = math.asin(min(radius / dist, 1.0))
-            near_box = np.all(np.abs((np.linalg.inv(np.array(box.matrix_world))[:3] @ np.append(p, 1.0))[:2]) < 0.75)
-            ok = _angle(db, ds) > ab + as_ and dist > radius + 0.25 and not near_box
-            f = lm.view_factor_convex(p, (0, 0, 1), faces) + lm.view_factor_sphere(dist, ds[2] / dist, radius)
-            ref[i, j] = 1.0 - f
-            mask[i, j] = ok
-    return ref, mask
+    db = centre_b - p
+    ab = np.max([_angles(db, q - p) for q in corners], axis=0)
+    ds = centre_s - p
+    dist = np.linalg.norm(ds, axis=1)
+    as_ = np.arcsin(np.minimum(radius / dist, 1.0))
+    local = np.c_[p, np.ones(len(p))] @ np.linalg.inv(np.array(box.matrix_world))[:2].T
+    near_box = np.all(np.abs(local) < 0.75, axis=1)
+    ok = (_angles(db, ds) > ab + as_) & (dist > radius + 0.25) & ~near_box
+    f = lm.view_factors_convex(p, (0, 0, 1), faces) + lm.view_factor_sphere(dist, ds[:, 2] / dist, radius)
+    return (1.0 - f).reshape(n, n), ok.reshape(n, n)
 
 
-def _angle(a, b):
-    return math.acos(np.clip(np.dot(a, b) / (np.linalg.norm(a) * np.linalg.norm(b)), -1.0, 1.0))
+def _angles(a, b):
+    """Angles between the rows of ``a`` and ``b``."""
+    cos = np.einsum("ij,ij->i", a, b) / (np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1))
+    return np.arccos(np.clip(cos, -1.0, 1.0))
 
 
 def _bare_bake(scene, floor, res, samples):
