@@ -17,7 +17,7 @@ from ...core.io import exr
 from ...core import lightmap as lm
 from ..demo import scene as demo
 from ...blender import render
-from ...blender.materials import white_lambert
+from ...blender.materials import no_closure
 from ...blender.state import SavedState
 from ...blender.scene import remove_scene
 from ...bake.options import BakeOptions
@@ -90,13 +90,13 @@ def _angles(a, b):
 
 def _bare_bake(scene, floor, res, samples):
     """Time of the bare Cycles AO bake call doing the pipeline's work: the same Cycles settings (CPU,
-    samples, seed, no adaptive sampling, no bounces), a white Lambert carrying the image node, and Blender's
-    own 4-texel margin in place of the pipeline's dilation. Material, image and settings are prepared
-    beforehand and put back afterwards."""
+    samples, seed, no adaptive sampling, no bounces), the pipeline's no-closure material carrying the image
+    node, and Blender's own 4-texel margin in place of the pipeline's dilation. Material, image and settings
+    are prepared beforehand and put back afterwards."""
     cy = scene.cycles
     with SavedState(scene, [floor], render.settings(scene) + [(cy, "max_bounces"), (cy, "diffuse_bounces")]) as state:
         img = state.track(bpy.data.images, bpy.data.images.new("IL bench", res, res, float_buffer=True, alpha=True))
-        mat = state.track(bpy.data.materials, white_lambert("IL bench"))
+        mat = state.track(bpy.data.materials, no_closure("IL bench"))
         nt = mat.node_tree
         tex = nt.nodes.new("ShaderNodeTexImage")
         tex.image = img
