@@ -123,6 +123,7 @@ def _pipeline(scene, floor, out, kind="ao", **kw):
     Values are k_A for "ao" and the mean of R, G, B (W/m²) for "irradiance"."""
     kw.setdefault("uv_layer", PLANAR)
     kw.setdefault("overwrite", True)
+    kw.setdefault("force", True)          # every call bakes: a repeat would otherwise be skipped as unchanged
     t = time.perf_counter()
     rep = bake_lightmaps([floor], [kind], out, BakeOptions(**kw), scene=scene)
     seconds = time.perf_counter() - t                    # the whole call, validation included
