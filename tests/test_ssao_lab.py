@@ -42,6 +42,40 @@ def test_reference_matches_closed_forms_on_plane_and_corner(tmp_path):
     assert again["cached"] and np.array_equal(again["k"], ref["k"])
 
 
+def test_reference_without_closures_is_the_same_bit_for_bit_and_leaves_no_override(monkeypatch):
+    # scenes without materials render their reference with a no-closure override: same AO and alpha as
+    # Cycles' default surface; a scene with a material renders as it is
+    import contextlib
+    from addon.blender import materials
+    scene = ssao_scenes.build_scene("discontinuity", 48, 1.0)
+    try:
+        def reference():
+            with lab.preserved(scene):
+                lab.set_resolution(scene, 48)
+                return lab.render_reference(scene, 1.0, 64)
+        fast = reference()
+        assert scene.view_layers[0].material_override is None
+        assert not [m for m in bpy.data.materials if m.name.startswith("IL SSAO geometry only")]
+        with monkeypatch.context() as m:
+            m.setattr(lab, "_geometry_only", lambda s: contextlib.nullcontext())
+            plain = reference()
+        assert 0.2 < fast["k"][fast["alpha"] > 0].mean() < 0.99
+        np.testing.assert_array_equal(fast["k"], plain["k"])
+        np.testing.assert_array_equal(fast["alpha"], plain["alpha"])
+        mat = materials.white_lambert("T SSAO material")
+        scene.objects["Ball"].data.materials.append(mat)
+        seen = []
+        real_render = lab.render.render_layers
+        monkeypatch.setattr(lab.render, "render_layers",
+                            lambda sc_: seen.append(sc_.view_layers[0].material_override) or real_render(sc_))
+        reference()
+        assert seen == [None]
+    finally:
+        remove_scene(scene)
+        for m in [m for m in bpy.data.materials if m.name.startswith("T SSAO material")]:
+            bpy.data.materials.remove(m)
+
+
 def test_corner_against_cycles_gtao_beats_hemisphere_beats_sphere_kernel(tmp_path):
     report = lab.run_builtin("corner", ["crytek", "hemisphere", "gtao", "hbao"], str(tmp_path), resolution=64,
                              samples=32, radius=1.0, reference_samples=256)

@@ -696,8 +696,10 @@ def _setup_render(scene, options, state):
 class TemporaryMaterials:
     """The temporary materials of a run, made once and assigned per map.
 
-    AO (geometry only): one plain white Lambert shared by every slot, just a carrier
-    of the active image node.
+    AO (geometry only): one material with no closure (materials.no_closure) shared by every slot, just a
+    carrier of the active image node: Cycles then samples no BSDF and no light at the baked points, and
+    the AO pass, which reads the geometry only, is the same bit for bit as with a white Lambert (measured
+    on the demo's four objects) in less than half the time.
 
     Irradiance: per original slot material a copy whose surface is
     ``Mix(original, white Lambert, factor = Light Path "Is Camera Ray")``. Cycles starts
@@ -751,7 +753,7 @@ class TemporaryMaterials:
 
     def _ao(self, key=None):
         if key not in self.ao:
-            mat = materials.white_lambert("IL bake AO", self._new("IL bake AO"))
+            mat = materials.no_closure("IL bake AO", self._new("IL bake AO"))
             self.ao[key] = (mat, self._image_node(mat.node_tree))
         return self.ao[key]
 

@@ -28,3 +28,16 @@ def white_lambert(name, material=None):
     nt.links.new(white_diffuse_node(nt).outputs["BSDF"], out.inputs["Surface"])
     mat.diffuse_color = (1.0, 1.0, 1.0, 1.0)
     return mat
+
+
+def no_closure(name, material=None):
+    """A material with no closure at all (an Emission of strength 0 -> Surface): Cycles samples no BSDF and no
+    light at its points, so a render that reads only the geometry there (the AO pass, depth, alpha) costs
+    the camera and AO rays alone."""
+    mat = material or empty_material(name)
+    nt = mat.node_tree
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    emission = nt.nodes.new("ShaderNodeEmission")
+    emission.inputs["Strength"].default_value = 0.0
+    nt.links.new(emission.outputs["Emission"], out.inputs["Surface"])
+    return mat

@@ -393,6 +393,30 @@ def view_factor_convex(point, normal, faces):
     return total
 
 
+def view_factors_convex(points, normal, faces):
+    """:func:`view_factor_convex` at many ``points`` (N, 3) sharing one ``normal``, as an (N,) array: the same
+    terms, summed in the same order."""
+    p = np.asarray(points, float).reshape(-1, 3)
+    nrm = np.asarray(normal, float)
+    total = np.zeros(len(p))
+    for f in faces:
+        f = np.asarray(f, float)
+        n = np.cross(f[1] - f[0], f[2] - f[0])
+        facing = (p - f[0]) @ n > 1e-12
+        if not facing.any():
+            continue
+        r = f[None] - p[facing, None]
+        r /= np.linalg.norm(r, axis=2, keepdims=True)
+        r2 = np.roll(r, -1, axis=1)
+        cross = np.cross(r, r2)
+        norm = np.linalg.norm(cross, axis=2)
+        gamma = np.arctan2(norm, np.einsum("pij,pij->pi", r, r2))
+        ok = norm > 1e-15
+        terms = np.where(ok, gamma * (cross @ nrm) / np.where(ok, norm, 1.0), 0.0)
+        total[facing] += np.abs(terms.sum(axis=1)) / (2 * math.pi)
+    return total
+
+
 def view_factor_long_wall(d, height):
     """Infinitely long wall of height H at distance d, parallel to the edge: F = (1 - d/√(d² + H²))/2."""
     return 0.5 * (1.0 - d / math.sqrt(d * d + height * height))

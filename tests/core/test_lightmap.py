@@ -52,6 +52,18 @@ def test_convex_box_counts_only_faces_toward_the_point():
         lm.view_factor_polygon((0, 0, 0), (0, 0, 1), bottom), rel=1e-9)
 
 
+def test_convex_view_factor_of_many_points_matches_one_point_at_a_time():
+    # a box standing on the floor: points beside it see one to three faces, points under it none of
+    # them from the right side; every point must give what the one-point formula gives
+    faces = _box_faces(np.array([-0.5, -0.5, 0.0]), np.array([0.5, 0.5, 1.0]))
+    g = np.linspace(-3.0, 3.0, 25)
+    pts = np.array([(x, y, 0.0) for y in g for x in g])
+    one = np.array([lm.view_factor_convex(p, (0, 0, 1), faces) for p in pts])
+    many = lm.view_factors_convex(pts, (0, 0, 1), faces)
+    assert one.max() > 0.1 and (one == 0).any()
+    np.testing.assert_allclose(many, one, rtol=0, atol=1e-15)
+
+
 def _box_faces(lo, hi):
     x0, y0, z0 = lo
     x1, y1, z1 = hi

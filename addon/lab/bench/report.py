@@ -177,13 +177,14 @@ def run(output_dir, quick=False, areas=None):
         raise ILError(f"unknown area(s): {', '.join(sorted(unknown))}; choose from {', '.join(a.KEY for a in AREAS)}")
     os.makedirs(output_dir, exist_ok=True)
     t_all = time.perf_counter()
-    results, seconds = {}, {}
+    results, seconds, cpu_seconds = {}, {}, {}
     with Progress("bench", len(chosen) + 1) as progress:
         for area in chosen:
             progress.step(area.TITLE)
-            t = time.perf_counter()
+            t, cpu = time.perf_counter(), time.process_time()
             results[area.KEY] = area.run(os.path.join(output_dir, area.KEY), quick)
             seconds[area.KEY] = time.perf_counter() - t
+            cpu_seconds[area.KEY] = time.process_time() - cpu
         progress.step("cross-area tables and the report")
         shading_rows = shading_edges()
         stability = stability_table(results, shading_rows)
@@ -198,7 +199,8 @@ def run(output_dir, quick=False, areas=None):
         with open(tmp, "w", encoding="utf-8") as f:
             f.write(_markdown(output_dir, results, seconds, stability, shading_rows, quick, total))
     write_json(os.path.join(output_dir, "report.json"),
-               {"quick": quick, "seconds": total, "area_seconds": seconds, "stability": stability,
+               {"quick": quick, "seconds": total, "area_seconds": seconds, "area_cpu_seconds": cpu_seconds,
+                "load_average": os.getloadavg()[0] if hasattr(os, "getloadavg") else None, "stability": stability,
                 "figures": {k: r.figures for k, r in results.items()}})
     return {"report": path, "seconds": total, "results": results, "stability": stability}
 

@@ -38,7 +38,7 @@ from ...core.io.files import atomic_path, write_json
 from ...core.result import JobResult
 from ...blender.progress import Progress
 from ...blender.state import SavedState, world_settings
-from ...blender import render, scene as sc
+from ...blender import materials, render, scene as sc
 from ..options import SSAOOptions
 from . import scenes
 
@@ -218,7 +218,8 @@ def render_reference(scene, radius, samples, cache_dir=None, progress=None):
     scene.cycles.max_bounces = 0
     scene.world.light_settings.distance = radius
     _passes(scene, ao=True)
-    p = render.render_layers(scene)
+    with _geometry_only(scene):
+        p = render.render_layers(scene)
     if compat.AO_PASS not in p:
         raise ILError("Cycles returned no ambient occlusion pass")
     k = p[compat.AO_PASS][..., 0].astype(np.float32)
@@ -229,6 +230,28 @@ def render_reference(scene, radius, samples, cache_dir=None, progress=None):
             with open(tmp, "wb") as f:
                 np.savez_compressed(f, k=k, alpha=alpha, samples=samples, seconds=seconds)
     return {"k": k, "alpha": alpha, "samples": int(samples), "seconds": seconds, "cached": False, "key": key}
+
+
+@contextlib.contextmanager
+def _geometry_only(scene):
+    """While the reference renders: when no object Cycles renders has a material (every surface is Cycles'
+    default one, as in the built-in scenes), a view-layer override with no closure (materials.no_closure), so
+    that no BSDF or light is sampled. The AO pass and alpha are the same bit for bit (measured on every
+    built-in scene, 64² at 256 samples and the corner at 128² and 1024) in about half the time; a scene with
+    materials (displacement, transparency, bump) renders as it is."""
+    vl = scene.view_layers[0]
+    if vl.material_override is not None or any(
+            slot.material is not None for obj in scene.objects if not obj.hide_render
+            for slot in getattr(obj, "material_slots", ())):
+        yield
+        return
+    mat = materials.no_closure("IL SSAO geometry only")
+    vl.material_override = mat
+    try:
+        yield
+    finally:
+        vl.material_override = None
+        bpy.data.materials.remove(mat)
 
 
 def _read_cache(path):
