@@ -393,6 +393,38 @@ def test_every_method_sees_instances_as_the_same_objects_made_real(light, tmp_pa
     assert rep["volume_zfail"]["params"]["skipped_open_meshes"] == ["Floor"]
 
 
+def test_objects_without_shadow_visibility_cast_in_no_method(tmp_path):
+    """Object > Visibility > Ray Visibility > Shadow off (on the cylinder, and on a collection instance's empty,
+    which Cycles applies to every copy it makes): Cycles' reference loses their shadows, and so do the planar,
+    raster and Cycles shadow maps and both volume methods: each stays as close to the reference as when they
+    cast, while the reference's shadowed area shrinks."""
+    methods = "raytraced,planar,shadowmap,volume_zpass,volume_zfail"
+    scene = _operator_scene("sun")
+    instancer = next(o for o in scene.objects if o.instance_type == "COLLECTION")
+    reports = {}
+    for tag in ("casting", "not casting"):
+        if tag == "not casting":
+            scene.objects["Cylinder"].visible_shadow = False
+            instancer.visible_shadow = False
+        for source in ("raster", "cycles"):
+            out = tmp_path / f"{tag} {source}"
+            rep = shadows.compare(scene, "Lamp", methods if source == "raster" else "raytraced,shadowmap", out,
+                                  resolution=64, shadowmap_size=1024, depth_source=source)["methods"]
+            reports[(tag, source)] = rep
+    assert scene.objects["Cylinder"].visible_camera                 # the Cycles depth maps' change is undone
+    for tag in ("casting", "not casting"):
+        rep = reports[(tag, "raster")]
+        assert rep["volume_zfail"]["error"] <= 0.002 and rep["volume_zpass"]["error"] <= 0.002, tag
+        assert rep["shadowmap"]["error"] <= 0.005, tag
+        assert rep["planar"]["error"] <= 0.02, tag
+        assert reports[(tag, "cycles")]["shadowmap"]["error"] <= 0.005, tag
+    ref = {tag: png.decode_png(((tmp_path / f"{tag} raster") / "raytraced_mask.png").read_bytes()) > 127
+           for tag in ("casting", "not casting")}
+    receivers = reports[("casting", "raster")]["raytraced"]["receiver_pixels"]
+    assert (ref["not casting"] & ~ref["casting"]).sum() > 0.02 * receivers      # their shadows are gone
+    assert not (ref["casting"] & ~ref["not casting"]).any()
+
+
 def test_shadow_map_budget_on_this_machine_follows_the_raster(script, tmp_path):
     """On this machine's memory: the raster renders a sun map one texel wider than a Cycles render of it would
     be allowed (refused for depth_source="cycles" before any work); a point light's six 16384² faces next to

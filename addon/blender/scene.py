@@ -180,11 +180,13 @@ class Surface:
     """One rendered copy of an evaluated mesh: ``name`` (the object's, or "<object> (instanced by
     <instancer>)"), ``obj`` (the original object; the instancer for geometry-nodes instances),
     ``instance`` (True for a copy made by an instancer), world-space ``verts`` (V, 3) and ``tris`` (T, 3),
-    counter-clockwise seen from outside also under a mirroring matrix."""
-    __slots__ = ("name", "obj", "instance", "verts", "tris")
+    counter-clockwise seen from outside also under a mirroring matrix, ``casts`` (Cycles' Ray Visibility >
+    Shadow of the object and, for a copy, of its instancer: False, it casts no shadow)."""
+    __slots__ = ("name", "obj", "instance", "verts", "tris", "casts")
 
-    def __init__(self, name, obj, instance, verts, tris):
+    def __init__(self, name, obj, instance, verts, tris, casts=True):
         self.name, self.obj, self.instance, self.verts, self.tris = name, obj, instance, verts, tris
+        self.casts = casts
 
 
 def evaluated_surfaces(depsgraph, types):
@@ -215,8 +217,9 @@ def evaluated_surfaces(depsgraph, types):
         if not len(t):
             continue            # nothing to render: no faces, or only the instances it makes
         m = np.array(inst.matrix_world, np.float64)
+        casts = ob.visible_shadow and (not inst.is_instance or inst.parent.visible_shadow)
         surfaces.append(Surface(name, original, bool(inst.is_instance), v @ m[:3, :3].T + m[:3, 3],
-                                t[:, ::-1] if np.linalg.det(m[:3, :3]) < 0 else t))
+                                t[:, ::-1] if np.linalg.det(m[:3, :3]) < 0 else t, casts))
     return surfaces, other
 
 

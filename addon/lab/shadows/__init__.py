@@ -92,12 +92,14 @@ def _shadowmap(s, p):
 
 
 def volume_inputs(s):
-    """Closed surfaces' volume triangles (every object and instance, ShadowFrame.surfaces); open meshes
+    """Closed surfaces' volume triangles (every object and instance that casts, ShadowFrame.surfaces); open meshes
     are skipped (documented fallback) and listed once by name."""
     vols, skipped, tris, sil = [], [], 0, 0
     _, radius = s._scene_radius()
     distance = 1e3 * max(1.0, radius)
     for x in s.surfaces:
+        if not x.casts:
+            continue
         if not shadow_volume.is_closed(x.tris):
             skipped.append(x.name)
             continue

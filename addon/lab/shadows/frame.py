@@ -283,10 +283,14 @@ class ShadowFrame:
             if source == "cycles":
                 render.cycles_cpu(tmp, 1, pixel_filter=FILTER_WIDTH)
                 tmp.cycles.max_bounces = 0
-                for c in cams:
-                    p = self._render(compat.CYCLES, c, size, size, {"use_pass_z"})
-                    w2v, proj, _, _ = render.camera_matrices(tmp, c)
-                    maps.append(depth_map.DepthMap(p["Depth"], w2v, proj))
+                hidden = [o for o in tmp.objects if not o.visible_shadow]     # seen by light cameras otherwise
+                with SavedState(tmp, settings=[(o, "visible_camera") for o in hidden]):
+                    for o in hidden:
+                        o.visible_camera = False
+                    for c in cams:
+                        p = self._render(compat.CYCLES, c, size, size, {"use_pass_z"})
+                        w2v, proj, _, _ = render.camera_matrices(tmp, c)
+                        maps.append(depth_map.DepthMap(p["Depth"], w2v, proj))
             else:
                 tris = self.caster_triangles()
                 tmp.render.resolution_x = tmp.render.resolution_y = size
@@ -302,9 +306,9 @@ class ShadowFrame:
         return maps, time.perf_counter() - t
 
     def caster_triangles(self, exclude=None):
-        """(T, 3, 3) world-space triangles of every surface (:meth:`gather_surfaces`), without the
-        object ``exclude`` itself (its instances stay)."""
-        parts = [x.verts[x.tris] for x in self.surfaces if x.instance or x.obj != exclude]
+        """(T, 3, 3) world-space triangles of every surface that casts shadows (:meth:`gather_surfaces`,
+        Surface.casts), without the object ``exclude`` itself (its instances stay)."""
+        parts = [x.verts[x.tris] for x in self.surfaces if x.casts and (x.instance or x.obj != exclude)]
         return np.concatenate(parts) if parts else np.zeros((0, 3, 3))
 
     def surface_of(self, obj):
