@@ -19,7 +19,7 @@ from ..core import brdf
 from .builder import Graph
 
 #: Bump whenever a group's contents or sockets change: older groups in a file are rebuilt.
-GROUP_VERSION = 6
+GROUP_VERSION = 7
 
 PHONG, BLINN_PHONG, OREN_NAYAR, COOK_TORRANCE, LIGHT = (
     "IL Phong", "IL Blinn-Phong", "IL Oren-Nayar", "IL Cook-Torrance", "IL Light")
@@ -241,21 +241,27 @@ def _build_cook_torrance(tree):
         r2_r, inv_r = R(r2, "r^2"), R(g.div(1.0, r), "1/r")
         zero, one, eps = R(0.0), R(1.0), R(brdf.EPS)
 
-    def lam(cos_theta, which):
-        """Smith Lambda: (sqrt(1 + a^2 tan^2) - 1)/2 (GGX) or Walter's rational fit (Beckmann)."""
+    def lam_beckmann(cos_theta, which):
+        """Smith Lambda for Beckmann: Walter's rational fit of a = 1/(m tan theta), 0 for a >= 1.6."""
         c = g.max(cos_theta, eps)
         cc = g.mul(c, c)
         t2 = g.div(g.max(g.sub(one, cc), zero), cc, label=f"tan^2 theta_{which}")
-        lam_ggx = g.madd(g.math("SQRT", g.madd(r2_r, t2, one)), R(0.5), R(-0.5), label=f"Lambda GGX ({which})")
         a = g.max(g.mul(g.math("INVERSE_SQRT", g.max(t2, R(brdf.TINY))), inv_r), eps, label=f"a ({which})")
         fit = g.div(g.madd(a, g.madd(a, R(0.396), R(-1.259)), one), g.mul(a, g.madd(a, R(2.181), R(3.535))),
                     label=f"Walter fit ({which})")
-        lam_beck = g.mul(fit, g.math("LESS_THAN", a, R(1.6)), label=f"Lambda Beckmann ({which})")
-        return g.lerp(lam_beck, lam_ggx, dist, label=f"Lambda ({which})")
+        return g.mul(fit, g.math("LESS_THAN", a, R(1.6)), label=f"Lambda Beckmann ({which})")
 
-    with g.block("Surface: n.v terms, 1 + Lambda(v), pi k_s / (4 n.v) where n.v > 0, times F0 and 1 - F0"):
+    def s_ggx(cos_theta, which):
+        """1 + 2 Lambda_GGX = sqrt(1 + alpha^2 tan^2 theta) = sqrt(alpha^2 + (1 - alpha^2) c^2) / c."""
+        c = g.max(cos_theta, eps)
+        root = g.math("SQRT", g.madd(g.mul(c, c), one_r2, r2_r), label=f"sqrt(a^2 + (1 - a^2) c^2) ({which})")
+        return g.div(root, c, label=f"1 + 2 Lambda GGX ({which})")
+
+    with g.block("Surface: n.v terms, Lambda(v), pi k_s / (4 n.v) where n.v > 0, times F0 and 1 - F0"):
         nv0 = g.max(n_v, 0.0, label="max(n.v, 0)")
-        one_lam_v = g.add(lam(n_v, "v"), 1.0, label="1 + Lambda(v)")
+        one_lam_v = g.add(lam_beckmann(n_v, "v"), 1.0, label="1 + Lambda Beckmann(v)")
+        one_r2 = R(g.sub(1.0, r2), "1 - r^2")
+        s_v = s_ggx(n_v, "v")
         k = g.mul(g.div(g.mul(i["Ks"], math.pi), g.mul(g.max(n_v, brdf.EPS), 4.0)), g.gt(n_v, 0.0),
                   label="k = pi k_s / (4 n.v), 0 unless n.v > 0")
         k0 = g.mul(k, i["F0"], label="F0 k")
@@ -265,8 +271,8 @@ def _build_cook_torrance(tree):
         n_h = g.dot(n, h, label="n.h")
         v_h = g.dot(v, h, label="v.h")
         a_l = g.max(n_l, zero, label="max(n.l, 0)")
-    # n.h enters D and G unclamped at 0 where the twin clamps it: those points have n.h <= 0, where the
-    # mask below makes the specular 0 (both stay finite there).
+    # n.h enters D and G unclamped at 0 where the twin clamps it: those points have n.l <= 0 or n.v <= 0
+    # (n.h = (n.l + n.v)/|l + v|), where the mask below or k makes the specular 0 (both stay finite there).
     with g.block("D: Beckmann"):
         c = g.max(n_h, eps)
         c2 = g.mul(c, c, label="cos^2")
@@ -280,15 +286,17 @@ def _build_cook_torrance(tree):
     with g.block("G: Cook-Torrance 1982, min(1, 2 (n.h) min(n.v, n.l) / (v.h))"):
         q = g.div(g.add(n_h, n_h), g.max(v_h, eps), label="2 (n.h) / (v.h)")
         g_ct = g.min(g.mul(q, g.min(a_l, nv0)), one, label="G Cook-Torrance")
-    with g.block("G: Smith height-correlated, 1/(1 + Lambda(l) + Lambda(v))"):
-        g_smith = g.div(one, g.add(lam(n_l, "l"), one_lam_v), label="G Smith")
+    with g.block("G: Smith height-correlated, 1/(1 + Lambda(l) + Lambda(v)); GGX: 2/(s(l) + s(v))"):
+        g_beck = g.div(one, g.add(lam_beckmann(n_l, "l"), one_lam_v), label="G Smith Beckmann")
+        g_ggx = g.div(R(2.0), g.add(s_ggx(n_l, "l"), s_v), label="G Smith GGX")
+        g_smith = g.lerp(g_beck, g_ggx, dist, label="G Smith")
     with g.block("G: select (0 Cook-Torrance, 1 Smith)"):
         G = g.lerp(g_ct, g_smith, geom, label="G")
     with g.block("F k: Schlick, F0 + (1 - F0)(1 - v.h)^5 with v.h in [0, 1], times k"):
-        one_minus = g.max(g.min(g.sub(one, v_h), one), zero, label="1 - v.h")
+        one_minus = g.math("SUBTRACT", one, v_h, clamp=True, label="1 - v.h, clamped to [0, 1]")
         Fk = g.madd(g.pow(one_minus, R(5.0)), k1, k0, label="F k")
-    with g.block("L = I (k_d n.l + pi k_s F D G / (4 n.v)), specular 0 unless n.l, n.v, n.h > 0"):
-        mask = g.gt(g.min(n_l, n_h), zero, label="n.l > 0 and n.h > 0")
+    with g.block("L = I (k_d n.l + pi k_s F D G / (4 n.v)), specular 0 unless n.l, n.v > 0"):
+        mask = g.gt(n_l, zero, label="n.l > 0")
         spec = g.mul(g.mul(g.mul(Fk, D), G), mask, label="specular")
         color = g.vmul(i["Light Color"], g.add_scaled(spec, g.vreg(i["Kd"], "k_d"), a_l), label="radiance")
     _finish(g, o, color)
@@ -339,6 +347,57 @@ def _build_light(tree):
     g.layout()
 
 
+def _point_part(g, i, p, spot):
+    """Light Vector and I of a point (or spot) light: P/(4 pi^2) f_att, times (s.s')^k inside a spot's cone."""
+    R = g.reg
+    with g.block("Vector and attenuation"):
+        lvec = g.vmath("SUBTRACT", i["Position"], p, label="position - p")
+        d2 = g.dot(lvec, lvec, label="d^2")
+        phys = g.div(R(1.0), g.max(d2, R(brdf.TINY)), label="1/d^2")
+        poly = g.madd(R(i["C3"], "c3"), d2, g.madd(R(i["C2"], "c2"), g.math("SQRT", d2, label="d"), R(i["C1"], "c1")),
+                      label="c1 + c2 d + c3 d^2")
+        emp = g.min(g.div(R(1.0), g.max(poly, R(brdf.TINY))), R(1.0), label="min(1/(...), 1)")
+        att = g.lerp(emp, phys, i["Physical"], label="f_att")
+    if spot:
+        with g.block("Spot: cutoff and (s.s')^k"):
+            minus_s = g.scale(g.normalize(i["Direction"]), -1.0, label="-s")
+            cos_ss = g.dot(g.normalize(lvec), minus_s, label="s.s'")
+            inside = g.math("GREATER_THAN", cos_ss, g.math("COSINE", i["Spot Cutoff"]), label="inside cone")
+            fall = g.mul(inside, g.pow(g.max(cos_ss, R(0.0)), R(i["Spot Exponent"], "k")), label="spot falloff")
+            att = g.mul(att, fall, label="f_att (s.s')^k")
+    with g.block("Colour P/(4 pi^2) f_att"):
+        col = g.scale(g.scale(i["Color"], g.div(i["Power"], 4.0 * math.pi ** 2), label="colour P/(4 pi^2)"), att,
+                      label="Light Color")
+    return lvec, col
+
+
+def _build_light_of(tree, kind):
+    """One light type only (what "IL Light" computes for that Type, without the other types' nodes)."""
+    g = Graph(tree)
+    i, o = _io(g)
+    if kind in ("POINT", "SPOT", "HEMI"):
+        with g.block("Surface"):
+            geo = g.node("ShaderNodeNewGeometry")
+            g.registers(geo)
+    if kind in ("POINT", "SPOT"):
+        lvec, col = _point_part(g, i, geo.outputs["Position"], kind == "SPOT")
+    elif kind == "SUN":
+        with g.block("Sun: -direction, colour S/pi"):
+            lvec = g.scale(i["Direction"], -1.0, label="Light Vector")
+            col = g.scale(i["Color"], g.div(i["Power"], math.pi, label="S/pi"), label="Light Color")
+    else:
+        n = geo.outputs["Normal"]
+        with g.block("Hemisphere: l = n, mix(ground, sky, (1 + n.u)/2) S/pi"):
+            sun_l = g.scale(i["Direction"], -1.0, label="u = -direction")
+            w = g.div(g.add(1.0, g.dot(g.normalize(n), g.normalize(sun_l))), 2.0, label="(1 + n.u)/2")
+            hemi_c = g.vlerp(i["Ground Color"], i["Color"], w, label="mix(ground, sky)")
+            lvec = n
+            col = g.scale(hemi_c, g.div(i["Power"], math.pi, label="S/pi"), label="Light Color")
+    g.feed(lvec, o["Light Vector"])
+    g.feed(col, o["Light Color"])
+    g.layout()
+
+
 BUILDERS = {
     PHONG: lambda t: _build_phong(t, blinn=False),
     BLINN_PHONG: lambda t: _build_phong(t, blinn=True),
@@ -346,6 +405,12 @@ BUILDERS = {
     COOK_TORRANCE: _build_cook_torrance,
     LIGHT: _build_light,
 }
+
+
+#: Internal per-type light groups (interface of "IL Light"): what a material links per light, so that
+#: Blender converts only the nodes of that light's type at every render.
+LIGHT_OF_TYPE = {kind: f".IL Light {kind.title()}" for kind in ("POINT", "SPOT", "SUN", "HEMI")}
+INTERNAL = {name: (LIGHT, (lambda t, k=kind: _build_light_of(t, k))) for kind, name in LIGHT_OF_TYPE.items()}
 
 
 def is_current(name):
@@ -357,8 +422,13 @@ def ensure_group(name):
     """The group ``name``, built if missing or older than GROUP_VERSION."""
     if is_current(name):
         return bpy.data.node_groups[name]
-    tree = _fresh(name)
-    BUILDERS[name](tree)
+    if name in INTERNAL:
+        like, build = INTERNAL[name]
+        tree = fresh_tree(name, INPUTS[like], OUTPUTS[like], DESCRIPTIONS[like])
+        tree["il_version"] = GROUP_VERSION
+    else:
+        tree, build = _fresh(name), BUILDERS[name]
+    build(tree)
     return tree
 
 

@@ -93,15 +93,18 @@ def _prop(light_data, path):
 def link_light(node, obj):
     """Drive ``node`` (an "IL Light" group node) from the light object ``obj``."""
     data = obj.data
+    kind = light_type(obj)
     pos, dirn = node.inputs["Position"], node.inputs["Direction"]
     for k, axis in enumerate("XYZ"):
-        _driver(pos, k, "p", [("p", _transform(obj, f"LOC_{axis}"))])
-        _driver(dirn, k, DIRECTION_EXPR[k], [(a, _transform(obj, f"ROT_{a.upper()}")) for a in "xyz"])
+        if kind in (TYPES["POINT"], TYPES["SPOT"]):
+            _driver(pos, k, "p", [("p", _transform(obj, f"LOC_{axis}"))])
+        if kind != TYPES["POINT"]:
+            _driver(dirn, k, DIRECTION_EXPR[k], [(a, _transform(obj, f"ROT_{a.upper()}")) for a in "xyz"])
         _driver(node.inputs["Color"], k, "c", [("c", _prop(data, f"color[{k}]"))])
     _driver(node.inputs["Power"], None, "e", [("e", _prop(data, "energy"))])
     if data.type == "SPOT":
         _driver(node.inputs["Spot Cutoff"], None, "s / 2", [("s", _prop(data, "spot_size"))])
-    node.inputs["Type"].default_value = float(light_type(obj))
+    node.inputs["Type"].default_value = float(kind)
     ground = data.get("il_ground_color")
     if ground is not None:
         node.inputs["Ground Color"].default_value = (*list(ground)[:3], 1.0)
@@ -157,7 +160,7 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
         raise InputError(f"attenuation must be PHYSICAL or EMPIRICAL, got '{attenuation}'")
     params = dict(params or {})
     model_group = groups.ensure_group(groups.MODEL_GROUPS[model])
-    light_group = groups.ensure_group(groups.LIGHT)
+    kinds = {v: k for k, v in TYPES.items()}
     compat.ensure_use_nodes(mat)
     tree = mat.node_tree
     _remove_il_drivers(tree)
@@ -201,7 +204,7 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
             model_node.inputs["Light Color"].default_value = (0.0, 0.0, 0.0, 1.0)
         else:
             light_node = nodes.new("ShaderNodeGroup")
-            light_node.node_tree = light_group
+            light_node.node_tree = groups.ensure_group(groups.LIGHT_OF_TYPE[kinds[light_type(obj)]])
             light_node.name = f"IL Light: {obj.name}"
             light_node["il_light"] = obj.name
             light_node.parent = lframe
