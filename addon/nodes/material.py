@@ -22,7 +22,6 @@ from . import groups
 
 MODEL_LABELS = {"PHONG": "Phong", "BLINN_PHONG": "Blinn-Phong", "OREN_NAYAR": "Oren-Nayar",
                 "COOK_TORRANCE": "Cook-Torrance"}
-ONCE_ONLY = {"Ka": 0.0, "Emission Color": (0.0, 0.0, 0.0, 1.0)}
 ATTENUATION_INPUTS = ("Physical", "C1", "C2", "C3", "Spot Exponent")
 DRIVER_PREFIX = 'nodes["IL Light:'
 
@@ -186,35 +185,48 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
         y -= 110
 
     outputs = []
+    if light_objects:
+        surface = nodes.new("ShaderNodeGroup")
+        surface.node_tree = groups.ensure_group(groups.surface_group_name(model_group.name))
+        surface.name = surface.label = f"{model_group.name}: surface (shared by every light)"
+        surface.location = (-800, 600)
+        for name, *_ in model_parameters(model):
+            links.new(hub[name].outputs[0], surface.inputs[name])
+        half = groups.ensure_group(groups.light_group_name(model_group.name))
+        switches = groups.HALVES[model_group.name][2]
     for k, obj in enumerate(light_objects or [None]):
         label = obj.name if obj is not None else "no lights (ambient and emission only)"
         lframe = nodes.new("NodeFrame")
         lframe.name = lframe.label = f"Light: {label}"
         model_node = nodes.new("ShaderNodeGroup")
-        model_node.node_tree = model_group
         model_node.name = f"{model_group.name}: {label}"
         model_node.parent = lframe
         model_node.location = (-300, 300 - 420 * k)
-        for name, *_ in model_parameters(model):
-            if k > 0 and name in ONCE_ONLY:
-                model_node.inputs[name].default_value = ONCE_ONLY[name]
-            else:
-                links.new(hub[name].outputs[0], model_node.inputs[name])
-        if obj is None:
-            model_node.inputs["Light Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-        else:
-            light_node = nodes.new("ShaderNodeGroup")
-            light_node.node_tree = groups.ensure_group(groups.LIGHT_OF_TYPE[kinds[light_type(obj)]])
-            light_node.name = f"IL Light: {obj.name}"
-            light_node["il_light"] = obj.name
-            light_node.parent = lframe
-            light_node.location = (-600, 300 - 420 * k)
-            for name in ATTENUATION_INPUTS:
-                links.new(hub[name].outputs[0], light_node.inputs[name])
-            links.new(light_node.outputs["Light Vector"], model_node.inputs["Light Vector"])
-            links.new(light_node.outputs["Light Color"], model_node.inputs["Light Color"])
-            link_light(light_node, obj)
+        model_node.node_tree = model_group if obj is None else half
         outputs.append(model_node.outputs["Color"])
+        if obj is None:
+            for name, *_ in model_parameters(model):
+                links.new(hub[name].outputs[0], model_node.inputs[name])
+            model_node.inputs["Light Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+            continue
+        for name in switches:
+            links.new(hub[name].outputs[0], model_node.inputs[name])
+        for socket in surface.outputs:
+            links.new(socket, model_node.inputs[socket.name])
+        light_node = nodes.new("ShaderNodeGroup")
+        light_node.node_tree = groups.ensure_group(groups.LIGHT_OF_TYPE[kinds[light_type(obj)]])
+        light_node.name = f"IL Light: {obj.name}"
+        light_node["il_light"] = obj.name
+        light_node.parent = lframe
+        light_node.location = (-600, 300 - 420 * k)
+        for name in ATTENUATION_INPUTS:
+            links.new(hub[name].outputs[0], light_node.inputs[name])
+        links.new(light_node.outputs["Light Vector"], model_node.inputs["Light Vector"])
+        links.new(light_node.outputs["Light Color"], model_node.inputs["Light Color"])
+        link_light(light_node, obj)
+    once = groups.HALVES[model_group.name][3]
+    if light_objects and once:
+        outputs.append(surface.outputs[once])
 
     total = outputs[0]
     for k, socket in enumerate(outputs[1:]):
