@@ -10,6 +10,9 @@ view vectors come from the Geometry node; the light from the "Light Vector" and
 ``GROUP_VERSION`` in its "il_version" property is left alone; an older one is
 rebuilt in place (same datablock, sockets kept by name), so materials using it
 update without relinking.
+
+Materials use internal groups built from the same code (names start with a dot, see
+:data:`INTERNAL`): each model's surface half and light half, and "IL Light" for one light type.
 """
 import math
 

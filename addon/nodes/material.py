@@ -2,14 +2,21 @@
 
 A material built here holds, left to right:
 - a frame "Parameters" with one Value or RGB node per model input (what the panel edits),
-  fanned out to every light's model node, and a frame "Attenuation" (Physical, C1, C2, C3,
-  Spot Exponent) fanned out to every "IL Light" node;
-- one frame per light: an "IL Light" node whose Position, Direction, Color, Power and
-  Spot Cutoff are driven by the light object (moving or editing the light updates the
-  shading), feeding the model's node group;
-- the sum of the per-light radiances (superposition) into one Emission shader.
-Ambient and emission terms enter once (first light only). Without lights the material
-still works: one model node with a black light, i.e. ambient and emission only.
+  fanned out to the model's nodes, and a frame "Attenuation" (Physical, C1, C2, C3,
+  Spot Exponent) fanned out to every light node;
+- one "IL <model>: surface" node (internal group ".IL <model> Surface": n, v and every term that
+  depends only on the shading point and the parameters), whose outputs feed every light's model node;
+- one frame per light: an "IL Light: <name>" node of that light type's group (".IL Light Point",
+  "Spot", "Sun" or "Hemi": the "IL Light" group without the other types' nodes) whose Position,
+  Direction, Color, Power and Spot Cutoff (those its type reads) are driven by the light object
+  (moving or editing the light updates the shading), feeding the model's light half
+  (".IL <model> Light");
+- the sum of the per-light radiances (superposition), plus ambient and emission once, into one
+  Emission shader.
+Blender converts every node of a material at every render (about 13 us a node here), so each light
+costs only its own type's nodes and the model's light half; the public "IL <model>" groups hold both
+halves. Without lights the material still works: one public model node with a black light, i.e. ambient
+and emission only. A light whose type changes needs Relink Lights (as before: the type is not driven).
 The emission is the model's radiance, not a lamp: its emission sampling is off, so Cycles builds
 no light tree over the shaded triangles (other surfaces still receive it through their BSDF rays).
 """
@@ -90,7 +97,8 @@ def _prop(light_data, path):
 
 
 def link_light(node, obj):
-    """Drive ``node`` (an "IL Light" group node) from the light object ``obj``."""
+    """Drive ``node`` (an "IL Light" group node or one of its per-type versions) from the light object ``obj``:
+    only the inputs its type reads (a point light no direction, a sun or hemisphere no position)."""
     data = obj.data
     kind = light_type(obj)
     pos, dirn = node.inputs["Position"], node.inputs["Direction"]
