@@ -258,15 +258,16 @@ def _cook_torrance_surface(g, i):
         r = g.max(i["Roughness"], brdf.MIN_ROUGHNESS, label="m or alpha (>= 1e-3)")
         r2 = g.mul(r, r)
         s.update({"r^2": R(r2, "r^2"), "1/r": R(g.div(1.0, r), "1/r"), "1 - r^2": R(g.sub(1.0, r2), "1 - r^2"),
+                  "r^2/4": R(g.mul(r2, 0.25), "r^2/4"), "(1 - r^2)/4": R(g.mul(g.sub(1.0, r2), 0.25), "(1 - r^2)/4"),
                   "pi r^2": R(g.mul(r2, math.pi), "pi r^2"), "r^2 - 1": R(g.sub(r2, 1.0), "r^2 - 1"),
                   "r^2/pi": R(g.div(r2, math.pi), "r^2/pi")})
-        for value in (1.0, 2.0, 5.0, brdf.EPS, brdf.TINY, 0.396, -1.259, 2.181, 3.535, 1.6):
+        for value in (1.0, 5.0, brdf.EPS, brdf.TINY, 0.396, -1.259, 2.181, 3.535, 1.6):
             s[f"{value:g}"] = R(value)
     n_v = s["n.v"]
     with g.block("Surface: n.v terms, Lambda(v), pi k_s / (4 n.v) where n.v > 0, times F0 and 1 - F0"):
         s["max(n.v, 0)"] = g.max(n_v, 0.0, label="max(n.v, 0)")
         s["1 + Lambda Beckmann(v)"] = g.add(_lambda_beckmann(g, s, n_v, "v"), 1.0, label="1 + Lambda Beckmann(v)")
-        s["s GGX(v)"] = _s_ggx(g, s, n_v, "v")
+        s["s GGX(v)/2"] = g.mul(_s_ggx(g, s, n_v, "v"), 0.5, label="(1 + 2 Lambda GGX(v))/2")
         k = g.mul(g.div(g.mul(i["Ks"], math.pi), g.mul(g.max(n_v, brdf.EPS), 4.0)), g.gt(n_v, 0.0),
                   label="k = pi k_s / (4 n.v), 0 unless n.v > 0")
         s["F0 k"] = g.mul(k, i["F0"], label="F0 k")
@@ -304,7 +305,7 @@ def _cook_torrance_light(g, i, s):
         v_h = g.dot(v, h, label="v.h")
         a_l = g.max(n_l, zero, label="max(n.l, 0)")
     # n.h enters D and G unclamped at 0 where the twin clamps it: those points have n.l <= 0 or n.v <= 0
-    # (n.h = (n.l + n.v)/|l + v|), where the mask below or k makes the specular 0 (both stay finite there).
+    # (n.h = (n.l + n.v)/|l + v|), where G or k makes the specular 0 (both stay finite there).
     with g.block("D: Beckmann"):
         c = g.max(n_h, eps)
         c2 = g.mul(c, c, label="cos^2")
@@ -318,19 +319,22 @@ def _cook_torrance_light(g, i, s):
     with g.block("G: Cook-Torrance 1982, min(1, 2 (n.h) min(n.v, n.l) / (v.h))"):
         q = g.div(g.add(n_h, n_h), g.max(v_h, eps), label="2 (n.h) / (v.h)")
         g_ct = g.min(g.mul(q, g.min(a_l, s["max(n.v, 0)"])), one, label="G Cook-Torrance")
-    with g.block("G: Smith height-correlated, 1/(1 + Lambda(l) + Lambda(v)); GGX: 2/(s(l) + s(v))"):
-        g_beck = g.div(one, g.add(_lambda_beckmann(g, s, n_l, "l"), s["1 + Lambda Beckmann(v)"]),
-                       label="G Smith Beckmann")
-        g_ggx = g.div(s["2"], g.add(_s_ggx(g, s, n_l, "l"), s["s GGX(v)"]), label="G Smith GGX")
+    with g.block("G: Smith height-correlated, 1/(1 + Lambda(l) + Lambda(v)); GGX: 2/(s(l) + s(v)), s = 1 + 2 Lambda"):
+        g_beck = g.div(g.gt(n_l, zero, label="n.l > 0"),
+                       g.add(_lambda_beckmann(g, s, n_l, "l"), s["1 + Lambda Beckmann(v)"]), label="G Smith Beckmann")
+        # 2/(s(l) + s(v)) times a_l/a_l: 0 where n.l <= 0 without a mask, finite (the root is >= min(r, 1)/2)
+        half_root = g.math("SQRT", g.madd(g.mul(a_l, a_l), s["(1 - r^2)/4"], s["r^2/4"]),
+                           label="sqrt(a^2 + (1 - a^2) (n.l)^2)/2")
+        g_ggx = g.div(a_l, g.madd(a_l, s["s GGX(v)/2"], half_root), label="G Smith GGX")
         g_smith = g.lerp(g_beck, g_ggx, dist, label="G Smith")
     with g.block("G: select (0 Cook-Torrance, 1 Smith)"):
         G = g.lerp(g_ct, g_smith, geom, label="G")
     with g.block("F k: Schlick, F0 + (1 - F0)(1 - v.h)^5 with v.h in [0, 1], times k"):
         one_minus = g.math("SUBTRACT", one, v_h, clamp=True, label="1 - v.h, clamped to [0, 1]")
         Fk = g.madd(g.pow(one_minus, s["5"]), s["(1 - F0) k"], s["F0 k"], label="F k")
+    # every G is 0 where n.l <= 0 (G Cook-Torrance through max(n.l, 0)), and k where n.v <= 0
     with g.block("L = I (k_d n.l + pi k_s F D G / (4 n.v)), specular 0 unless n.l, n.v > 0"):
-        mask = g.gt(n_l, zero, label="n.l > 0")
-        spec = g.mul(g.mul(g.mul(Fk, D), G), mask, label="specular")
+        spec = g.mul(g.mul(Fk, D), G, label="specular")
         return g.vmul(i["Light Color"], g.add_scaled(spec, s["k_d"], a_l), label="radiance")
 
 
