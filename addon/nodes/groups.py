@@ -170,8 +170,9 @@ def _finish(g, o, color):
 # -- models -----------------------------------------------------------------------------------------
 #
 # Each model is two halves: ``surface(g, i)`` returns the named terms that depend only on the shading
-# point and the parameters (n, v, n.v, roughness terms, registers), ``light(g, i, s)`` the radiance of
-# one light from them. The public group holds both; a material holds the surface half once (internal
+# point and the parameters (n, v, n.v, roughness terms, registers), ``light(g, i, s)`` the factor of one
+# light's I from them (radiance = I factor, summed over the lights by one multiply-add each). The public
+# group holds both; a material holds the surface half once (internal
 # group ".IL <model> Surface") and the light half per light (".IL <model> Light"), so Blender converts
 # only the light half for every light at every render.
 #
@@ -219,10 +220,9 @@ def _phong_light(g, i, s, blinn):
             lobe = g.pow(g.max(r_v, zero), shin, label="(r.v)^n")
     with g.block("N lit: lit (classic) or factor max(n.l, 0) (energy-normalised)"):
         norm = g.lerp(lit, g.mul(a, s["energy factor"], label="factor max(n.l, 0)"), i["Normalized"], label="N lit")
-    with g.block("I (k_d n.l + k_s N lobe)"):
+    with g.block("k_d n.l + k_s N lobe"):
         diff = g.scale(s["k_d"], a, label="k_d n.l")
-        return g.vmul(i["Light Color"], g.add_scaled(diff, s["k_s"], g.mul(lobe, norm, label="N lobe")),
-                      label="I (k_d n.l + k_s N lobe)")
+        return g.add_scaled(diff, s["k_s"], g.mul(lobe, norm, label="N lobe"), label="k_d n.l + k_s N lobe")
 
 
 def _oren_nayar_surface(g, i):
@@ -247,8 +247,8 @@ def _oren_nayar_light(g, i, s):
         t = g.div(t0, g.max(n_l, s["max(n.v, 1e-12)"]), label="s / max(n.l, n.v, 1e-12)")
         a = g.min(g.max(n_l, s["0"]), s["2 (n.v > 0)"], label="max(n.l, 0), 0 unless n.v > 0")
         factor = g.mul(a, g.madd(t, s["B"], s["A"]), label="n.l (A + B s / max(n.l, n.v))")
-    with g.block("L = rho I factor"):
-        return g.scale(g.vmul(i["Light Color"], s["rho"]), factor, label="radiance")
+    with g.block("rho factor"):
+        return g.scale(s["rho"], factor, label="rho factor")
 
 
 def _cook_torrance_surface(g, i):
@@ -335,7 +335,7 @@ def _cook_torrance_light(g, i, s):
     # every G is 0 where n.l <= 0 (G Cook-Torrance through max(n.l, 0)), and k where n.v <= 0
     with g.block("L = I (k_d n.l + pi k_s F D G / (4 n.v)), specular 0 unless n.l, n.v > 0"):
         spec = g.mul(g.mul(Fk, D), G, label="specular")
-        return g.vmul(i["Light Color"], g.add_scaled(spec, s["k_d"], a_l), label="radiance")
+        return g.add_scaled(spec, s["k_d"], a_l, label="k_d n.l + specular")
 
 
 #: model group: (surface half, light half, the switch inputs the light half reads, surface term added once).
@@ -350,15 +350,16 @@ HALVES = {
 
 
 def _build_model(tree, name):
-    """The public group: both halves in one tree, radiance = light half (+ the once-only term)."""
+    """The public group: both halves in one tree, radiance = I times the light half's factor (+ the once-only
+    term)."""
     g = Graph(tree)
     i, o = _io(g)
     surface, light, _, once = HALVES[name]
     s = surface(g, i)
-    color = light(g, i, s)
-    if once:
-        with g.block("Radiance: + " + once):
-            color = g.vadd(color, s[once], label="radiance")
+    factor = light(g, i, s)
+    with g.block("Radiance: I times the factor" + (" + " + once if once else "")):
+        color = (g.vmath("MULTIPLY_ADD", i["Light Color"], factor, s[once], label="radiance") if once
+                 else g.vmul(i["Light Color"], factor, label="radiance"))
     _finish(g, o, color)
     g.layout()
 
@@ -372,6 +373,8 @@ def light_group_name(name):
 
 
 _SOCKET = {"VALUE": F, "VECTOR": V, "RGBA": C}
+#: Input of a light half: the radiance of the lights before it (one multiply-add per light, no sum nodes).
+SUM = ("Radiance So Far", C, BLACK, None, "Radiance of the lights summed before this one")
 
 
 def _build_surface_half(tree, name):
@@ -392,7 +395,7 @@ def _light_half_inputs(name):
     keys = [(it.name, it.socket_type, None, None, "surface term")
             for it in surface.interface.items_tree if it.item_type == "SOCKET" and it.in_out == "OUTPUT"]
     switches = [x for x in INPUTS[name] if x[0] in HALVES[name][2]]
-    return _LIGHT_IN + switches + keys
+    return _LIGHT_IN + [SUM] + switches + keys
 
 
 def _build_light_half(tree, name):
@@ -400,7 +403,8 @@ def _build_light_half(tree, name):
     i, o = _io(g)
     keys = [it.name for it in tree.interface.items_tree if it.item_type == "SOCKET" and it.in_out == "INPUT"]
     s = {k: i[k] for k in keys}
-    g.feed(HALVES[name][1](g, i, s), o["Color"])
+    g.feed(g.vmath("MULTIPLY_ADD", i["Light Color"], HALVES[name][1](g, i, s), i[SUM[0]],
+                   label="radiance so far + I factor"), o["Color"])
     g.layout()
 
 

@@ -10,9 +10,9 @@ A material built here holds, left to right:
   "Spot", "Sun" or "Hemi": the "IL Light" group without the other types' nodes) whose Position,
   Direction, Color, Power and Spot Cutoff (those its type reads) are driven by the light object
   (moving or editing the light updates the shading), feeding the model's light half
-  (".IL <model> Light");
-- the sum of the per-light radiances (superposition), plus ambient and emission once, into one
-  Emission shader.
+  (".IL <model> Light"), which adds I times its factor to the radiance of the lights before it
+  (superposition; the first starts from ambient plus emission, counted once);
+- the total into one Emission shader.
 Blender converts every node of a material at every render (about 13 us a node here), so each light
 costs only its own type's nodes and the model's light half; the public "IL <model>" groups hold both
 halves. Without lights the material still works: one public model node with a black light, i.e. ambient
@@ -192,7 +192,7 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
         hub[name] = _hub(nodes, att_frame, name, att_values[name], False, y)
         y -= 110
 
-    outputs = []
+    total = None
     if light_objects:
         surface = nodes.new("ShaderNodeGroup")
         surface.node_tree = groups.ensure_group(groups.surface_group_name(model_group.name))
@@ -201,7 +201,8 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
         for name, *_ in model_parameters(model):
             links.new(hub[name].outputs[0], surface.inputs[name])
         half = groups.ensure_group(groups.light_group_name(model_group.name))
-        switches = groups.HALVES[model_group.name][2]
+        switches, once = groups.HALVES[model_group.name][2:]
+        total = surface.outputs[once] if once else None
     for k, obj in enumerate(light_objects or [None]):
         label = obj.name if obj is not None else "no lights (ambient and emission only)"
         lframe = nodes.new("NodeFrame")
@@ -211,12 +212,15 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
         model_node.parent = lframe
         model_node.location = (-300, 300 - 420 * k)
         model_node.node_tree = model_group if obj is None else half
-        outputs.append(model_node.outputs["Color"])
         if obj is None:
             for name, *_ in model_parameters(model):
                 links.new(hub[name].outputs[0], model_node.inputs[name])
             model_node.inputs["Light Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+            total = model_node.outputs["Color"]
             continue
+        if total is not None:
+            links.new(total, model_node.inputs[groups.SUM[0]])
+        total = model_node.outputs["Color"]
         for name in switches:
             links.new(hub[name].outputs[0], model_node.inputs[name])
         for socket in surface.outputs:
@@ -232,19 +236,6 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
         links.new(light_node.outputs["Light Vector"], model_node.inputs["Light Vector"])
         links.new(light_node.outputs["Light Color"], model_node.inputs["Light Color"])
         link_light(light_node, obj)
-    once = groups.HALVES[model_group.name][3]
-    if light_objects and once:
-        outputs.append(surface.outputs[once])
-
-    total = outputs[0]
-    for k, socket in enumerate(outputs[1:]):
-        add = nodes.new("ShaderNodeVectorMath")
-        add.operation = "ADD"
-        add.label = "sum over lights"
-        add.location = (0, 300 - 200 * k)
-        links.new(total, add.inputs[0])
-        links.new(socket, add.inputs[1])
-        total = add.outputs[0]
     emission = nodes.new("ShaderNodeEmission")
     emission.location = (250, 300)
     links.new(total, emission.inputs["Color"])
