@@ -210,6 +210,29 @@ def test_material_sums_model_over_lights_like_the_twin(model, params, twin, kw):
     assert np.max(np.abs(L - ref)) <= 2e-4 * np.max(ref)
 
 
+def test_public_il_light_group_gives_what_the_per_type_groups_give():
+    """Materials link each light through its type's own group; the public "IL Light" (every type behind its
+    Type switch) put in their place renders the same, for a point, a spot, a sun and a hemisphere light."""
+    scene, ball = _scene_with_ball(24)
+    sc.light(scene, "Key", "POINT", 120.0, location=(1.5, -2.5, 1.0), color=(1.0, 0.8, 0.6))
+    spot = sc.light(scene, "Spot", "SPOT", 250.0, location=(-2.0, -2.0, 0.5))
+    sc.look_at(spot, (0, 0, 0))
+    sc.light(scene, "Sun", "SUN", 1.5, rotation=sc.deg(30, 10, 20), color=(0.6, 0.7, 1.0))
+    hemi = sc.light(scene, "Hemi", "SUN", 0.8, rotation=sc.deg(-20, 0, 0))
+    hemi.data["il_hemi"] = True
+    hemi.data["il_ground_color"] = (0.3, 0.2, 0.1)
+    mat, _ = material.assign_shading_model(scene, [ball], "COOK_TORRANCE", attenuation="EMPIRICAL",
+                                           coefficients=(0.5, 0.3, 0.2), params={"Spot Exponent": 2.0})
+    light_nodes = [n for n in mat.node_tree.nodes if n.get("il_light")]
+    assert sorted(n.node_tree.name for n in light_nodes) == sorted(groups.LIGHT_OF_TYPE.values())
+    _, _, L = _pixels(scene)
+    for node in light_nodes:
+        node.node_tree = bpy.data.node_groups[groups.LIGHT]
+    _, _, L_public = _pixels(scene)
+    assert L.max() > 0.1
+    np.testing.assert_allclose(L_public, L, rtol=0, atol=1e-5 * L.max())
+
+
 @pytest.mark.both_versions
 def test_bad_input_reports_and_changes_nothing():
     scene = bpy.context.scene

@@ -167,6 +167,8 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
         raise InputError(f"attenuation must be PHYSICAL or EMPIRICAL, got '{attenuation}'")
     params = dict(params or {})
     model_group = groups.ensure_group(groups.MODEL_GROUPS[model])
+    for public in (model_group, groups.ensure_group(groups.LIGHT)):
+        public.use_fake_user = True     # the material uses internal halves: keep the public groups in the saved file
     kinds = {v: k for k, v in TYPES.items()}
     compat.ensure_use_nodes(mat)
     tree = mat.node_tree
