@@ -7,8 +7,11 @@
 The same scene (floor, ball, dim world; one point light, or point + sun + spot + point) is rendered with
 each material in turn, F12 as a user does (sync, shader compile, path tracing), best of --repeats with the
 materials alternating in each repeat. Prints seconds, the ratio over the Principled BSDF of the same row
-set, nanoseconds per camera sample, the cost of each extra light, the node count of each group, and the
-machine's load average (the machine is shared: ratios from one run are what count).
+set, the same for CPU seconds (all threads; steadier than wall time when other jobs share the cores),
+nanoseconds per camera sample, the cost of each extra light, the node count of each group, and the
+machine's load average (the machine is shared: ratios from one run are what count). "nodes/light" is what
+Blender converts for each light at every render (a point light's group and the model's light half), "nodes once"
+the model's surface half.
 """
 import os
 import sys
@@ -36,10 +39,11 @@ def main(args):
           f"{load[2]:.2f}, after {' '.join(f'{x:.2f}' for x in os.getloadavg())} ({os.cpu_count()} cores)")
     print("nodes per group: " + ", ".join(f"{k} {v}" for k, v in counts.items()))
     print(f"{'lights':>6} {'size':>5} {'spp':>4}  {'material':<24}{'seconds':>9}{'ratio':>7}{'ns/sample':>11}"
-          f"{'nodes/light':>12}")
+          f"{'CPU s':>8}{'CPU ratio':>10}{'nodes/light':>12}{'nodes once':>11}")
     for r in rows:
         print(f"{r['lights']:>6} {r['size']:>5} {r['samples']:>4}  {r['model']:<24}{r['seconds']:>9.3f}"
-              f"{r['ratio']:>7.2f}{r['ns_per_sample']:>11.0f}{r['nodes_per_light'] or '':>12}")
+              f"{r['ratio']:>7.2f}{r['ns_per_sample']:>11.0f}{r['cpu_seconds']:>8.3f}{r['cpu_ratio']:>10.2f}"
+              f"{r['nodes_per_light'] or '':>12}{r['nodes_once'] or '':>11}")
     per = shading.per_light_cost(rows)
     if per:
         print("cost of each extra light (from the two light counts):")

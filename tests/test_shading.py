@@ -153,7 +153,8 @@ def test_drivers_follow_moved_and_recoloured_light():
     mat = ball.active_material
     params = material.read_parameters(mat)
     drivers = mat.node_tree.animation_data.drivers
-    assert len(drivers) >= 3 * 10 and all(fc.driver.is_simple_expression and fc.driver.is_valid for fc in drivers)
+    # what each type reads: point position, spot position and direction and cone, sun direction; all colour, power
+    assert len(drivers) == 7 + 11 + 7 and all(fc.driver.is_simple_expression and fc.driver.is_valid for fc in drivers)
     v = _camera_view(scene)
     kw = dict(ka=params["Ka"], ambient_light=params["Ambient Light"][:3], kd=params["Kd"][:3], ks=params["Ks"],
               shininess=params["Shininess"])
@@ -168,6 +169,68 @@ def test_drivers_follow_moved_and_recoloured_light():
         spot.data.spot_size = 0.6
         sun.rotation_euler = sc.deg(70, -20, 40)
     assert np.max(L[:, 2] - L[:, 0]) > 0.05  # blue light now dominates somewhere
+
+
+#: (model, material parameters, twin, twin keywords) of every model summed over a point, a spot and a sun.
+MATERIAL_CASES = [
+    ("PHONG", {"Ka": 0.3, "Ambient Light": (0.2, 0.3, 0.4), "Emission Color": (0.05, 0.0, 0.1), "Normalized": 1.0,
+               "Shininess": 12.0}, brdf.phong,
+     dict(ka=0.3, ambient_light=(0.2, 0.3, 0.4), emission=(0.05, 0.0, 0.1), normalized=1.0, shininess=12.0)),
+    ("BLINN_PHONG", {"Ka": 0.3, "Ambient Light": (0.2, 0.3, 0.4), "Shininess": 40.0}, brdf.blinn_phong,
+     dict(ka=0.3, ambient_light=(0.2, 0.3, 0.4), shininess=40.0)),
+    ("OREN_NAYAR", {"Albedo": (0.9, 0.6, 0.3), "Sigma": 0.5}, brdf.oren_nayar, dict(albedo=(0.9, 0.6, 0.3), sigma=0.5)),
+    ("COOK_TORRANCE", {"Roughness": 0.35, "F0": 0.3, "Kd": (0.3, 0.2, 0.1)}, brdf.cook_torrance,
+     dict(roughness=0.35, F0=0.3, kd=(0.3, 0.2, 0.1))),
+    ("COOK_TORRANCE", {"Roughness": 0.25, "F0": 0.6, "Distribution": 0.0, "Geometry": 0.0}, brdf.cook_torrance,
+     dict(roughness=0.25, F0=0.6, distribution=0.0, geometry=0.0, kd=(0.2, 0.2, 0.2))),
+    ("COOK_TORRANCE", {"Roughness": 0.5, "Distribution": 0.0, "Geometry": 1.0}, brdf.cook_torrance,
+     dict(roughness=0.5, distribution=0.0, geometry=1.0, kd=(0.2, 0.2, 0.2))),
+]
+
+
+@pytest.mark.parametrize("model, params, twin, kw", MATERIAL_CASES,
+                         ids=[f"{c[0]}-{k}" for k, c in enumerate(MATERIAL_CASES)])
+def test_material_sums_model_over_lights_like_the_twin(model, params, twin, kw):
+    """The material path (one surface half, per light the light type's group and the model's light half)
+    renders what the twin gives summed over the lights, ambient and emission counted once."""
+    scene, ball = _scene_with_ball(32)
+    key = sc.light(scene, "Key", "POINT", 120.0, location=(1.5, -2.5, 1.0), color=(1.0, 0.8, 0.6))
+    spot = sc.light(scene, "Spot", "SPOT", 250.0, location=(-2.0, -2.0, 0.5))
+    sc.look_at(spot, (0, 0, 0))
+    spot.data.spot_size = 1.4
+    sun = sc.light(scene, "Sun", "SUN", 1.5, rotation=sc.deg(30, 10, 20), color=(0.6, 0.7, 1.0))
+    mat, _ = material.assign_shading_model(scene, [ball], model, params=params)
+    groups_used = {n.node_tree.name for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeGroup"}
+    assert groups.LIGHT not in groups_used and groups.MODEL_GROUPS[model] not in groups_used
+    p, n, L = _pixels(scene)
+    v = _camera_view(scene)
+    once = kw.get("ka", 0.0) * np.array(kw.get("ambient_light", (0, 0, 0))) + np.array(kw.get("emission", (0, 0, 0)))
+    ref = _twin_sum([key, spot, sun], p, n, v, twin, **kw) - 2 * once
+    assert np.count_nonzero(np.abs(ref - once).max(axis=-1) > 0.05 * ref.max()) > 50
+    assert np.max(np.abs(L - ref)) <= 2e-4 * np.max(ref)
+
+
+def test_public_il_light_group_gives_what_the_per_type_groups_give():
+    """Materials link each light through its type's own group; the public "IL Light" (every type behind its
+    Type switch) put in their place renders the same, for a point, a spot, a sun and a hemisphere light."""
+    scene, ball = _scene_with_ball(24)
+    sc.light(scene, "Key", "POINT", 120.0, location=(1.5, -2.5, 1.0), color=(1.0, 0.8, 0.6))
+    spot = sc.light(scene, "Spot", "SPOT", 250.0, location=(-2.0, -2.0, 0.5))
+    sc.look_at(spot, (0, 0, 0))
+    sc.light(scene, "Sun", "SUN", 1.5, rotation=sc.deg(30, 10, 20), color=(0.6, 0.7, 1.0))
+    hemi = sc.light(scene, "Hemi", "SUN", 0.8, rotation=sc.deg(-20, 0, 0))
+    hemi.data["il_hemi"] = True
+    hemi.data["il_ground_color"] = (0.3, 0.2, 0.1)
+    mat, _ = material.assign_shading_model(scene, [ball], "COOK_TORRANCE", attenuation="EMPIRICAL",
+                                           coefficients=(0.5, 0.3, 0.2), params={"Spot Exponent": 2.0})
+    light_nodes = [n for n in mat.node_tree.nodes if n.get("il_light")]
+    assert sorted(n.node_tree.name for n in light_nodes) == sorted(groups.LIGHT_OF_TYPE.values())
+    _, _, L = _pixels(scene)
+    for node in light_nodes:
+        node.node_tree = bpy.data.node_groups[groups.LIGHT]
+    _, _, L_public = _pixels(scene)
+    assert L.max() > 0.1
+    np.testing.assert_allclose(L_public, L, rtol=0, atol=1e-5 * L.max())
 
 
 @pytest.mark.both_versions

@@ -156,11 +156,14 @@ class Graph:
         self.feed(b, self._by_id(n.inputs, "B_Color"))
         return self._by_id(n.outputs, "Result_Color")
 
-    def vmath(self, op, a, b=None, scale=None, label=None):
+    def vmath(self, op, a, b=None, c=None, scale=None, label=None):
+        """Vector Math ``op`` of a, b, c (the third operand of MULTIPLY_ADD, ...)."""
         n = self.node("ShaderNodeVectorMath", label=label, operation=op)
         self.feed(a, n.inputs[0])
         if b is not None:
             self.feed(b, n.inputs[1])
+        if c is not None:
+            self.feed(c, n.inputs[2])
         if scale is not None:
             self.feed(scale, n.inputs["Scale"])
         out = "Value" if op in {"DOT_PRODUCT", "LENGTH", "DISTANCE"} else "Vector"

@@ -10,6 +10,9 @@ view vectors come from the Geometry node; the light from the "Light Vector" and
 ``GROUP_VERSION`` in its "il_version" property is left alone; an older one is
 rebuilt in place (same datablock, sockets kept by name), so materials using it
 update without relinking.
+
+Materials use internal groups built from the same code (names start with a dot, see
+:data:`INTERNAL`): each model's surface half and light half, and "IL Light" for one light type.
 """
 import math
 
@@ -19,7 +22,7 @@ from ..core import brdf
 from .builder import Graph
 
 #: Bump whenever a group's contents or sockets change: older groups in a file are rebuilt.
-GROUP_VERSION = 6
+GROUP_VERSION = 7
 
 PHONG, BLINN_PHONG, OREN_NAYAR, COOK_TORRANCE, LIGHT = (
     "IL Phong", "IL Blinn-Phong", "IL Oren-Nayar", "IL Cook-Torrance", "IL Light")
@@ -102,7 +105,8 @@ def sync_interface(tree, inputs, outputs):
             item.description = desc
             if rng is not None:
                 item.min_value, item.max_value = rng
-            item.default_value = default
+            if default is not None:
+                item.default_value = default
             if item.name == "Light Vector":
                 item.hide_value = True
 
@@ -136,19 +140,22 @@ def _io(g):
     return gin.outputs, gout.inputs
 
 
-def _common(g, i):
-    """Normalised n and v, n.v and the constant registers (surface: the same nodes in every light's group
-    node, which Cycles merges, so they are computed once per shading point), then l and n.l (per light)."""
+def _surface_common(g):
+    """Normalised n and v, n.v and the constant registers: what every light shares (computed once)."""
     with g.block("Surface: n, v, n.v, constants (computed once for all lights)"):
         geo = g.node("ShaderNodeNewGeometry")
         g.registers(geo)
         n = g.normalize(geo.outputs["Normal"], label="n")
         v = g.normalize(geo.outputs["Incoming"], label="v (toward viewer)")
         n_v = g.dot(n, v, label="n.v")
+    return {"n": n, "v": v, "n.v": n_v, "0": g.reg(0.0)}
+
+
+def _light_common(g, i, s):
     with g.block("Light: l, n.l"):
         l = g.normalize(i["Light Vector"], label="l (toward light)")
-        n_l = g.dot(n, l, label="n.l")
-    return n, v, l, n_l, n_v
+        n_l = g.dot(s["n"], l, label="n.l")
+    return l, n_l
 
 
 def _finish(g, o, color):
@@ -162,136 +169,243 @@ def _finish(g, o, color):
 
 # -- models -----------------------------------------------------------------------------------------
 #
-# Cost (Cycles SVM): identical nodes of every light's group node (the surface terms) are merged and
-# computed once; a switch input left constant (Distribution, Geometry, Normalized, Physical, Type)
+# Each model is two halves: ``surface(g, i)`` returns the named terms that depend only on the shading
+# point and the parameters (n, v, n.v, roughness terms, registers), ``light(g, i, s)`` the factor of one
+# light's I from them (radiance = I factor, summed over the lights by one multiply-add each). The public
+# group holds both; a material holds the surface half once (internal group ".IL <model> Surface") and the
+# light half per light (".IL <model> Light"), so Blender converts only the light half for every light at
+# every render (it converts every node reachable from the output, about 13 us each; Cycles folds the
+# switches' unused branches only after that).
+#
+# Cost (Cycles SVM): a switch input left constant (Distribution, Geometry, Normalized, Physical, Type)
 # keeps one branch only, so switches are Mix nodes, never math that evaluates both branches; and the
 # per-light nodes take no constant operands (a constant is loaded before every node that takes it, as
 # costly as the operation): they read "registers" (g.reg), nodes computed once per shading point.
 
-def _build_phong(tree, blinn):
-    g = Graph(tree)
-    i, o = _io(g)
-    n, v, l, n_l, n_v = _common(g, i)
+def _phong_surface(g, i, blinn):
+    s = _surface_common(g)
     R = g.reg
-    shin = R(i["Shininess"], "n")
-    with g.block("lit: n.l > 0"):
-        lit = g.gt(n_l, R(0.0), label="lit")
-        a = g.mul(n_l, lit, label="max(n.l, 0)")
+    s["n (exponent)"] = R(i["Shininess"], "n")
     if blinn:
-        with g.block("Lobe: (n.h)^n"):
-            h = g.normalize(g.vadd(l, v), label="h = (l+v)/|l+v|")
-            lobe = g.pow(g.max(g.dot(n, h, label="n.h"), R(0.0)), shin, label="(n.h)^n")
         with g.block("Surface: (n+2)(n+4) / (8 (2^(-n/2) + n))"):
             n0 = g.max(i["Shininess"], 0.0, label="max(n, 0)")
             num = g.mul(g.add(n0, 2.0), g.add(n0, 4.0), label="(n+2)(n+4)")
             den = g.mul(g.add(g.pow(2.0, g.mul(n0, -0.5)), n0), 8.0, label="8 (2^(-n/2) + n)")
-            factor = R(g.div(num, den), "energy factor")
+            s["energy factor"] = R(g.div(num, den), "energy factor")
+    else:
+        with g.block("Surface: (n+2)/2, 2 n.v, -v"):
+            s["energy factor"] = R(g.div(g.add(i["Shininess"], 2.0), 2.0), "energy factor")
+            s["2 n.v"] = g.add(s["n.v"], s["n.v"], label="2 n.v")
+            s["-v"] = g.scale(s["v"], -1.0, label="-v")
+    with g.block("Surface: k_d, k_s, k_a I_a + I_e"):
+        s["k_d"] = g.vreg(i["Kd"], "k_d")
+        s["k_s"] = g.vreg(i["Ks"], "k_s")
+        s["k_a I_a + I_e"] = g.vadd(g.scale(i["Ambient Light"], i["Ka"], label="k_a I_a"), i["Emission Color"],
+                                    label="+ I_e")
+    return s
+
+
+def _phong_light(g, i, s, blinn):
+    l, n_l = _light_common(g, i, s)
+    zero, shin = s["0"], s["n (exponent)"]
+    with g.block("lit: n.l > 0"):
+        lit = g.gt(n_l, zero, label="lit")
+        a = g.mul(n_l, lit, label="max(n.l, 0)")
+    if blinn:
+        with g.block("Lobe: (n.h)^n"):
+            h = g.normalize(g.vadd(l, s["v"]), label="h = (l+v)/|l+v|")
+            lobe = g.pow(g.max(g.dot(s["n"], h, label="n.h"), zero), shin, label="(n.h)^n")
     else:
         with g.block("Lobe: (r.v)^n, r.v = 2 (n.l)(n.v) - l.v"):
-            two_nv = g.add(n_v, n_v, label="2 n.v")
-            minus_v = g.scale(v, -1.0, label="-v")
-            r_v = g.madd(n_l, two_nv, g.dot(l, minus_v, label="-l.v"), label="r.v")
-            lobe = g.pow(g.max(r_v, R(0.0)), shin, label="(r.v)^n")
-        with g.block("Surface: (n+2)/2"):
-            factor = R(g.div(g.add(i["Shininess"], 2.0), 2.0), "energy factor")
+            r_v = g.madd(n_l, s["2 n.v"], g.dot(l, s["-v"], label="-l.v"), label="r.v")
+            lobe = g.pow(g.max(r_v, zero), shin, label="(r.v)^n")
     with g.block("N lit: lit (classic) or factor max(n.l, 0) (energy-normalised)"):
-        norm = g.lerp(lit, g.mul(a, factor, label="factor max(n.l, 0)"), i["Normalized"], label="N lit")
-    with g.block("Sum: I (k_d n.l + k_s N lobe) + k_a I_a + I_e"):
-        diff = g.scale(g.vreg(i["Kd"], "k_d"), a, label="k_d n.l")
-        direct = g.vmul(i["Light Color"], g.add_scaled(diff, g.vreg(i["Ks"], "k_s"), g.mul(lobe, norm, label="N lobe")),
-                        label="I (k_d n.l + k_s N lobe)")
-        once = g.vadd(g.scale(i["Ambient Light"], i["Ka"], label="k_a I_a"), i["Emission Color"], label="+ I_e")
-        color = g.vadd(direct, once, label="radiance")
-    _finish(g, o, color)
-    g.layout()
+        norm = g.lerp(lit, g.mul(a, s["energy factor"], label="factor max(n.l, 0)"), i["Normalized"], label="N lit")
+    with g.block("k_d n.l + k_s N lobe"):
+        diff = g.scale(s["k_d"], a, label="k_d n.l")
+        return g.add_scaled(diff, s["k_s"], g.mul(lobe, norm, label="N lobe"), label="k_d n.l + k_s N lobe")
 
 
-def _build_oren_nayar(tree):
-    g = Graph(tree)
-    i, o = _io(g)
-    n, v, l, n_l, n_v = _common(g, i)
+def _oren_nayar_surface(g, i):
+    s = _surface_common(g)
     R = g.reg
+    n_v = s["n.v"]
     with g.block("Surface: A, B from sigma; n.v terms"):
         s2 = g.mul(i["Sigma"], i["Sigma"], label="sigma^2")
-        A = R(g.sub(1.0, g.div(g.mul(s2, 0.5), g.add(s2, 0.33))), "A = 1 - 0.5 s2/(s2+0.33)")
-        B = R(g.div(g.mul(s2, 0.45), g.add(s2, 0.09)), "B = 0.45 s2/(s2+0.09)")
-        minus_nv = g.mul(n_v, -1.0, label="-n.v")
-        nv_tiny = g.max(n_v, brdf.TINY, label="max(n.v, 1e-12)")
-        seen2 = g.mul(g.gt(n_v, 0.0), 2.0, label="2 (n.v > 0)")
+        s["A"] = R(g.sub(1.0, g.div(g.mul(s2, 0.5), g.add(s2, 0.33))), "A = 1 - 0.5 s2/(s2+0.33)")
+        s["B"] = R(g.div(g.mul(s2, 0.45), g.add(s2, 0.09)), "B = 0.45 s2/(s2+0.09)")
+        s["-n.v"] = g.mul(n_v, -1.0, label="-n.v")
+        s["max(n.v, 1e-12)"] = g.max(n_v, brdf.TINY, label="max(n.v, 1e-12)")
+        s["2 (n.v > 0)"] = g.mul(g.gt(n_v, 0.0), 2.0, label="2 (n.v > 0)")
+        s["rho"] = g.vreg(i["Albedo"], "rho")
+    return s
+
+
+def _oren_nayar_light(g, i, s):
+    l, n_l = _light_common(g, i, s)
     with g.block("(n.l)(A + B max(0, cos dphi) sin(alpha) tan(beta)), bounded vector form"):
-        s = g.max(g.madd(n_l, minus_nv, g.dot(l, v, label="l.v")), R(0.0), label="max(0, l.v - (n.l)(n.v))")
-        t = g.div(s, g.max(n_l, nv_tiny), label="s / max(n.l, n.v, 1e-12)")
-        a = g.min(g.max(n_l, R(0.0)), seen2, label="max(n.l, 0), 0 unless n.v > 0")
-        factor = g.mul(a, g.madd(t, B, A), label="n.l (A + B s / max(n.l, n.v))")
-    with g.block("L = rho I factor"):
-        color = g.scale(g.vmul(i["Light Color"], g.vreg(i["Albedo"], "rho")), factor, label="radiance")
-    _finish(g, o, color)
-    g.layout()
+        t0 = g.max(g.madd(n_l, s["-n.v"], g.dot(l, s["v"], label="l.v")), s["0"], label="max(0, l.v - (n.l)(n.v))")
+        t = g.div(t0, g.max(n_l, s["max(n.v, 1e-12)"]), label="s / max(n.l, n.v, 1e-12)")
+        a = g.min(g.max(n_l, s["0"]), s["2 (n.v > 0)"], label="max(n.l, 0), 0 unless n.v > 0")
+        factor = g.mul(a, g.madd(t, s["B"], s["A"]), label="n.l (A + B s / max(n.l, n.v))")
+    with g.block("rho factor"):
+        return g.scale(s["rho"], factor, label="rho factor")
 
 
-def _build_cook_torrance(tree):
-    g = Graph(tree)
-    i, o = _io(g)
-    n, v, l, n_l, n_v = _common(g, i)
+def _cook_torrance_surface(g, i):
+    s = _surface_common(g)
     R = g.reg
-    dist, geom = i["Distribution"], i["Geometry"]
-    with g.block("Surface: roughness"):
+    with g.block("Surface: roughness, constants"):
         r = g.max(i["Roughness"], brdf.MIN_ROUGHNESS, label="m or alpha (>= 1e-3)")
         r2 = g.mul(r, r)
-        r2_r, inv_r = R(r2, "r^2"), R(g.div(1.0, r), "1/r")
-        zero, one, eps = R(0.0), R(1.0), R(brdf.EPS)
-
-    def lam(cos_theta, which):
-        """Smith Lambda: (sqrt(1 + a^2 tan^2) - 1)/2 (GGX) or Walter's rational fit (Beckmann)."""
-        c = g.max(cos_theta, eps)
-        cc = g.mul(c, c)
-        t2 = g.div(g.max(g.sub(one, cc), zero), cc, label=f"tan^2 theta_{which}")
-        lam_ggx = g.madd(g.math("SQRT", g.madd(r2_r, t2, one)), R(0.5), R(-0.5), label=f"Lambda GGX ({which})")
-        a = g.max(g.mul(g.math("INVERSE_SQRT", g.max(t2, R(brdf.TINY))), inv_r), eps, label=f"a ({which})")
-        fit = g.div(g.madd(a, g.madd(a, R(0.396), R(-1.259)), one), g.mul(a, g.madd(a, R(2.181), R(3.535))),
-                    label=f"Walter fit ({which})")
-        lam_beck = g.mul(fit, g.math("LESS_THAN", a, R(1.6)), label=f"Lambda Beckmann ({which})")
-        return g.lerp(lam_beck, lam_ggx, dist, label=f"Lambda ({which})")
-
-    with g.block("Surface: n.v terms, 1 + Lambda(v), pi k_s / (4 n.v) where n.v > 0, times F0 and 1 - F0"):
-        nv0 = g.max(n_v, 0.0, label="max(n.v, 0)")
-        one_lam_v = g.add(lam(n_v, "v"), 1.0, label="1 + Lambda(v)")
+        s.update({"r^2": R(r2, "r^2"), "1/r": R(g.div(1.0, r), "1/r"), "1 - r^2": R(g.sub(1.0, r2), "1 - r^2"),
+                  "r^2/4": R(g.mul(r2, 0.25), "r^2/4"), "(1 - r^2)/4": R(g.mul(g.sub(1.0, r2), 0.25), "(1 - r^2)/4"),
+                  "pi r^2": R(g.mul(r2, math.pi), "pi r^2"), "r^2 - 1": R(g.sub(r2, 1.0), "r^2 - 1"),
+                  "r^2/pi": R(g.div(r2, math.pi), "r^2/pi")})
+        for value in (1.0, 5.0, brdf.EPS, brdf.TINY, 0.396, -1.259, 2.181, 3.535, 1.6):
+            s[f"{value:g}"] = R(value)
+    n_v = s["n.v"]
+    with g.block("Surface: n.v terms, Lambda(v), pi k_s / (4 n.v) where n.v > 0, times F0 and 1 - F0"):
+        s["max(n.v, 0)"] = g.max(n_v, 0.0, label="max(n.v, 0)")
+        s["1 + Lambda Beckmann(v)"] = g.add(_lambda_beckmann(g, s, n_v, "v"), 1.0, label="1 + Lambda Beckmann(v)")
+        s["s GGX(v)/2"] = g.mul(_s_ggx(g, s, n_v, "v"), 0.5, label="(1 + 2 Lambda GGX(v))/2")
         k = g.mul(g.div(g.mul(i["Ks"], math.pi), g.mul(g.max(n_v, brdf.EPS), 4.0)), g.gt(n_v, 0.0),
                   label="k = pi k_s / (4 n.v), 0 unless n.v > 0")
-        k0 = g.mul(k, i["F0"], label="F0 k")
-        k1 = g.mul(k, g.sub(1.0, i["F0"]), label="(1 - F0) k")
+        s["F0 k"] = g.mul(k, i["F0"], label="F0 k")
+        s["(1 - F0) k"] = g.mul(k, g.sub(1.0, i["F0"]), label="(1 - F0) k")
+        s["k_d"] = g.vreg(i["Kd"], "k_d")
+    return s
+
+
+def _lambda_beckmann(g, s, cos_theta, which):
+    """Smith Lambda for Beckmann: Walter's rational fit of a = 1/(m tan theta), 0 for a >= 1.6."""
+    one, eps = s["1"], s[f"{brdf.EPS:g}"]
+    c = g.max(cos_theta, eps)
+    cc = g.mul(c, c)
+    t2 = g.div(g.max(g.sub(one, cc), s["0"]), cc, label=f"tan^2 theta_{which}")
+    a = g.max(g.mul(g.math("INVERSE_SQRT", g.max(t2, s[f"{brdf.TINY:g}"])), s["1/r"]), eps, label=f"a ({which})")
+    fit = g.div(g.madd(a, g.madd(a, s["0.396"], s["-1.259"]), one), g.mul(a, g.madd(a, s["2.181"], s["3.535"])),
+                label=f"Walter fit ({which})")
+    return g.mul(fit, g.math("LESS_THAN", a, s["1.6"]), label=f"Lambda Beckmann ({which})")
+
+
+def _s_ggx(g, s, cos_theta, which):
+    """1 + 2 Lambda_GGX = sqrt(1 + alpha^2 tan^2 theta) = sqrt(alpha^2 + (1 - alpha^2) c^2) / c."""
+    c = g.max(cos_theta, s[f"{brdf.EPS:g}"])
+    root = g.math("SQRT", g.madd(g.mul(c, c), s["1 - r^2"], s["r^2"]), label=f"sqrt(a^2 + (1 - a^2) c^2) ({which})")
+    return g.div(root, c, label=f"1 + 2 Lambda GGX ({which})")
+
+
+def _cook_torrance_light(g, i, s):
+    l, n_l = _light_common(g, i, s)
+    n, v, dist, geom = s["n"], s["v"], i["Distribution"], i["Geometry"]
+    zero, one, eps = s["0"], s["1"], s[f"{brdf.EPS:g}"]
     with g.block("Half vector"):
         h = g.normalize(g.vadd(l, v), label="h")
         n_h = g.dot(n, h, label="n.h")
         v_h = g.dot(v, h, label="v.h")
         a_l = g.max(n_l, zero, label="max(n.l, 0)")
-    # n.h enters D and G unclamped at 0 where the twin clamps it: those points have n.h <= 0, where the
-    # mask below makes the specular 0 (both stay finite there).
+    # n.h enters D and G unclamped at 0 where the twin clamps it: those points have n.l <= 0 or n.v <= 0
+    # (n.h = (n.l + n.v)/|l + v|), where G or k makes the specular 0 (both stay finite there).
     with g.block("D: Beckmann"):
         c = g.max(n_h, eps)
         c2 = g.mul(c, c, label="cos^2")
-        ex = g.math("EXPONENT", g.div(g.sub(c2, one), g.mul(r2_r, c2)), label="exp(-tan^2/m^2)")
-        d_beck = g.div(ex, g.mul(R(g.mul(r2, math.pi), "pi r^2"), g.mul(c2, c2)), label="D Beckmann")
+        ex = g.math("EXPONENT", g.div(g.sub(c2, one), g.mul(s["r^2"], c2)), label="exp(-tan^2/m^2)")
+        d_beck = g.div(ex, g.mul(s["pi r^2"], g.mul(c2, c2)), label="D Beckmann")
     with g.block("D: GGX"):
-        t = g.madd(g.mul(n_h, n_h), R(g.sub(r2, 1.0), "r^2 - 1"), one, label="cos^2 (a^2-1) + 1")
-        d_ggx = g.div(R(g.div(r2, math.pi), "r^2/pi"), g.mul(t, t), label="D GGX")
+        t = g.madd(g.mul(n_h, n_h), s["r^2 - 1"], one, label="cos^2 (a^2-1) + 1")
+        d_ggx = g.div(s["r^2/pi"], g.mul(t, t), label="D GGX")
     with g.block("D: select (0 Beckmann, 1 GGX)"):
         D = g.lerp(d_beck, d_ggx, dist, label="D")
     with g.block("G: Cook-Torrance 1982, min(1, 2 (n.h) min(n.v, n.l) / (v.h))"):
         q = g.div(g.add(n_h, n_h), g.max(v_h, eps), label="2 (n.h) / (v.h)")
-        g_ct = g.min(g.mul(q, g.min(a_l, nv0)), one, label="G Cook-Torrance")
-    with g.block("G: Smith height-correlated, 1/(1 + Lambda(l) + Lambda(v))"):
-        g_smith = g.div(one, g.add(lam(n_l, "l"), one_lam_v), label="G Smith")
+        g_ct = g.min(g.mul(q, g.min(a_l, s["max(n.v, 0)"])), one, label="G Cook-Torrance")
+    with g.block("G: Smith height-correlated, 1/(1 + Lambda(l) + Lambda(v)); GGX: 2/(s(l) + s(v)), s = 1 + 2 Lambda"):
+        g_beck = g.div(g.gt(n_l, zero, label="n.l > 0"),
+                       g.add(_lambda_beckmann(g, s, n_l, "l"), s["1 + Lambda Beckmann(v)"]), label="G Smith Beckmann")
+        # 2/(s(l) + s(v)) times a_l/a_l: 0 where n.l <= 0 without a mask, finite (the root is >= min(r, 1)/2)
+        half_root = g.math("SQRT", g.madd(g.mul(a_l, a_l), s["(1 - r^2)/4"], s["r^2/4"]),
+                           label="sqrt(a^2 + (1 - a^2) (n.l)^2)/2")
+        g_ggx = g.div(a_l, g.madd(a_l, s["s GGX(v)/2"], half_root), label="G Smith GGX")
+        g_smith = g.lerp(g_beck, g_ggx, dist, label="G Smith")
     with g.block("G: select (0 Cook-Torrance, 1 Smith)"):
         G = g.lerp(g_ct, g_smith, geom, label="G")
     with g.block("F k: Schlick, F0 + (1 - F0)(1 - v.h)^5 with v.h in [0, 1], times k"):
-        one_minus = g.max(g.min(g.sub(one, v_h), one), zero, label="1 - v.h")
-        Fk = g.madd(g.pow(one_minus, R(5.0)), k1, k0, label="F k")
-    with g.block("L = I (k_d n.l + pi k_s F D G / (4 n.v)), specular 0 unless n.l, n.v, n.h > 0"):
-        mask = g.gt(g.min(n_l, n_h), zero, label="n.l > 0 and n.h > 0")
-        spec = g.mul(g.mul(g.mul(Fk, D), G), mask, label="specular")
-        color = g.vmul(i["Light Color"], g.add_scaled(spec, g.vreg(i["Kd"], "k_d"), a_l), label="radiance")
+        one_minus = g.math("SUBTRACT", one, v_h, clamp=True, label="1 - v.h, clamped to [0, 1]")
+        Fk = g.madd(g.pow(one_minus, s["5"]), s["(1 - F0) k"], s["F0 k"], label="F k")
+    # every G is 0 where n.l <= 0 (G Cook-Torrance through max(n.l, 0)), and k where n.v <= 0
+    with g.block("L = I (k_d n.l + pi k_s F D G / (4 n.v)), specular 0 unless n.l, n.v > 0"):
+        spec = g.mul(g.mul(Fk, D), G, label="specular")
+        return g.add_scaled(spec, s["k_d"], a_l, label="k_d n.l + specular")
+
+
+#: model group: (surface half, light half, the switch inputs the light half reads, surface term added once).
+HALVES = {
+    PHONG: (lambda g, i: _phong_surface(g, i, False), lambda g, i, s: _phong_light(g, i, s, False),
+            ["Normalized"], "k_a I_a + I_e"),
+    BLINN_PHONG: (lambda g, i: _phong_surface(g, i, True), lambda g, i, s: _phong_light(g, i, s, True),
+                  ["Normalized"], "k_a I_a + I_e"),
+    OREN_NAYAR: (_oren_nayar_surface, _oren_nayar_light, [], None),
+    COOK_TORRANCE: (_cook_torrance_surface, _cook_torrance_light, ["Distribution", "Geometry"], None),
+}
+
+
+def _build_model(tree, name):
+    """The public group: both halves in one tree, radiance = I times the light half's factor (+ the once-only
+    term)."""
+    g = Graph(tree)
+    i, o = _io(g)
+    surface, light, _, once = HALVES[name]
+    s = surface(g, i)
+    factor = light(g, i, s)
+    with g.block("Radiance: I times the factor" + (" + " + once if once else "")):
+        color = (g.vmath("MULTIPLY_ADD", i["Light Color"], factor, s[once], label="radiance") if once
+                 else g.vmul(i["Light Color"], factor, label="radiance"))
     _finish(g, o, color)
+    g.layout()
+
+
+def surface_group_name(name):
+    return f".{name} Surface"
+
+
+def light_group_name(name):
+    return f".{name} Light"
+
+
+_SOCKET = {"VALUE": F, "VECTOR": V, "RGBA": C}
+#: Input of a light half: the radiance of the lights before it (one multiply-add per light, no sum nodes).
+SUM = ("Radiance So Far", C, BLACK, None, "Radiance of the lights summed before this one")
+
+
+def _build_surface_half(tree, name):
+    """The surface terms as outputs (built once to learn their names and types, then with those outputs)."""
+    i, _ = _io(Graph(tree))
+    outputs = [(key, _SOCKET[sock.type]) for key, sock in HALVES[name][0](Graph(tree), i).items()]
+    tree.nodes.clear()
+    sync_interface(tree, _model_params(name), outputs)
+    g = Graph(tree)
+    i, o = _io(g)
+    for key, sock in HALVES[name][0](g, i).items():
+        g.feed(sock, o[key])
+    g.layout()
+
+
+def _light_half_inputs(name):
+    surface = ensure_group(surface_group_name(name))
+    keys = [(it.name, it.socket_type, None, None, "surface term")
+            for it in surface.interface.items_tree if it.item_type == "SOCKET" and it.in_out == "OUTPUT"]
+    switches = [x for x in INPUTS[name] if x[0] in HALVES[name][2]]
+    return _LIGHT_IN + [SUM] + switches + keys
+
+
+def _build_light_half(tree, name):
+    g = Graph(tree)
+    i, o = _io(g)
+    keys = [it.name for it in tree.interface.items_tree if it.item_type == "SOCKET" and it.in_out == "INPUT"]
+    s = {k: i[k] for k in keys}
+    g.feed(g.vmath("MULTIPLY_ADD", i["Light Color"], HALVES[name][1](g, i, s), i[SUM[0]],
+                   label="radiance so far + I factor"), o["Color"])
     g.layout()
 
 
@@ -339,13 +453,87 @@ def _build_light(tree):
     g.layout()
 
 
-BUILDERS = {
-    PHONG: lambda t: _build_phong(t, blinn=False),
-    BLINN_PHONG: lambda t: _build_phong(t, blinn=True),
-    OREN_NAYAR: _build_oren_nayar,
-    COOK_TORRANCE: _build_cook_torrance,
-    LIGHT: _build_light,
-}
+def _point_part(g, i, p, spot):
+    """Light Vector and I of a point (or spot) light: P/(4 pi^2) f_att, times (s.s')^k inside a spot's cone."""
+    R = g.reg
+    with g.block("Vector and attenuation"):
+        lvec = g.vmath("SUBTRACT", i["Position"], p, label="position - p")
+        d2 = g.dot(lvec, lvec, label="d^2")
+        phys = g.div(R(1.0), g.max(d2, R(brdf.TINY)), label="1/d^2")
+        poly = g.madd(R(i["C3"], "c3"), d2, g.madd(R(i["C2"], "c2"), g.math("SQRT", d2, label="d"), R(i["C1"], "c1")),
+                      label="c1 + c2 d + c3 d^2")
+        emp = g.min(g.div(R(1.0), g.max(poly, R(brdf.TINY))), R(1.0), label="min(1/(...), 1)")
+        att = g.lerp(emp, phys, i["Physical"], label="f_att")
+    if spot:
+        with g.block("Spot: cutoff and (s.s')^k"):
+            minus_s = g.scale(g.normalize(i["Direction"]), -1.0, label="-s")
+            cos_ss = g.dot(g.normalize(lvec), minus_s, label="s.s'")
+            inside = g.math("GREATER_THAN", cos_ss, g.math("COSINE", i["Spot Cutoff"]), label="inside cone")
+            fall = g.mul(inside, g.pow(g.max(cos_ss, R(0.0)), R(i["Spot Exponent"], "k")), label="spot falloff")
+            att = g.mul(att, fall, label="f_att (s.s')^k")
+    with g.block("Colour P/(4 pi^2) f_att"):
+        col = g.scale(g.scale(i["Color"], g.div(i["Power"], 4.0 * math.pi ** 2), label="colour P/(4 pi^2)"), att,
+                      label="Light Color")
+    return lvec, col
+
+
+def _build_light_of(tree, kind):
+    """One light type only (what "IL Light" computes for that Type, without the other types' nodes)."""
+    g = Graph(tree)
+    i, o = _io(g)
+    if kind in ("POINT", "SPOT", "HEMI"):
+        with g.block("Surface"):
+            geo = g.node("ShaderNodeNewGeometry")
+            g.registers(geo)
+    if kind in ("POINT", "SPOT"):
+        lvec, col = _point_part(g, i, geo.outputs["Position"], kind == "SPOT")
+    elif kind == "SUN":
+        with g.block("Sun: -direction, colour S/pi"):
+            lvec = g.scale(i["Direction"], -1.0, label="Light Vector")
+            col = g.scale(i["Color"], g.div(i["Power"], math.pi, label="S/pi"), label="Light Color")
+    else:
+        n = geo.outputs["Normal"]
+        with g.block("Hemisphere: l = n, mix(ground, sky, (1 + n.u)/2) S/pi"):
+            sun_l = g.scale(i["Direction"], -1.0, label="u = -direction")
+            w = g.div(g.add(1.0, g.dot(g.normalize(n), g.normalize(sun_l))), 2.0, label="(1 + n.u)/2")
+            hemi_c = g.vlerp(i["Ground Color"], i["Color"], w, label="mix(ground, sky)")
+            lvec = n
+            col = g.scale(hemi_c, g.div(i["Power"], math.pi, label="S/pi"), label="Light Color")
+    g.feed(lvec, o["Light Vector"])
+    g.feed(col, o["Light Color"])
+    g.layout()
+
+
+BUILDERS = {name: (lambda t, k=name: _build_model(t, k)) for name in HALVES}
+BUILDERS[LIGHT] = _build_light
+
+
+#: Internal per-type light groups (interface of "IL Light"): what a material links per light, so that
+#: Blender converts only the nodes of that light's type at every render.
+LIGHT_OF_TYPE = {kind: f".IL Light {kind.title()}" for kind in ("POINT", "SPOT", "SUN", "HEMI")}
+
+
+def _model_params(name):
+    return [x for x in INPUTS[name] if x[0] not in ("Light Vector", "Light Color")]
+
+
+def _internal():
+    """{name: (inputs, outputs, description, build)} of the groups materials use (names start with a dot)."""
+    out = {}
+    for kind, name in LIGHT_OF_TYPE.items():
+        out[name] = (lambda: INPUTS[LIGHT], OUTPUTS[LIGHT], f"{DESCRIPTIONS[LIGHT]}: {kind.lower()} only",
+                     lambda t, k=kind: _build_light_of(t, k))
+    for model in HALVES:
+        out[surface_group_name(model)] = (lambda m=model: _model_params(m), [],
+                                          f"{model}: the terms every light shares",
+                                          lambda t, m=model: _build_surface_half(t, m))
+        out[light_group_name(model)] = (lambda m=model: _light_half_inputs(m), [("Color", C)],
+                                        f"{model}: one light's radiance from the surface terms",
+                                        lambda t, m=model: _build_light_half(t, m))
+    return out
+
+
+INTERNAL = _internal()
 
 
 def is_current(name):
@@ -357,8 +545,13 @@ def ensure_group(name):
     """The group ``name``, built if missing or older than GROUP_VERSION."""
     if is_current(name):
         return bpy.data.node_groups[name]
-    tree = _fresh(name)
-    BUILDERS[name](tree)
+    if name in INTERNAL:
+        inputs, outputs, description, build = INTERNAL[name]
+        tree = fresh_tree(name, inputs(), outputs, description)
+        tree["il_version"] = GROUP_VERSION
+    else:
+        tree, build = _fresh(name), BUILDERS[name]
+    build(tree)
     return tree
 
 

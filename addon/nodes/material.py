@@ -2,14 +2,21 @@
 
 A material built here holds, left to right:
 - a frame "Parameters" with one Value or RGB node per model input (what the panel edits),
-  fanned out to every light's model node, and a frame "Attenuation" (Physical, C1, C2, C3,
-  Spot Exponent) fanned out to every "IL Light" node;
-- one frame per light: an "IL Light" node whose Position, Direction, Color, Power and
-  Spot Cutoff are driven by the light object (moving or editing the light updates the
-  shading), feeding the model's node group;
-- the sum of the per-light radiances (superposition) into one Emission shader.
-Ambient and emission terms enter once (first light only). Without lights the material
-still works: one model node with a black light, i.e. ambient and emission only.
+  fanned out to the model's nodes, and a frame "Attenuation" (Physical, C1, C2, C3,
+  Spot Exponent) fanned out to every light node;
+- one "IL <model>: surface" node (internal group ".IL <model> Surface": n, v and every term that
+  depends only on the shading point and the parameters), whose outputs feed every light's model node;
+- one frame per light: an "IL Light: <name>" node of that light type's group (".IL Light Point",
+  "Spot", "Sun" or "Hemi": the "IL Light" group without the other types' nodes) whose Position,
+  Direction, Color, Power and Spot Cutoff (those its type reads) are driven by the light object
+  (moving or editing the light updates the shading), feeding the model's light half
+  (".IL <model> Light"), which adds I times its factor to the radiance of the lights before it
+  (superposition; the first starts from ambient plus emission, counted once);
+- the total into one Emission shader.
+Blender converts every node of a material at every render (about 13 us a node here), so each light
+costs only its own type's nodes and the model's light half; the public "IL <model>" groups hold both
+halves. Without lights the material still works: one public model node with a black light, i.e. ambient
+and emission only. A light whose type changes needs Relink Lights (as before: the type is not driven).
 The emission is the model's radiance, not a lamp: its emission sampling is off, so Cycles builds
 no light tree over the shaded triangles (other surfaces still receive it through their BSDF rays).
 """
@@ -22,7 +29,6 @@ from . import groups
 
 MODEL_LABELS = {"PHONG": "Phong", "BLINN_PHONG": "Blinn-Phong", "OREN_NAYAR": "Oren-Nayar",
                 "COOK_TORRANCE": "Cook-Torrance"}
-ONCE_ONLY = {"Ka": 0.0, "Emission Color": (0.0, 0.0, 0.0, 1.0)}
 ATTENUATION_INPUTS = ("Physical", "C1", "C2", "C3", "Spot Exponent")
 DRIVER_PREFIX = 'nodes["IL Light:'
 
@@ -91,17 +97,21 @@ def _prop(light_data, path):
 
 
 def link_light(node, obj):
-    """Drive ``node`` (an "IL Light" group node) from the light object ``obj``."""
+    """Drive ``node`` (an "IL Light" group node or one of its per-type versions) from the light object ``obj``:
+    only the inputs its type reads (a point light no direction, a sun or hemisphere no position)."""
     data = obj.data
+    kind = light_type(obj)
     pos, dirn = node.inputs["Position"], node.inputs["Direction"]
     for k, axis in enumerate("XYZ"):
-        _driver(pos, k, "p", [("p", _transform(obj, f"LOC_{axis}"))])
-        _driver(dirn, k, DIRECTION_EXPR[k], [(a, _transform(obj, f"ROT_{a.upper()}")) for a in "xyz"])
+        if kind in (TYPES["POINT"], TYPES["SPOT"]):
+            _driver(pos, k, "p", [("p", _transform(obj, f"LOC_{axis}"))])
+        if kind != TYPES["POINT"]:
+            _driver(dirn, k, DIRECTION_EXPR[k], [(a, _transform(obj, f"ROT_{a.upper()}")) for a in "xyz"])
         _driver(node.inputs["Color"], k, "c", [("c", _prop(data, f"color[{k}]"))])
     _driver(node.inputs["Power"], None, "e", [("e", _prop(data, "energy"))])
     if data.type == "SPOT":
         _driver(node.inputs["Spot Cutoff"], None, "s / 2", [("s", _prop(data, "spot_size"))])
-    node.inputs["Type"].default_value = float(light_type(obj))
+    node.inputs["Type"].default_value = float(kind)
     ground = data.get("il_ground_color")
     if ground is not None:
         node.inputs["Ground Color"].default_value = (*list(ground)[:3], 1.0)
@@ -157,7 +167,9 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
         raise InputError(f"attenuation must be PHYSICAL or EMPIRICAL, got '{attenuation}'")
     params = dict(params or {})
     model_group = groups.ensure_group(groups.MODEL_GROUPS[model])
-    light_group = groups.ensure_group(groups.LIGHT)
+    for public in (model_group, groups.ensure_group(groups.LIGHT)):
+        public.use_fake_user = True     # the material uses internal halves: keep the public groups in the saved file
+    kinds = {v: k for k, v in TYPES.items()}
     compat.ensure_use_nodes(mat)
     tree = mat.node_tree
     _remove_il_drivers(tree)
@@ -182,46 +194,50 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
         hub[name] = _hub(nodes, att_frame, name, att_values[name], False, y)
         y -= 110
 
-    outputs = []
+    total = None
+    if light_objects:
+        surface = nodes.new("ShaderNodeGroup")
+        surface.node_tree = groups.ensure_group(groups.surface_group_name(model_group.name))
+        surface.name = surface.label = f"{model_group.name}: surface (shared by every light)"
+        surface.location = (-800, 600)
+        for name, *_ in model_parameters(model):
+            links.new(hub[name].outputs[0], surface.inputs[name])
+        half = groups.ensure_group(groups.light_group_name(model_group.name))
+        switches, once = groups.HALVES[model_group.name][2:]
+        total = surface.outputs[once] if once else None
     for k, obj in enumerate(light_objects or [None]):
         label = obj.name if obj is not None else "no lights (ambient and emission only)"
         lframe = nodes.new("NodeFrame")
         lframe.name = lframe.label = f"Light: {label}"
         model_node = nodes.new("ShaderNodeGroup")
-        model_node.node_tree = model_group
         model_node.name = f"{model_group.name}: {label}"
         model_node.parent = lframe
         model_node.location = (-300, 300 - 420 * k)
-        for name, *_ in model_parameters(model):
-            if k > 0 and name in ONCE_ONLY:
-                model_node.inputs[name].default_value = ONCE_ONLY[name]
-            else:
-                links.new(hub[name].outputs[0], model_node.inputs[name])
+        model_node.node_tree = model_group if obj is None else half
         if obj is None:
+            for name, *_ in model_parameters(model):
+                links.new(hub[name].outputs[0], model_node.inputs[name])
             model_node.inputs["Light Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-        else:
-            light_node = nodes.new("ShaderNodeGroup")
-            light_node.node_tree = light_group
-            light_node.name = f"IL Light: {obj.name}"
-            light_node["il_light"] = obj.name
-            light_node.parent = lframe
-            light_node.location = (-600, 300 - 420 * k)
-            for name in ATTENUATION_INPUTS:
-                links.new(hub[name].outputs[0], light_node.inputs[name])
-            links.new(light_node.outputs["Light Vector"], model_node.inputs["Light Vector"])
-            links.new(light_node.outputs["Light Color"], model_node.inputs["Light Color"])
-            link_light(light_node, obj)
-        outputs.append(model_node.outputs["Color"])
-
-    total = outputs[0]
-    for k, socket in enumerate(outputs[1:]):
-        add = nodes.new("ShaderNodeVectorMath")
-        add.operation = "ADD"
-        add.label = "sum over lights"
-        add.location = (0, 300 - 200 * k)
-        links.new(total, add.inputs[0])
-        links.new(socket, add.inputs[1])
-        total = add.outputs[0]
+            total = model_node.outputs["Color"]
+            continue
+        if total is not None:
+            links.new(total, model_node.inputs[groups.SUM[0]])
+        total = model_node.outputs["Color"]
+        for name in switches:
+            links.new(hub[name].outputs[0], model_node.inputs[name])
+        for socket in surface.outputs:
+            links.new(socket, model_node.inputs[socket.name])
+        light_node = nodes.new("ShaderNodeGroup")
+        light_node.node_tree = groups.ensure_group(groups.LIGHT_OF_TYPE[kinds[light_type(obj)]])
+        light_node.name = f"IL Light: {obj.name}"
+        light_node["il_light"] = obj.name
+        light_node.parent = lframe
+        light_node.location = (-600, 300 - 420 * k)
+        for name in ATTENUATION_INPUTS:
+            links.new(hub[name].outputs[0], light_node.inputs[name])
+        links.new(light_node.outputs["Light Vector"], model_node.inputs["Light Vector"])
+        links.new(light_node.outputs["Light Color"], model_node.inputs["Light Color"])
+        link_light(light_node, obj)
     emission = nodes.new("ShaderNodeEmission")
     emission.location = (250, 300)
     links.new(total, emission.inputs["Color"])

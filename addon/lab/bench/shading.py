@@ -402,15 +402,17 @@ def _nodes(tree):
 
 
 def node_counts():
-    """{group name: nodes in it (frames, group input and output not counted)} of every IL group."""
-    return {name: _nodes(groups.ensure_group(name)) for name in groups.BUILDERS}
+    """{group name: nodes in it (frames, group input and output not counted)} of every IL group, public and
+    internal (the per-type light groups and the surface and light halves that materials use)."""
+    return {name: _nodes(groups.ensure_group(name)) for name in list(groups.BUILDERS) + list(groups.INTERNAL)}
 
 
 def _timed_render(scene):
+    """(wall seconds, CPU seconds of every thread of this process) of one F12 render."""
     scene.view_layers[0].update()  # drivers of a scene that is not the window's are stale otherwise
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     bpy.ops.render.render(scene=scene.name)
-    return time.perf_counter() - t
+    return time.perf_counter() - t, time.process_time() - c
 
 
 def render_cost(configs=COST_CONFIGS, light_counts=(1, 4), repeats=3, models=COST_MODELS):
@@ -419,8 +421,10 @@ def render_cost(configs=COST_CONFIGS, light_counts=(1, 4), repeats=3, models=COS
     per repeat, in turn, so that a change of load on the machine hits them alike.
 
     Rows {"model", "lights", "size", "samples", "seconds", "ratio" (over Principled's with the same lights and
-    settings), "nodes_per_light" (nodes of the IL Light and model groups), "ns_per_sample" (seconds per camera
-    sample)}.
+    settings), "cpu_seconds" and "cpu_ratio" (CPU time of all the process' threads, best of the repeats: less
+    sensitive than wall time to other jobs on a shared machine), "nodes_per_light" (nodes of a point light's
+    group and the model's light half: what Blender converts for every light at every render), "nodes_once"
+    (the model's surface half), "ns_per_sample" (seconds per camera sample)}.
     """
     counts = node_counts()
     scenes, mats = {}, {}
@@ -450,19 +454,22 @@ def render_cost(configs=COST_CONFIGS, light_counts=(1, 4), repeats=3, models=COS
                         sec = _timed_render(scene)
                         if rep:
                             key = (light_count, size, samples, model)
-                            best[key] = min(best.get(key, sec), sec)
+                            best[key] = tuple(min(a, b) for a, b in zip(best.get(key, sec), sec))
         rows = []
         for size, samples in configs:
             for light_count in light_counts:
-                base = best.get((light_count, size, samples, "PRINCIPLED"))
+                base, cpu_base = best.get((light_count, size, samples, "PRINCIPLED"), (None, None))
                 for model in models:
-                    sec = best[(light_count, size, samples, model)]
+                    sec, cpu = best[(light_count, size, samples, model)]
                     kind = "COOK_TORRANCE" if model.startswith("COOK_TORRANCE") else model
-                    per_light = (None if model == "PRINCIPLED"
-                                 else counts[groups.LIGHT] + counts[groups.MODEL_GROUPS[kind]])
+                    name = groups.MODEL_GROUPS.get(kind)
+                    per_light = (None if name is None else
+                                 counts[groups.LIGHT_OF_TYPE["POINT"]] + counts[groups.light_group_name(name)])
                     rows.append({"model": model, "lights": light_count, "size": size, "samples": samples,
                                  "seconds": sec, "ratio": sec / base if base else None,
+                                 "cpu_seconds": cpu, "cpu_ratio": cpu / cpu_base if cpu_base else None,
                                  "nodes_per_light": per_light,
+                                 "nodes_once": None if name is None else counts[groups.surface_group_name(name)],
                                  "ns_per_sample": sec / (size * size * samples) * 1e9})
     finally:
         for scene in scenes.values():
