@@ -302,6 +302,15 @@ class _ClusterBounds:
             for k, idx in enumerate(groups):
                 e = pts[idx] @ n
                 self.cl_lo[k, g], self.cl_hi[k, g] = e.min(), e.max()
+        # per cluster and occluder: all points on one side of its plane (above, below), or of its slab (sabove,
+        # sbelow)
+        self.above, self.below = self.lo >= 0, self.hi <= 0
+        gg, warped = np.maximum(groups_f, 0), groups_f >= 0
+        if G:
+            self.sabove = warped[None] & (self.cl_lo[:, gg] > self.slab_hi[gg] + CULL_MARGIN)
+            self.sbelow = warped[None] & (self.cl_hi[:, gg] < self.slab_lo[gg] - CULL_MARGIN)
+        else:
+            self.sabove = self.sbelow = np.zeros((C, F), bool)
 
 
 CULL_MARGIN = 1e-9       # metres: a bound of _classify must clear the occluder by this much to rule it out
@@ -324,17 +333,10 @@ def _classify(occ, cb, a, bs, end):
     both boxes is the hull of those 64 crossings)."""
     bs = np.asarray(bs)
     out = np.full((len(bs), len(occ)), 2, np.int8)
-    lo_a, hi_a, lo_b, hi_b = cb.lo[a][None], cb.hi[a][None], cb.lo[bs], cb.hi[bs]
-    same = ((lo_a >= 0) & (lo_b >= 0)) | ((hi_a <= 0) & (hi_b <= 0))
+    same = (cb.above[a][None] & cb.above[bs]) | (cb.below[a][None] & cb.below[bs])
+    same |= (cb.sabove[a][None] & cb.sabove[bs]) | (cb.sbelow[a][None] & cb.sbelow[bs])
     out[same] = 0
-    if cb.slab_lo.size:
-        g = occ.group
-        gg = np.maximum(g, 0)
-        lo_s, hi_s = cb.slab_lo[gg] - CULL_MARGIN, cb.slab_hi[gg] + CULL_MARGIN
-        outside = (((cb.cl_hi[a, gg] < lo_s)[None] & (cb.cl_hi[bs][:, gg] < lo_s))
-                   | ((cb.cl_lo[a, gg] > hi_s)[None] & (cb.cl_lo[bs][:, gg] > hi_s)))
-        same |= outside & (g >= 0)[None]
-        out[same] = 0
+    lo_a, hi_a = cb.lo[a], cb.hi[a]
     bi, f = np.nonzero(~same)
     if not len(f):
         return out
@@ -419,31 +421,42 @@ def visibility_faces(patches, occ, offset=1e-4, progress=None, leaf=CLUSTER_LEAF
     occ = blocking(occ, pts)
     V = np.zeros((n, n), bool)
     S = occ.side(pts)
-    G = occ.edges(pts)
     groups = clusters(pts, leaf, patches.owner * (int(patches.source.max()) + 1) * 2
                       + patches.source * 2 + patches.back)
     cb = _ClusterBounds(occ, pts, S, groups)
+    m3 = occ.m.reshape(-1, 3)
     end = 2 * offset
     for a, ia in enumerate(groups):
         if progress:
             progress()
-        row = _classify(occ, cb, a, np.arange(a, len(groups)), end) if len(occ) else None
-        for b in range(a, len(groups)):
-            ib = groups[b]
-            d = c[ib][None, :, :] - c[ia][:, None, :]
-            ok = (np.einsum("abk,ak->ab", d, nrm[ia]) > 1e-9) & (np.einsum("abk,bk->ab", d, nrm[ib]) < -1e-9)
-            if a == b:
-                ok &= ia[None, :] > ia[:, None]
-            if not ok.any():
+        rest = groups[a:]
+        ib = np.concatenate(rest)
+        start = np.cumsum([0] + [len(g) for g in rest])
+        d = c[ib][None, :, :] - c[ia][:, None, :]
+        ok = (np.einsum("abk,ak->ab", d, nrm[ia]) > 1e-9) & (np.einsum("abk,bk->ab", d, nrm[ib]) < -1e-9)
+        ok[:, :len(ia)] &= ia[None, :] > ia[:, None]
+        if len(occ):
+            row = _classify(occ, cb, a, np.arange(a, len(groups)), end)
+            blocked, open_ = (row == 1).any(axis=1), ~(row == 2).any(axis=1)
+        else:
+            blocked, open_ = np.zeros(len(rest), bool), np.ones(len(rest), bool)
+        ok[:, np.repeat(blocked, np.diff(start))] = False
+        free = ok & np.repeat(open_, np.diff(start))[None, :]
+        ra, rb = np.nonzero(free)
+        V[ia[ra], ib[rb]] = True
+        V[ib[rb], ia[ra]] = True
+        ga = None
+        for k in np.flatnonzero(~blocked & ~open_):
+            sub = ok[:, start[k]:start[k + 1]]
+            if not sub.any():
                 continue
-            cls = row[b - a] if row is not None else np.zeros(0, np.int8)
-            if (cls == 1).any():
-                continue
-            f = np.flatnonzero(cls == 2)
-            if len(f):
-                ok &= ~_crossed(S[ia[:, None], f], S[ib[:, None], f], G[ia[:, None], f], G[ib[:, None], f],
-                                pts[ia], pts[ib], end)
-            ra, rb = np.nonzero(ok)
-            V[ia[ra], ib[rb]] = True
-            V[ib[rb], ia[ra]] = True
+            jb = rest[k]
+            f = np.flatnonzero(row[k] == 2)
+            if ga is None:
+                ga = (pts[ia] @ m3.T).reshape(len(ia), len(occ), 4) - occ.h
+            gb = (pts[jb] @ occ.m[f].reshape(-1, 3).T).reshape(len(jb), len(f), 4) - occ.h[f]
+            sub = sub & ~_crossed(S[ia[:, None], f], S[jb[:, None], f], ga[:, f], gb, pts[ia], pts[jb], end)
+            ra, rb = np.nonzero(sub)
+            V[ia[ra], jb[rb]] = True
+            V[jb[rb], ia[ra]] = True
     return V
