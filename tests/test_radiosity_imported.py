@@ -13,7 +13,6 @@ import pytest
 
 from addon.core import analytic
 from addon.core.radiosity import cost as rad_cost
-from addon.core.radiosity import form_factors
 from addon.core.radiosity import patches as rad_patches
 from addon.core.radiosity import subdivision as rad_subdivision
 from addon.core.errors import ILWarning, InputError
