@@ -377,12 +377,14 @@ def _classify(occ, cb, a, bs, end):
     return out
 
 
-def _crossed(sa, sb, ga, gb, pa, pb, end):
+def _crossed(sa, sb, ga, gb, pa, pb, end, ia, ib):
     """(A, B) bool: the segment between point a and point b crosses one of the occluders, given signed
     distances sa (A, F), sb (B, F) and edge values ga (A, F, 4), gb (B, F, 4) of their ends. At the crossing
     x = a + u (b − a), u = sa / (sa − sb), the edge value is (sa gb − sb ga) / (sa − sb): inside where
-    sign(sa) (sa gb − sb ga) >= 0 on every edge, no division. A crossing within ``end`` of either end does not
-    count (looked at only for the occluders that close to a point)."""
+    sign(sa) (sa gb − sb ga) >= 0 on every edge, no division. The ray runs from the point of the smaller index
+    (``ia``, ``ib``: the points' patch indices) to the other, as lab.radiosity.visibility_bvh casts it: a
+    crossing within ``end`` of its target does not count, one at its origin does (looked at only for the
+    occluders that close to a point)."""
     sg = np.sign(sa)
     abs_a, ga = (sa * sg)[:, None, :], (ga * sg[..., None])[:, None]
     sb2, gb2 = sb[None], gb[None]
@@ -397,7 +399,7 @@ def _crossed(sa, sb, ga, gb, pa, pb, end):
             sa_c, sb_c = sa[:, close], sb[:, close]
             u = sa_c[i, f] / (sa_c[i, f] - sb_c[j, f])
             dist = np.linalg.norm(pb[j] - pa[i], axis=1)
-            h[i, j, f] = (u * dist > end) & (u * dist < dist - end)
+            h[i, j, f] = np.where(ia[i] < ib[j], u * dist < dist - end, u * dist > end)
             hit[..., close] = h
     return hit.any(axis=2)
 
@@ -410,8 +412,8 @@ def _box(p):
 def visibility_faces(patches, occ, offset=1e-4, progress=None, leaf=CLUSTER_LEAF):
     """Centre-to-centre visibility (N, N) bool against :class:`Occluders` ``occ`` (:func:`occluders`): the
     pairs each in front of the other's plane (as :func:`candidate_pair_blocks`), each segment from centre to
-    centre lifted ``offset`` along the normals, a crossing within ``2 offset`` of its ends not counted (as
-    lab.radiosity.visibility_bvh casts it). Only the occluders with points on both sides of their plane count;
+    centre lifted ``offset`` along the normals, the ray from the smaller index to the larger, a crossing within
+    ``2 offset`` of its target not counted (as lab.radiosity.visibility_bvh casts it). Only the occluders with points on both sides of their plane count;
     the points are grouped in :func:`clusters` and every pair of clusters is first classified against each
     occluder (:func:`_classify`): rays are tested only against the occluders it leaves undecided.
     ``progress()`` is called between rows of clusters."""
@@ -455,7 +457,8 @@ def visibility_faces(patches, occ, offset=1e-4, progress=None, leaf=CLUSTER_LEAF
             if ga is None:
                 ga = (pts[ia] @ m3.T).reshape(len(ia), len(occ), 4) - occ.h
             gb = (pts[jb] @ occ.m[f].reshape(-1, 3).T).reshape(len(jb), len(f), 4) - occ.h[f]
-            sub = sub & ~_crossed(S[ia[:, None], f], S[jb[:, None], f], ga[:, f], gb, pts[ia], pts[jb], end)
+            sub = sub & ~_crossed(S[ia[:, None], f], S[jb[:, None], f], ga[:, f], gb, pts[ia], pts[jb], end,
+                                  ia, jb)
             ra, rb = np.nonzero(sub)
             V[ia[ra], jb[rb]] = True
             V[jb[rb], ia[ra]] = True
