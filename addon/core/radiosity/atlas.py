@@ -24,6 +24,13 @@ def texel_points(patches, cell):
     return pts, mask
 
 
+def _bilinear_points(c, s, t):
+    """The bilinear maps of :func:`core.radiosity.patches.bilinear` of every patch (corners c (N, 4, 3)) at the
+    same parameters s, t (S,): (N, S, 3), without repeating the corners."""
+    w = np.stack([(1 - s) * (1 - t), s * (1 - t), s * t, (1 - s) * t], -1)          # (S, 4)
+    return np.einsum("sk,nkc->nsc", w, c)
+
+
 def texel_elements(patches, cell):
     """Each patch cut along its atlas cell's texel grid (the parametrisation of :func:`texel_points`): polygons
     (N, cell², 4, 3) wound as the patch (a triangle repeats its last corner), collocation points (N, cell², 3),
@@ -43,8 +50,8 @@ def texel_elements(patches, cell):
     pv = np.where(diag, (2 * v0 + v1) / 3, (v0 + v1) / 2)
     n, m = len(patches), len(xx)
     c = patches.corners
-    quad, _ = bilinear(np.repeat(c, m * 4, axis=0), np.tile(us.ravel(), n), np.tile(vs.ravel(), n))
-    qpt, _ = bilinear(np.repeat(c, m, axis=0), np.tile((u0 + u1) / 2, n), np.tile((v0 + v1) / 2, n))
+    quad = _bilinear_points(c, us.ravel(), vs.ravel())
+    qpt = _bilinear_points(c, (u0 + u1) / 2, (v0 + v1) / 2)
     w0, w1, w2 = 1 - tri_us, tri_us - tri_vs, tri_vs                      # barycentric weights (m, 4)
     tri = (w0[None, ..., None] * c[:, None, None, 0] + w1[None, ..., None] * c[:, None, None, 1]
            + w2[None, ..., None] * c[:, None, None, 2])

@@ -14,15 +14,17 @@ from .subdivision import MAX_LEVELS, planned_patches
 # Peak memory of a solve with N patches, per patch pair: measured with tracemalloc on the Cornell box at
 # N = 7104: form factors with the visibility matrix alive 21.3 B (F float64, V bool and their temporaries),
 # near pairs beside F 11.6 B (found block by block), a solve 8.0 B, the emitter split mask 8.8 B; plus bounded
-# chunks. Rounded up.
+# chunks. Rounded up. F is float32 since (4 B a pair less) and the near pairs are found cluster by cluster: an
+# upper bound now, not remeasured.
 BYTES_PER_PAIR = 24.0
 OVERHEAD_BYTES = 600e6                  # Blender, numpy and the chunked temporaries
 # Seconds per patch pair (visibility + form factor + the three solvers of the convergence chart), measured on
 # the 2-core reference machine by scripts/bench_radiosity.py (docs/envmap-radiosity.md): with the face test
 # (core.radiosity.visibility.visibility_faces) and the visible pairs' form factors once, and with a BVH ray a
 # pair (scenes with more blocking faces than lab.radiosity.MAX_OCCLUDERS). Measured: the solve 0.23 CPU-µs a
-# pair (15,331 patches, 53.6 s including the near field), the convergence chart's progressive solver about
-# 0.8 µs a pair (3,216 patches, 8.5 s); the BVH path 4 µs a pair as before (a ray 4.7 µs on the candidates).
+# pair (15,331 patches, 53.6 s including the near field; 0.15 since the culled face test and float32 F: 36.2 CPU
+# s), the convergence chart's progressive solver about 0.8 µs a pair (3,216 patches, 8.5 s); the BVH path 4 µs a
+# pair as before (a ray 4.7 µs on the candidates).
 SECONDS_PER_PAIR = 1e-6
 SECONDS_PER_PAIR_BVH = 4e-6
 # The near field (:class:`core.radiosity.gather.NearField`): element form factors of the near pairs, stored as

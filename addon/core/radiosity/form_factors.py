@@ -154,7 +154,7 @@ def form_factors(patches, visibility=None, quadrature=1):
     return F
 
 
-def _pair_form_factors(cx, cy, cz, pn, p, n, j):
+def pair_form_factors(cx, cy, cz, pn, p, n, j):
     """F(dA_p -> polygon j) for matching rows (polygon corners cx, cy, cz (N, 4) by component, their normals
     pn; points p and normals n (M, 3); source indices j (M,)) by the rules of :func:`polygon_form_factors`,
     on component arrays (:func:`lambert_polygon` without its temporaries); pairs whose polygon crosses the
@@ -188,7 +188,7 @@ def _pair_form_factors(cx, cy, cz, pn, p, n, j):
     return out
 
 
-def visible_form_factors(patches, visibility, reciprocal=True, chunk_pairs=200_000):
+def visible_form_factors(patches, visibility, reciprocal=True, chunk_pairs=200_000, dtype=np.float64):
     """:func:`form_factors` (quadrature 1) with boolean ``visibility`` (N, N, symmetric), evaluated only for
     the visible pairs (the rest are 0 in both: pairs behind each other's plane, occluded, or on one plane).
 
@@ -196,12 +196,13 @@ def visible_form_factors(patches, visibility, reciprocal=True, chunk_pairs=200_0
     by reciprocity, F_bs = A_s F_sb / A_b: half the work, A_i F_ij = A_j F_ji exactly, and the collocation
     error of the centre rule O((r_s / d)²) set by the smaller patch instead of O((r_b / d)²) by the larger.
     Otherwise every visible ordered pair from its receiver's centre, equal to :func:`form_factors`. About
-    ``chunk_pairs`` pairs at a time."""
+    ``chunk_pairs`` pairs at a time. ``dtype``: F's storage (float32 halves its memory and the solvers' memory
+    traffic, core.radiosity.solvers.product)."""
     n = len(patches)
     V = np.asarray(visibility, bool)
     if V.shape != (n, n):
         raise InputError(f"visibility must be {n}x{n}, got {V.shape}")
-    F = np.zeros((n, n))
+    F = np.zeros((n, n), dtype)
     _, pn = polygon_area_normal(patches.corners)
     c, area = patches.corners, patches.area
     cx, cy, cz = (np.ascontiguousarray(c[..., k]) for k in range(3))
@@ -217,11 +218,11 @@ def visible_form_factors(patches, visibility, reciprocal=True, chunk_pairs=200_0
             i, j = i[up], j[up]
             small = area[i] <= area[j]
             r, q = np.where(small, i, j), np.where(small, j, i)
-            f = _pair_form_factors(cx, cy, cz, pn, patches.center[r], patches.normal[r], q)
+            f = pair_form_factors(cx, cy, cz, pn, patches.center[r], patches.normal[r], q)
             F[r, q] = f
             F[q, r] = f * area[r] / area[q]
         elif len(i):
-            F[i, j] = _pair_form_factors(cx, cy, cz, pn, patches.center[i], patches.normal[i], j)
+            F[i, j] = pair_form_factors(cx, cy, cz, pn, patches.center[i], patches.normal[i], j)
         s = e
     np.fill_diagonal(F, 0.0)
     return F

@@ -19,8 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .atlas import texel_elements
-from .form_factors import polygon_form_factors
+from .form_factors import pair_form_factors
 from .patches import bounding_radius, longest_edge
+from .solvers import product
 
 GATHER_CHUNK_EVALS = 200_000      # point-to-polygon evaluations per chunk (about 500 B each at peak)
 
@@ -45,27 +46,33 @@ class Gather:
 def element_form_factors(patches, elements, recv, src, visible=None, chunk_evals=GATHER_CHUNK_EVALS,
                          src_elements=None):
     """K (P, m, m') float32: F(dA_a -> A_b) V(a, src_p) from every element point a of patch recv_p to every
-    element b of patch src_p (by the rules of :func:`polygon_form_factors`; 0 for elements that do not exist).
+    element b of patch src_p (by the rules of :func:`core.radiosity.form_factors.polygon_form_factors`; 0 for elements that do not exist).
     ``elements`` is :func:`texel_elements`' (polys, points, area, mask), ``src_elements`` the sources' when
     they differ; ``visible(points, normals, src)`` as in
     :func:`core.radiosity.form_factors.seen_form_factors` (None: all visible)."""
     _, pts, _, mask = elements
     polys, _, _, smask = elements if src_elements is None else src_elements
-    m, ms = pts.shape[1], polys.shape[1]
+    n, m, ms = len(patches), pts.shape[1], polys.shape[1]
     recv, src = np.asarray(recv, int), np.asarray(src, int)
     K = np.zeros((len(recv), m, ms), np.float32)
+    flat = polys.reshape(n * ms, 4, 3)
+    cx, cy, cz = (np.ascontiguousarray(flat[..., k]) for k in range(3))
+    pn = np.repeat(patches.normal, ms, axis=0)
     step = max(1, chunk_evals // (m * ms))
     for s in range(0, len(recv), step):
         r, j = recv[s:s + step], src[s:s + step]
-        rel = polys[j][:, None] - pts[r][:, :, None, None, :]                       # (p, m, m', 4, 3)
-        k = polygon_form_factors(rel, patches.normal[r][:, None, None, :], patches.normal[j][:, None, None, :])
-        k *= mask[r][:, :, None] & smask[j][:, None, :]
+        p = len(r)
+        live = mask[r][:, :, None] & smask[j][:, None, :]                          # (p, m, m')
+        pp, aa, bb = np.nonzero(live)
+        k = np.zeros((p, m, ms))
+        k[pp, aa, bb] = pair_form_factors(cx, cy, cz, pn, pts[r][pp, aa], patches.normal[r][pp],
+                                           j[pp] * ms + bb)
         if visible is not None:
             hit = k.any(axis=2)
             if hit.any():
-                pp, aa = np.nonzero(hit)
+                hp, ha = np.nonzero(hit)
                 v = np.ones(hit.shape)
-                v[pp, aa] = visible(pts[r][pp, aa], patches.normal[r][pp], j[pp])
+                v[hp, ha] = visible(pts[r][hp, ha], patches.normal[r][hp], j[hp])
                 k *= v[:, :, None]
         K[s:s + step] = k
     return K
@@ -175,7 +182,7 @@ def near_field_gather(patches, F, B, near, tol=1e-5, max_iter=1000):
     try:
         for it in range(1, max_iter + 1):
             Be["patch"] = np.einsum("nm,nmc->nc", w, Be["texel"])[:, None, :]
-            far = F @ Be["patch"][:, 0]
+            far = product(F, Be["patch"][:, 0])
             H = {f: np.zeros_like(Be[f]) for f in ("texel", "fine") if f in Be}
             for fr, fs, idx, K in near.groups:
                 r = recv[idx]

@@ -43,13 +43,36 @@ def candidate_pairs(patches):
     return (np.concatenate([b[0] for b in blocks]), np.concatenate([b[1] for b in blocks]))
 
 
-def near_candidate_pairs(patches, ratio=NEAR_RATIO):
-    """:func:`near_pairs` of the :func:`candidate_pairs`, one block at a time: memory bounded by a block and
-    the near pairs, never the O(N²) candidate list."""
-    parts = [near_pairs(patches, i, j, ratio) for i, j in candidate_pair_blocks(patches)]
-    if not parts:
+def near_candidate_pairs(patches, ratio=NEAR_RATIO, leaf=64):
+    """:func:`near_pairs` of the :func:`candidate_pairs`: the candidates within pairs of :func:`clusters` whose
+    boxes are close enough to hold a near pair (a near pair's centres lie within r_i + r_j + 2 ratio max(r_i,
+    r_j) of each other), so that the work grows with the near pairs, not N²."""
+    from .patches import bounding_radius
+    c, nrm = patches.center, patches.normal
+    if not len(c):
         return np.zeros(0, int), np.zeros(0, int)
-    return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+    r = bounding_radius(patches)
+    groups = clusters(c, leaf)
+    lo = np.array([c[g].min(axis=0) for g in groups])
+    hi = np.array([c[g].max(axis=0) for g in groups])
+    rmax = np.array([r[g].max() for g in groups])
+    parts = []
+    for a, ia in enumerate(groups):
+        gap = np.linalg.norm(np.maximum(np.maximum(lo[a:] - hi[a], lo[a] - hi[a:]), 0.0), axis=1)
+        reach = (1 + 2 * ratio) * np.maximum(rmax[a], rmax[a:]) + np.minimum(rmax[a], rmax[a:])
+        close = a + np.flatnonzero(gap <= reach * (1 + 1e-9))
+        ib = np.concatenate([groups[b] for b in close])
+        later = np.repeat(close > a, [len(groups[b]) for b in close])
+        d = c[ib][None, :, :] - c[ia][:, None, :]
+        ok = (np.einsum("abk,ak->ab", d, nrm[ia]) > 1e-9) & (np.einsum("abk,bk->ab", d, nrm[ib]) < -1e-9)
+        ok &= later[None, :] | (ib[None, :] > ia[:, None])
+        ra, rb = np.nonzero(ok)
+        i, j = ia[ra], ib[rb]
+        parts.append(near_pairs(patches, np.minimum(i, j), np.maximum(i, j), ratio))
+    recv = np.concatenate([p[0] for p in parts])
+    src = np.concatenate([p[1] for p in parts])
+    order = np.lexsort((src, recv))
+    return recv[order], src[order]
 
 
 def patch_triangles(patches):
@@ -81,15 +104,17 @@ def visibility_numpy(patches, offset=1e-6):
 PLANAR_TOL = 1e-7          # a quad is planar (and kept whole) when its 4th corner is this close to the plane
                            # of the other three, relative to its size
 OCCLUDER_PAIR_BLOCK = 4_000_000     # ray-face tests held at once
-CLUSTER_LEAF = 64                   # points per cluster of visibility_faces
+CLUSTER_LEAF = 32                   # points per cluster of visibility_faces
 
 
 class Occluders:
     """Convex planar polygons (F, 4, 3) as planes n·x = d and inward edge planes m_k·x >= h_k (triangles
-    repeat an edge): the blockers of :func:`visibility_faces` and :func:`visible_faces`."""
+    repeat an edge): the blockers of :func:`visibility_faces` and :func:`visible_faces`. ``group`` (F,): the
+    non-planar face a triangle was cut from (-1: a whole face), whose triangles all lie in one slab."""
 
-    def __init__(self, polys):
+    def __init__(self, polys, group=None):
         polys = np.asarray(polys, np.float64).reshape(-1, 4, 3)
+        self.group = np.full(len(polys), -1) if group is None else np.asarray(group, int)
         e = np.roll(polys, -1, axis=1) - polys
         n = np.cross(polys[:, 2] - polys[:, 0], polys[:, 3] - polys[:, 1])
         n = np.where((np.linalg.norm(n, axis=1) > 0)[:, None], n, np.cross(e[:, 0], e[:, 1]))
@@ -103,7 +128,7 @@ class Occluders:
         return len(self.polys)
 
     def take(self, idx):
-        return Occluders(self.polys[idx])
+        return Occluders(self.polys[idx], self.group[idx])
 
     def side(self, points):
         """Signed distances (P, F) of points to the occluders' planes."""
@@ -136,14 +161,19 @@ def occluders(base, patches=None):
     front = np.flatnonzero(~base.back)
     c, whole = base.corners[front], whole_all[front]
     polys = [c[whole]]
-    rest = {(int(base.owner[k]), int(base.source[k])) for k in front[~whole]}
+    rest = sorted({(int(base.owner[k]), int(base.source[k])) for k in front[~whole]})
+    group = [np.full(len(polys[0]), -1)]
     if rest:
-        sel = np.array([(int(o), int(s)) in rest for o, s in zip(patches.owner, patches.source)]) & ~patches.back
+        key = {k: g for g, k in enumerate(rest)}
+        gid = np.array([key.get((int(o), int(s)), -1) for o, s in zip(patches.owner, patches.source)])
+        sel = (gid >= 0) & ~patches.back
         pc = patches.corners[sel]
         polys.append(pc[:, [0, 1, 2, 2]])
-        q = pc[~patches.is_tri[sel]]
-        polys.append(q[:, [0, 2, 3, 3]])
-    return Occluders(np.concatenate(polys))
+        group.append(gid[sel])
+        q = ~patches.is_tri[sel]
+        polys.append(pc[q][:, [0, 2, 3, 3]])
+        group.append(gid[sel][q])
+    return Occluders(np.concatenate(polys), np.concatenate(group))
 
 
 def _plane(c):
@@ -185,7 +215,9 @@ def visible_faces(patches, occ, offset=1e-4):
     patch's centre (lifted likewise), ``2 offset`` short of it, crosses no occluder (as lab.radiosity.visible_bvh
     casts it)."""
     tc = patches.center + offset * patches.normal
-    st_all, gt_all = occ.side(tc), occ.edges(tc)
+    st_all = occ.side(tc)
+    centre = occ.polys.mean(axis=1)
+    radius = np.linalg.norm(occ.polys - centre[:, None], axis=2).max(axis=1)
 
     def visible(points, normals, src):
         out = np.ones(len(points))
@@ -195,17 +227,29 @@ def visible_faces(patches, occ, offset=1e-4):
         for s in range(0, len(points), step):
             o = points[s:s + step] + offset * normals[s:s + step]
             j = src[s:s + step]
-            out[s:s + step] = ~_blocked(occ.side(o), st_all[j],
-                                        lambda p, f: np.einsum("kc,kmc->km", o[p], occ.m[f]) - occ.h[f],
-                                        lambda p, f: gt_all[j[p], f], o, tc[j], 2 * offset)
+            ends = np.concatenate([o, tc[j]])
+            lo, hi = ends.min(axis=0), ends.max(axis=0)
+            near = np.linalg.norm(np.maximum(np.maximum(lo - centre, centre - hi), 0.0), axis=1) <= radius
+            box = _box(ends)
+            sb = box @ occ.normal[near].T - occ.d[near]
+            f = np.flatnonzero(near)[(sb.min(axis=0) < 0) & (sb.max(axis=0) > 0)]
+            if not len(f):
+                continue
+            sub = occ.take(f)
+            out[s:s + step] = ~_blocked(sub.side(o), st_all[j[:, None], f],
+                                        lambda p, k: np.einsum("kc,kmc->km", o[p], sub.m[k]) - sub.h[k],
+                                        lambda p, k: np.einsum("kc,kmc->km", tc[j[p]], sub.m[k]) - sub.h[k],
+                                        o, tc[j], 2 * offset)
         return out
     return visible
 
 
-def clusters(points, leaf=CLUSTER_LEAF):
+def clusters(points, leaf=CLUSTER_LEAF, keys=None):
     """Index arrays of spatially compact groups of at most ``leaf`` points (median splits along the longest
-    side of the points' box)."""
-    out, todo = [], [np.arange(len(points))]
+    side of the points' box), within the groups of equal ``keys`` (e.g. the face a patch was cut from: a
+    cluster on one plane has tight bounds against the occluders) when given."""
+    keys = np.zeros(len(points), int) if keys is None else np.asarray(keys)
+    out, todo = [], [np.flatnonzero(keys == k) for k in np.unique(keys)]
     while todo:
         idx = todo.pop()
         if len(idx) <= leaf:
@@ -218,40 +262,129 @@ def clusters(points, leaf=CLUSTER_LEAF):
     return out
 
 
-def _classify(occ, box_a, box_b, s_a, s_b, end):
-    """Per occluder (F,), for every segment between a point of cluster a and one of cluster b (boxes (8, 3)
-    holding them; signed distances s (P, F) of their points): 0 none crosses it, 1 all do (before ``end`` of
-    either end), 2 undecided. All cross when the boxes lie on opposite sides of the plane and the 64 segments
-    between their corners cross inside the polygon (the plane's section of the hull of both boxes is the hull
-    of those 64 crossings); none when both clusters are on one side, or the 64 crossings are all outside one
-    edge."""
-    F = len(occ)
-    out = np.full(F, 2, np.int8)
-    lo_a, hi_a, lo_b, hi_b = s_a.min(axis=0), s_a.max(axis=0), s_b.min(axis=0), s_b.max(axis=0)
-    same = ((lo_a >= 0) & (lo_b >= 0)) | ((hi_a <= 0) & (hi_b <= 0))
+class _ClusterBounds:
+    """Per cluster and occluder (C, F): the extremes of the cluster's signed distances (lo, hi), the smallest
+    distance of its points strictly in front (pos) and strictly behind (neg; inf where none), and the gap from
+    its box to the occluder's bounding sphere (gap); per cluster its box's corners, centre and half-diagonal."""
+
+    def __init__(self, occ, pts, S, groups):
+        C, F = len(groups), len(occ)
+        self.lo, self.hi = np.empty((C, F)), np.empty((C, F))
+        self.pos, self.neg = np.empty((C, F)), np.empty((C, F))
+        self.box = np.empty((C, 8, 3))
+        lo3, hi3 = np.empty((C, 3)), np.empty((C, 3))
+        for g, idx in enumerate(groups):
+            s = S[idx]
+            self.lo[g], self.hi[g] = s.min(axis=0), s.max(axis=0)
+            self.pos[g] = np.where(s > 0, s, np.inf).min(axis=0)
+            self.neg[g] = np.where(s < 0, -s, np.inf).min(axis=0)
+            lo3[g], hi3[g] = pts[idx].min(axis=0), pts[idx].max(axis=0)
+            self.box[g] = _box(pts[idx])
+        self.lo3, self.hi3 = lo3, hi3
+        self.centre, self.radius = (lo3 + hi3) / 2, np.linalg.norm(hi3 - lo3, axis=1) / 2
+        centre = occ.polys.mean(axis=1)
+        self.occ_centre = centre
+        self.occ_radius = np.linalg.norm(occ.polys - centre[:, None], axis=2).max(axis=1)
+        out = np.maximum(np.maximum(lo3[:, None] - centre[None], centre[None] - hi3[:, None]), 0.0)
+        self.gap = np.linalg.norm(out, axis=2) - self.occ_radius[None]
+        groups_f = occ.group
+        G = int(groups_f.max()) + 1 if len(groups_f) else 0
+        self.slab_lo, self.slab_hi = np.zeros(G), np.zeros(G)
+        self.cl_lo, self.cl_hi = np.zeros((C, G)), np.zeros((C, G))
+        for g in range(G):
+            mine = groups_f == g
+            if not mine.any():
+                continue
+            n = occ.normal[mine].sum(axis=0)
+            n /= max(np.linalg.norm(n), 1e-300)
+            h = occ.polys[mine].reshape(-1, 3) @ n
+            self.slab_lo[g], self.slab_hi[g] = h.min(), h.max()
+            for k, idx in enumerate(groups):
+                e = pts[idx] @ n
+                self.cl_lo[k, g], self.cl_hi[k, g] = e.min(), e.max()
+        # per cluster and occluder: all points on one side of its plane (above, below), or of its slab (sabove,
+        # sbelow)
+        self.above, self.below = self.lo >= 0, self.hi <= 0
+        gg, warped = np.maximum(groups_f, 0), groups_f >= 0
+        if G:
+            self.sabove = warped[None] & (self.cl_lo[:, gg] > self.slab_hi[gg] + CULL_MARGIN)
+            self.sbelow = warped[None] & (self.cl_hi[:, gg] < self.slab_lo[gg] - CULL_MARGIN)
+        else:
+            self.sabove = self.sbelow = np.zeros((C, F), bool)
+
+
+CULL_MARGIN = 1e-9       # metres: a bound of _classify must clear the occluder by this much to rule it out
+
+
+def _classify(occ, cb, a, bs, end):
+    """(B, F) int8, per cluster b of ``bs`` and occluder, for every segment between a point of cluster a and one
+    of cluster b (:class:`_ClusterBounds` ``cb``): 0 none crosses it, 1 all do (before ``end`` of either end),
+    2 undecided.
+
+    None: both clusters on one side of the plane, or outside the slab of the non-planar face the occluder was
+    cut from (on one side of it); or the occluder's bounding sphere misses the capsule of
+    radius max(r_a, r_b) around the segment between the boxes' centres (it holds the hull of both boxes); or it
+    lies beyond the reach of every crossing: a segment p -> q with s_p < 0 < s_q crosses the plane at
+    |x − p| = |s_p| |q − p| / (|s_p| + s_q) <= M_a L / (M_a + m_b) from p (M_a the deepest of a's points behind,
+    m_b the nearest of b's in front, L the longest segment between the boxes), likewise from q, and x must lie
+    on the polygon, no nearer to a's box than its bounding sphere (either orientation); or the 64 segments
+    between the boxes' corners (when the boxes lie on opposite sides) all cross outside one edge. All: the
+    boxes on opposite sides and those 64 crossings all inside the polygon (the plane's section of the hull of
+    both boxes is the hull of those 64 crossings)."""
+    bs = np.asarray(bs)
+    out = np.full((len(bs), len(occ)), 2, np.int8)
+    same = (cb.above[a][None] & cb.above[bs]) | (cb.below[a][None] & cb.below[bs])
+    same |= (cb.sabove[a][None] & cb.sabove[bs]) | (cb.sbelow[a][None] & cb.sbelow[bs])
     out[same] = 0
-    ca, cb = occ.side(box_a), occ.side(box_b)                            # (8, F)
-    apart = ((ca.min(axis=0) > 0) & (cb.max(axis=0) < 0)) | ((ca.max(axis=0) < 0) & (cb.min(axis=0) > 0))
-    f = np.flatnonzero(apart & ~same)
+    lo_a, hi_a = cb.lo[a], cb.hi[a]
+    bi, f = np.nonzero(~same)
     if not len(f):
         return out
-    u = ca[:, None, f] / (ca[:, None, f] - cb[None, :, f])             # (8, 8, f)
-    x = box_a[:, None, None, :] + u[..., None] * (box_b[None, :, None, :] - box_a[:, None, None, :])
-    g = np.einsum("abfk,fmk->abfm", x, occ.m[f]) - occ.h[f]            # (8, 8, f, 4)
+    b = bs[bi]
+    ca = cb.centre[a]
+    seg = cb.centre[b] - ca                                                         # (K, 3)
+    t = np.clip(np.einsum("kc,kc->k", cb.occ_centre[f] - ca, seg) / np.maximum(np.einsum("kc,kc->k", seg, seg),
+                                                                                1e-300), 0.0, 1.0)
+    dist = np.linalg.norm(cb.occ_centre[f] - (ca + t[:, None] * seg), axis=1)
+    miss = dist > np.maximum(cb.radius[a], cb.radius[b]) + cb.occ_radius[f] + CULL_MARGIN
+    L = np.linalg.norm(np.maximum(np.abs(cb.hi3[b] - cb.lo3[a]), np.abs(cb.hi3[a] - cb.lo3[b])), axis=1)
+    ga, gb = cb.gap[a, f] - CULL_MARGIN, cb.gap[b, f] - CULL_MARGIN
+    la, ha, lb, hb = cb.lo[a, f], cb.hi[a, f], cb.lo[b, f], cb.hi[b, f]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        one = ((la < 0) & (hb > 0) & (ga <= -la * L / (-la + cb.pos[b, f])) & (gb <= hb * L / (hb + cb.neg[a, f])))
+        two = ((ha > 0) & (lb < 0) & (ga <= ha * L / (ha + cb.neg[b, f])) & (gb <= -lb * L / (-lb + cb.pos[a, f])))
+    cut = miss | ~(one | two)
+    out[bi[cut], f[cut]] = 0
+    bi, f = bi[~cut], f[~cut]
+    if not len(f):
+        return out
+    b = bs[bi]
+    box_a, box_b = cb.box[a], cb.box[b]                                             # (8, 3), (K, 8, 3)
+    ca8 = (box_a @ occ.normal.T - occ.d)[:, f]                                      # (8, K)
+    cb8 = (np.einsum("kec,kc->ek", box_b, occ.normal[f]) - occ.d[f])                # (8, K)
+    apart = ((ca8.min(axis=0) > 0) & (cb8.max(axis=0) < 0)) | ((ca8.max(axis=0) < 0) & (cb8.min(axis=0) > 0))
+    if not apart.any():
+        return out
+    bi, f, b, ca8, cb8, box_b = bi[apart], f[apart], b[apart], ca8[:, apart], cb8[:, apart], box_b[apart]
+    u = ca8[:, None] / (ca8[:, None] - cb8[None, :])                               # (8, 8, K)
+    x = box_a[:, None, None, :] + u[..., None] * (np.moveaxis(box_b, 1, 0)[None] - box_a[:, None, None, :])
+    g = np.einsum("abkc,kmc->abkm", x, occ.m[f]) - occ.h[f]                         # (8, 8, K, 4)
     inside = (g >= 0).all(axis=(0, 1, 3))
-    far = (np.minimum(np.abs(s_a[:, f]).min(axis=0), np.abs(s_b[:, f]).min(axis=0)) > end)
-    out[f[inside & far]] = 1
+    far = np.minimum(np.minimum(cb.pos[a, f], cb.neg[a, f]), np.minimum(cb.pos[b, f], cb.neg[b, f])) > end
+    out[bi[inside & far], f[inside & far]] = 1
     outside = (g < 0).all(axis=(0, 1)).any(axis=-1)
-    out[f[outside]] = 0
+    out[bi[outside], f[outside]] = 0
     return out
 
 
-def _crossed(sa, sb, ga, gb, pa, pb, end):
+def _crossed(sa, sb, ga, gb, pa, pb, end, ia, ib):
     """(A, B) bool: the segment between point a and point b crosses one of the occluders, given signed
     distances sa (A, F), sb (B, F) and edge values ga (A, F, 4), gb (B, F, 4) of their ends. At the crossing
     x = a + u (b − a), u = sa / (sa − sb), the edge value is (sa gb − sb ga) / (sa − sb): inside where
-    sign(sa) (sa gb − sb ga) >= 0 on every edge, no division. A crossing within ``end`` of either end does not
-    count (looked at only for the occluders that close to a point)."""
+    sign(sa) (sa gb − sb ga) >= 0 on every edge, no division. The ray runs from the point of the smaller index
+    (``ia``, ``ib``: the points' patch indices) to the other, as lab.radiosity.visibility_bvh casts it: a
+    crossing within ``end`` of its target does not count, one at its origin does (looked at only for the
+    occluders that close to a point)."""
     sg = np.sign(sa)
     abs_a, ga = (sa * sg)[:, None, :], (ga * sg[..., None])[:, None]
     sb2, gb2 = sb[None], gb[None]
@@ -266,7 +399,7 @@ def _crossed(sa, sb, ga, gb, pa, pb, end):
             sa_c, sb_c = sa[:, close], sb[:, close]
             u = sa_c[i, f] / (sa_c[i, f] - sb_c[j, f])
             dist = np.linalg.norm(pb[j] - pa[i], axis=1)
-            h[i, j, f] = (u * dist > end) & (u * dist < dist - end)
+            h[i, j, f] = np.where(ia[i] < ib[j], u * dist < dist - end, u * dist > end)
             hit[..., close] = h
     return hit.any(axis=2)
 
@@ -279,8 +412,8 @@ def _box(p):
 def visibility_faces(patches, occ, offset=1e-4, progress=None, leaf=CLUSTER_LEAF):
     """Centre-to-centre visibility (N, N) bool against :class:`Occluders` ``occ`` (:func:`occluders`): the
     pairs each in front of the other's plane (as :func:`candidate_pair_blocks`), each segment from centre to
-    centre lifted ``offset`` along the normals, a crossing within ``2 offset`` of its ends not counted (as
-    lab.radiosity.visibility_bvh casts it). Only the occluders with points on both sides of their plane count;
+    centre lifted ``offset`` along the normals, the ray from the smaller index to the larger, a crossing within
+    ``2 offset`` of its target not counted (as lab.radiosity.visibility_bvh casts it). Only the occluders with points on both sides of their plane count;
     the points are grouped in :func:`clusters` and every pair of clusters is first classified against each
     occluder (:func:`_classify`): rays are tested only against the occluders it leaves undecided.
     ``progress()`` is called between rows of clusters."""
@@ -290,28 +423,43 @@ def visibility_faces(patches, occ, offset=1e-4, progress=None, leaf=CLUSTER_LEAF
     occ = blocking(occ, pts)
     V = np.zeros((n, n), bool)
     S = occ.side(pts)
-    G = occ.edges(pts)
-    groups = clusters(pts, leaf)
-    boxes = [_box(pts[g]) for g in groups]
+    groups = clusters(pts, leaf, patches.owner * (int(patches.source.max()) + 1) * 2
+                      + patches.source * 2 + patches.back)
+    cb = _ClusterBounds(occ, pts, S, groups)
+    m3 = occ.m.reshape(-1, 3)
     end = 2 * offset
     for a, ia in enumerate(groups):
         if progress:
             progress()
-        for b in range(a, len(groups)):
-            ib = groups[b]
-            d = c[ib][None, :, :] - c[ia][:, None, :]
-            ok = (np.einsum("abk,ak->ab", d, nrm[ia]) > 1e-9) & (np.einsum("abk,bk->ab", d, nrm[ib]) < -1e-9)
-            if a == b:
-                ok &= ia[None, :] > ia[:, None]
-            if not ok.any():
+        rest = groups[a:]
+        ib = np.concatenate(rest)
+        start = np.cumsum([0] + [len(g) for g in rest])
+        d = c[ib][None, :, :] - c[ia][:, None, :]
+        ok = (np.einsum("abk,ak->ab", d, nrm[ia]) > 1e-9) & (np.einsum("abk,bk->ab", d, nrm[ib]) < -1e-9)
+        ok[:, :len(ia)] &= ia[None, :] > ia[:, None]
+        if len(occ):
+            row = _classify(occ, cb, a, np.arange(a, len(groups)), end)
+            blocked, open_ = (row == 1).any(axis=1), ~(row == 2).any(axis=1)
+        else:
+            blocked, open_ = np.zeros(len(rest), bool), np.ones(len(rest), bool)
+        ok[:, np.repeat(blocked, np.diff(start))] = False
+        free = ok & np.repeat(open_, np.diff(start))[None, :]
+        ra, rb = np.nonzero(free)
+        V[ia[ra], ib[rb]] = True
+        V[ib[rb], ia[ra]] = True
+        ga = None
+        for k in np.flatnonzero(~blocked & ~open_):
+            sub = ok[:, start[k]:start[k + 1]]
+            if not sub.any():
                 continue
-            cls = _classify(occ, boxes[a], boxes[b], S[ia], S[ib], end) if len(occ) else np.zeros(0, np.int8)
-            if (cls == 1).any():
-                continue
-            f = np.flatnonzero(cls == 2)
-            if len(f):
-                ok &= ~_crossed(S[ia][:, f], S[ib][:, f], G[ia][:, f], G[ib][:, f], pts[ia], pts[ib], end)
-            ra, rb = np.nonzero(ok)
-            V[ia[ra], ib[rb]] = True
-            V[ib[rb], ia[ra]] = True
+            jb = rest[k]
+            f = np.flatnonzero(row[k] == 2)
+            if ga is None:
+                ga = (pts[ia] @ m3.T).reshape(len(ia), len(occ), 4) - occ.h
+            gb = (pts[jb] @ occ.m[f].reshape(-1, 3).T).reshape(len(jb), len(f), 4) - occ.h[f]
+            sub = sub & ~_crossed(S[ia[:, None], f], S[jb[:, None], f], ga[:, f], gb, pts[ia], pts[jb], end,
+                                  ia, jb)
+            ra, rb = np.nonzero(sub)
+            V[ia[ra], jb[rb]] = True
+            V[jb[rb], ia[ra]] = True
     return V

@@ -48,7 +48,7 @@ def _timed_solve(meshes, edge, path):
     import time
     from ...core.radiosity import gather
     c0 = time.process_time()
-    r = lrad.solve_scene(meshes, edge, "gauss_seidel", 1e-5, **PATHS[path])
+    r = lrad.solve_scene(meshes, edge, "jacobi", 1e-5, **PATHS[path])
     t0 = time.perf_counter()
     g = gather.near_field_gather(r["patches"], r["F"], r["solution"].B, r["near_field"])
     t = dict(r["timings"])
