@@ -115,7 +115,7 @@ def add_options(p, cls, skip=()):
         if kind is bool:
             if default:
                 flag = spec.flag or "--no-" + name.replace("_", "-")
-                kw.update(action="store_false")
+                kw.update(action="store_false", help="do not " + help_)
             else:
                 kw.update(action="store_true")
             kw.pop("default")

@@ -37,6 +37,19 @@ def test_after_double_dash_arguments_belong_to_the_script():
     assert _cli.script_argv(["scripts/x.py", "f.blend", "--out", "d"]) == ["f.blend", "--out", "d"]
 
 
+def test_a_switch_that_turns_an_option_off_says_so():
+    """A True-default option becomes --no-NAME (store_false): its help says what it stops, not what it does."""
+    import argparse
+    import _cli_path  # noqa: F401
+    import _cli
+    from addon.lab.options import RadiosityOptions
+    p = _cli.add_options(_cli.parser("x.py", "test", blend_file=False), RadiosityOptions)
+    off = [a for a in p._actions if isinstance(a, argparse._StoreFalseAction)]
+    assert [a.option_strings for a in off] == [["--no-compare"]]
+    assert off[0].help == "do not bake the same objects with Cycles and report the difference"
+    assert p.parse_args(["--no-compare"]).compare is False and p.parse_args([]).compare is True
+
+
 def test_missing_blend_file_exits_two(script, tmp_path):
     proc = script("build_extension.py", "--help")
     assert proc.returncode == 0
