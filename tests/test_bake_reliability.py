@@ -291,14 +291,14 @@ def test_ctrl_c_during_a_cycles_bake_stops_with_130_and_leaves_nothing(tmp_path)
     data = blend.read_bytes()
     out = tmp_path / "maps"
     p = subprocess.Popen([sys.executable, os.path.join(ROOT, "scripts", "bake.py"), str(blend), "--objects",
-                          "Floor", "--maps", "ao", "--resolution", "128", "--samples", "256", "--out", str(out)],
+                          "Floor", "--maps", "ao", "--resolution", "512", "--samples", "1024", "--out", str(out)],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
     seen = ""
     while "Floor: ao" not in seen:                         # the step line comes right before the Cycles call
         line = p.stderr.readline()
         assert line, seen
         seen += line
-    time.sleep(0.5)
+    time.sleep(0.5)                                     # inside the bake (64 x the work of 128² at 256 spp: ~0.4 s)
     p.send_signal(signal.SIGINT)
     _, err = p.communicate(timeout=300)
     lines = [l for l in err.strip().splitlines() if l.strip() and not l.startswith("Info")]
