@@ -410,10 +410,9 @@ def _build_light_half(tree, name):
 
 
 def _build_light(tree):
+    """The public "IL Light": every type's part (the per-type groups' own builders), the one of Type selected."""
     g = Graph(tree)
     i, o = _io(g)
-    four_pi2 = 4.0 * math.pi ** 2
-    R = g.reg
     with g.block("Surface"):
         geo = g.node("ShaderNodeNewGeometry")
         g.registers(geo)
@@ -421,40 +420,21 @@ def _build_light(tree):
     with g.block("Type switches"):
         is_t = [g.math("COMPARE", i["Type"], float(k), 0.5, label=name)
                 for k, name in enumerate(("point", "spot", "sun", "hemisphere"))]
-    with g.block("Point: vector and attenuation"):
-        lvec_p = g.vmath("SUBTRACT", i["Position"], p, label="position - p")
-        d2 = g.dot(lvec_p, lvec_p, label="d^2")
-        phys = g.div(R(1.0), g.max(d2, R(brdf.TINY)), label="1/d^2")
-        poly = g.madd(R(i["C3"], "c3"), d2, g.madd(R(i["C2"], "c2"), g.math("SQRT", d2, label="d"), R(i["C1"], "c1")),
-                      label="c1 + c2 d + c3 d^2")
-        emp = g.min(g.div(R(1.0), g.max(poly, R(brdf.TINY))), R(1.0), label="min(1/(...), 1)")
-        att = g.lerp(emp, phys, i["Physical"], label="f_att")
-    with g.block("Spot: cutoff and (s.s')^k"):
-        minus_s = g.scale(g.normalize(i["Direction"]), -1.0, label="-s")
-        cos_ss = g.dot(g.normalize(lvec_p), minus_s, label="s.s'")
-        inside = g.math("GREATER_THAN", cos_ss, g.math("COSINE", i["Spot Cutoff"]), label="inside cone")
-        fall = g.mul(inside, g.pow(g.max(cos_ss, R(0.0)), R(i["Spot Exponent"], "k")), label="spot falloff")
-    with g.block("Point and spot: colour P/(4 pi^2) f_att (s.s')^k"):
-        k_ps = g.mul(att, g.add(is_t[0], g.mul(is_t[1], fall)), label="f_att, times the falloff for a spot")
-        col_ps = g.scale(g.scale(i["Color"], g.div(i["Power"], four_pi2), label="colour P/(4 pi^2)"),
-                         g.mul(k_ps, g.add(is_t[0], is_t[1])), label="point/spot colour")
-    with g.block("Sun and hemisphere"):
-        sun_l = g.scale(i["Direction"], -1.0, label="-direction")
-        sun_i = g.div(i["Power"], math.pi, label="S/pi")
-        w = g.div(g.add(1.0, g.dot(g.normalize(n), g.normalize(sun_l))), 2.0, label="(1 + n.u)/2")
-        hemi_c = g.vlerp(i["Ground Color"], i["Color"], w, label="mix(ground, sky)")
+    parts = [_point_part(g, i, p, spot=is_t[1]), _sun_part(g, i), _hemi_part(g, i, n)]
     with g.block("Select by type"):
-        lvec = g.vadd(g.scale(lvec_p, g.add(is_t[0], is_t[1])),
-                      g.vadd(g.scale(sun_l, is_t[2]), g.scale(n, is_t[3])), label="Light Vector")
-        col = g.vadd(col_ps, g.vadd(g.scale(i["Color"], g.mul(sun_i, is_t[2])),
-                                    g.scale(hemi_c, g.mul(sun_i, is_t[3]))), label="Light Color")
+        on = [g.add(is_t[0], is_t[1], label="point or spot"), is_t[2], is_t[3]]
+        lvec = g.vadd(g.scale(parts[0][0], on[0]), g.vadd(g.scale(parts[1][0], on[1]), g.scale(parts[2][0], on[2])),
+                      label="Light Vector")
+        col = g.vadd(g.scale(parts[0][1], on[0]), g.vadd(g.scale(parts[1][1], on[1]), g.scale(parts[2][1], on[2])),
+                     label="Light Color")
     g.feed(lvec, o["Light Vector"])
     g.feed(col, o["Light Color"])
     g.layout()
 
 
 def _point_part(g, i, p, spot):
-    """Light Vector and I of a point (or spot) light: P/(4 pi^2) f_att, times (s.s')^k inside a spot's cone."""
+    """Light Vector and I of a point (or spot) light: P/(4 pi^2) f_att, times (s.s')^k inside a spot's cone.
+    ``spot``: False, True, or a socket that is 1 for a spot and 0 for a point (the public group's switch)."""
     R = g.reg
     with g.block("Vector and attenuation"):
         lvec = g.vmath("SUBTRACT", i["Position"], p, label="position - p")
@@ -470,11 +450,31 @@ def _point_part(g, i, p, spot):
             cos_ss = g.dot(g.normalize(lvec), minus_s, label="s.s'")
             inside = g.math("GREATER_THAN", cos_ss, g.math("COSINE", i["Spot Cutoff"]), label="inside cone")
             fall = g.mul(inside, g.pow(g.max(cos_ss, R(0.0)), R(i["Spot Exponent"], "k")), label="spot falloff")
+            if spot is not True:
+                fall = g.lerp(R(1.0), fall, spot, label="falloff of a spot, 1 for a point")
             att = g.mul(att, fall, label="f_att (s.s')^k")
     with g.block("Colour P/(4 pi^2) f_att"):
         col = g.scale(g.scale(i["Color"], g.div(i["Power"], 4.0 * math.pi ** 2), label="colour P/(4 pi^2)"), att,
                       label="Light Color")
     return lvec, col
+
+
+def _sun_part(g, i):
+    """Light Vector -direction and I = colour S/pi of a sun."""
+    with g.block("Sun: -direction, colour S/pi"):
+        lvec = g.scale(i["Direction"], -1.0, label="-direction")
+        col = g.scale(i["Color"], g.div(i["Power"], math.pi, label="S/pi"), label="sun colour")
+    return lvec, col
+
+
+def _hemi_part(g, i, n):
+    """Light Vector n and I = mix(ground, sky, (1 + n.u)/2) S/pi of a hemisphere light (u = -direction)."""
+    with g.block("Hemisphere: l = n, mix(ground, sky, (1 + n.u)/2) S/pi"):
+        sun_l = g.scale(i["Direction"], -1.0, label="u = -direction")
+        w = g.div(g.add(1.0, g.dot(g.normalize(n), g.normalize(sun_l))), 2.0, label="(1 + n.u)/2")
+        hemi_c = g.vlerp(i["Ground Color"], i["Color"], w, label="mix(ground, sky)")
+        col = g.scale(hemi_c, g.div(i["Power"], math.pi, label="S/pi"), label="hemisphere colour")
+    return n, col
 
 
 def _build_light_of(tree, kind):
@@ -488,17 +488,9 @@ def _build_light_of(tree, kind):
     if kind in ("POINT", "SPOT"):
         lvec, col = _point_part(g, i, geo.outputs["Position"], kind == "SPOT")
     elif kind == "SUN":
-        with g.block("Sun: -direction, colour S/pi"):
-            lvec = g.scale(i["Direction"], -1.0, label="Light Vector")
-            col = g.scale(i["Color"], g.div(i["Power"], math.pi, label="S/pi"), label="Light Color")
+        lvec, col = _sun_part(g, i)
     else:
-        n = geo.outputs["Normal"]
-        with g.block("Hemisphere: l = n, mix(ground, sky, (1 + n.u)/2) S/pi"):
-            sun_l = g.scale(i["Direction"], -1.0, label="u = -direction")
-            w = g.div(g.add(1.0, g.dot(g.normalize(n), g.normalize(sun_l))), 2.0, label="(1 + n.u)/2")
-            hemi_c = g.vlerp(i["Ground Color"], i["Color"], w, label="mix(ground, sky)")
-            lvec = n
-            col = g.scale(hemi_c, g.div(i["Power"], math.pi, label="S/pi"), label="Light Color")
+        lvec, col = _hemi_part(g, i, geo.outputs["Normal"])
     g.feed(lvec, o["Light Vector"])
     g.feed(col, o["Light Color"])
     g.layout()
