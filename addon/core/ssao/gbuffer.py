@@ -136,6 +136,17 @@ def view_vectors(gb, pos):
     return np.broadcast_to(np.array([0, 0, 1], np.float32), pos.shape)
 
 
+def _cell(x, n):
+    """(x0, f) of sub-pixel coordinates ``x`` along an axis of ``n`` pixels: x clamped to [0, n - 1],
+    x0 = min(floor(x), n - 2) (0 when n = 1), f = x - x0 in float32."""
+    f = np.maximum(x, np.float32(0.0), out=np.empty(x.shape, np.result_type(x, np.float32)))
+    np.minimum(f, np.float32(n - 1), out=f)
+    x0 = np.floor(f)
+    np.minimum(x0, np.float32(n - 2 if n > 1 else 0), out=x0)
+    f -= x0
+    return x0, f.astype(np.float32, copy=False)
+
+
 def lookup_at(gb, x, y):
     """Bilinear interpolation of :attr:`GBuffer.lookup` (1/z or z) at sub-pixel (x, y); returns (value, on_screen).
 
@@ -148,18 +159,8 @@ def lookup_at(gb, x, y):
     on &= x <= w - 0.5
     on &= y >= -0.5
     on &= y <= h - 0.5
-    fx = np.maximum(x, np.float32(0.0), out=np.empty(x.shape, np.result_type(x, np.float32)))
-    np.minimum(fx, np.float32(w - 1), out=fx)
-    x0 = np.floor(fx)
-    np.minimum(x0, np.float32(w - 2 if w > 1 else 0), out=x0)
-    fx -= x0
-    fx = fx.astype(np.float32, copy=False)
-    fy = np.maximum(y, np.float32(0.0), out=np.empty(y.shape, np.result_type(y, np.float32)))
-    np.minimum(fy, np.float32(h - 1), out=fy)
-    y0 = np.floor(fy)
-    np.minimum(y0, np.float32(h - 2 if h > 1 else 0), out=y0)
-    fy -= y0
-    fy = fy.astype(np.float32, copy=False)
+    x0, fx = _cell(x, w)
+    y0, fy = _cell(y, h)
     index = y0.astype(np.int32)
     index *= w
     index += x0.astype(np.int32)
