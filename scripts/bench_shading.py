@@ -10,8 +10,8 @@ materials alternating in each repeat. Prints seconds, the ratio over the Princip
 set, the same for CPU seconds (all threads; steadier than wall time when other jobs share the cores),
 nanoseconds per camera sample, the cost of each extra light, the node count of each group, and the
 machine's load average (the machine is shared: ratios from one run are what count). "nodes/light" is what
-Blender converts for each light at every render (a point light's group and the model's light half), "nodes once"
-the model's surface half.
+Blender converts for each light at every render (a point light's group and the model's light half, the variants
+the material's switch values select), "nodes once" the model's surface half.
 """
 import os
 import sys

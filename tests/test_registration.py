@@ -3,6 +3,7 @@ import bpy
 import pytest
 
 import addon
+from addon.nodes import material
 
 pytestmark = pytest.mark.both_versions
 
@@ -37,9 +38,13 @@ def test_unregister_leaves_nothing_and_register_again_works(addon_registered):
             assert not hasattr(bpy.types, f"ILLUMINATION_OT_{op}")
         leftovers = [c for c in dir(bpy.types) if c.startswith(("IL_", "ILLUMINATION_"))]
         assert leftovers == []
+        handlers = [fn for name in ("depsgraph_update_post", "render_pre", "load_post")
+                    for fn in getattr(bpy.app.handlers, name) if fn.__module__.startswith("addon.")]
+        assert handlers == []
     finally:
         addon.register()
     assert _registered_panels() == set(PANELS)
+    assert material.on_depsgraph_update in bpy.app.handlers.depsgraph_update_post
     assert bpy.context.scene.illumination is not None
 
 

@@ -210,6 +210,77 @@ def test_material_sums_model_over_lights_like_the_twin(model, params, twin, kw):
     assert np.max(np.abs(L - ref)) <= 2e-4 * np.max(ref)
 
 
+def _halves(mat, light):
+    return (mat.node_tree.nodes[f"IL Cook-Torrance: {light}"].node_tree.name,
+            mat.node_tree.nodes[f"IL Light: {light}"].node_tree.name)
+
+
+def _switch_links(tree):
+    gin = next(n for n in tree.nodes if n.bl_idname == "NodeGroupInput")
+    return [k for k in ("Distribution", "Geometry", "Physical") if k in gin.outputs and gin.outputs[k].links]
+
+
+@pytest.mark.both_versions
+def test_constant_switches_link_groups_without_the_unused_branches_and_follow_edits():
+    """Blender converts every node a material reaches at every render, also a switch's unused branch: a material
+    links the internal groups built with its switches fixed (no switch read, fewer nodes), and follows edits of
+    the hub nodes; a value between 0 and 1, a keyframed or a driven switch gets the group with both branches."""
+    scene, ball = _scene_with_ball(8)
+    sc.light(scene, "Key", "POINT", 100.0, location=(1.0, -2.0, 1.0))
+    mat, _ = material.assign_shading_model(scene, [ball], "COOK_TORRANCE")
+    hubs = mat.node_tree.nodes
+    update = scene.view_layers[0].update
+    assert _halves(mat, "Key") == (".IL Cook-Torrance Light [GGX, Smith]", ".IL Light Point [1 over d^2]")
+    for name in _halves(mat, "Key"):
+        variant, base = bpy.data.node_groups[name], bpy.data.node_groups[name.split(" [")[0]]
+        assert _switch_links(variant) == [] and _switch_links(base) != []
+        assert len(variant.nodes) < len(base.nodes)
+    hubs["Distribution"].outputs[0].default_value = 0.0
+    update()
+    assert _halves(mat, "Key") == (".IL Cook-Torrance Light [Beckmann, Smith]", ".IL Light Point [1 over d^2]")
+    hubs["Geometry"].outputs[0].default_value = 0.0
+    hubs["Physical"].outputs[0].default_value = 0.0
+    update()
+    assert _halves(mat, "Key") == (".IL Cook-Torrance Light [Beckmann, Cook-Torrance 1982]",
+                                   ".IL Light Point [empirical]")
+    hubs["Distribution"].outputs[0].default_value = 0.5
+    update()
+    assert _halves(mat, "Key")[0] == ".IL Cook-Torrance Light"
+    hubs["Distribution"].outputs[0].default_value = 1.0
+    hubs["Distribution"].outputs[0].keyframe_insert("default_value", frame=1)
+    update()
+    assert _halves(mat, "Key")[0] == ".IL Cook-Torrance Light"
+    hubs["Distribution"].outputs[0].keyframe_delete("default_value", frame=1)   # tags nothing: the next render
+    bpy.ops.render.render(scene=scene.name)                                      # relinks (render handler)
+    assert _halves(mat, "Key")[0] == ".IL Cook-Torrance Light [GGX, Cook-Torrance 1982]"
+    fc = hubs["Physical"].outputs[0].driver_add("default_value")
+    fc.driver.expression = "1.0"
+    update()
+    assert _halves(mat, "Key")[1] == ".IL Light Point"
+
+
+def test_a_switch_set_from_python_then_rendered_renders_the_model_it_selects():
+    """A script that sets a switch and renders at once (``blender -b``: no depsgraph update in between) gets the
+    group that switch selects (render handler), and the picture the twin gives; Geometry 0.4 mixes both G terms
+    as the public group does."""
+    scene, ball = _scene_with_ball(32)
+    key = sc.light(scene, "Key", "POINT", 120.0, location=(1.5, -2.5, 1.0), color=(1.0, 0.8, 0.6))
+    sun = sc.light(scene, "Sun", "SUN", 1.5, rotation=sc.deg(30, 10, 20))
+    mat, _ = material.assign_shading_model(scene, [ball], "COOK_TORRANCE", params={"Roughness": 0.3, "F0": 0.5})
+    hubs = mat.node_tree.nodes
+    hubs["Distribution"].outputs[0].default_value = 0.0
+    bpy.ops.render.render(scene=scene.name)
+    assert _halves(mat, "Key")[0] == ".IL Cook-Torrance Light [Beckmann, Smith]"
+    v = _camera_view(scene)
+    for dist, geom in ((0.0, 0.0), (1.0, 0.4)):
+        hubs["Distribution"].outputs[0].default_value = dist
+        hubs["Geometry"].outputs[0].default_value = geom
+        p, n, L = _pixels(scene)
+        ref = _twin_sum([key, sun], p, n, v, brdf.cook_torrance, roughness=0.3, F0=0.5, distribution=dist,
+                        geometry=geom, kd=(0.2, 0.2, 0.2))
+        assert np.max(np.abs(L - ref)) <= 2e-4 * np.max(ref), (dist, geom)
+
+
 def test_public_il_light_group_gives_what_the_per_type_groups_give():
     """Materials link each light through its type's own group; the public "IL Light" (every type behind its
     Type switch) put in their place renders the same, for a point, a spot, a sun and a hemisphere light."""
@@ -224,7 +295,7 @@ def test_public_il_light_group_gives_what_the_per_type_groups_give():
     mat, _ = material.assign_shading_model(scene, [ball], "COOK_TORRANCE", attenuation="EMPIRICAL",
                                            coefficients=(0.5, 0.3, 0.2), params={"Spot Exponent": 2.0})
     light_nodes = [n for n in mat.node_tree.nodes if n.get("il_light")]
-    assert sorted(n.node_tree.name for n in light_nodes) == sorted(groups.LIGHT_OF_TYPE.values())
+    assert sorted(n.node_tree["il_base"] for n in light_nodes) == sorted(groups.LIGHT_OF_TYPE.values())
     _, _, L = _pixels(scene)
     for node in light_nodes:
         node.node_tree = bpy.data.node_groups[groups.LIGHT]

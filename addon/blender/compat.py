@@ -102,3 +102,13 @@ BLEND_RELATIVE_PATH = ({"PATH_SUPPORTS_BLEND_RELATIVE"}
 
 #: Name of Cycles' Diffuse Direct pass in a multilayer EXR (and render_layers' dict), renamed in 5.0.
 DIFFUSE_DIRECT_PASS = "Diffuse Direct" if IS_5 else "DiffDir"
+
+
+def fcurves(anim_data):
+    """The F-curves of ``anim_data``'s action for its slot (layered actions in both versions), or []."""
+    from bpy_extras import anim_utils
+    action = getattr(anim_data, "action", None)
+    if action is None:
+        return []
+    bag = anim_utils.action_get_channelbag_for_slot(action, anim_data.action_slot)
+    return list(bag.fcurves) if bag is not None else []

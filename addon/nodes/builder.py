@@ -86,6 +86,8 @@ class Graph:
         """``value`` (a number or a socket that is constant in practice) as the output of a node computed
         once per shading point. Cycles' SVM loads a constant operand before every node that takes it,
         which costs about as much as the operation; a linked operand costs nothing."""
+        if not is_socket(value) and value == 0.0:
+            return self._zero
         key = ("f", value if not is_socket(value) else value.as_pointer())
         if key not in self._regs:
             self._regs[key] = self.math("ADD", self._zero, value, label=label or f"{value:g}"
@@ -140,7 +142,10 @@ class Graph:
 
     def lerp(self, a, b, t, label=None):
         """a (1 - t) + b t in one Mix node: with a constant t of 0 or 1 Cycles keeps only the chosen
-        branch (constant folding), with a linked t both are evaluated."""
+        branch (constant folding), with a linked t both are evaluated. A switch fixed when the group is
+        built (``t`` the number 0 or 1) is the chosen branch itself, no node."""
+        if not is_socket(t) and t in (0.0, 1.0):
+            return b if t else a
         n = self.node("ShaderNodeMix", label=label, data_type="FLOAT", clamp_factor=False)
         self.feed(t, self._by_id(n.inputs, "Factor_Float"))
         self.feed(a, self._by_id(n.inputs, "A_Float"))
@@ -186,6 +191,25 @@ class Graph:
 
     def vlerp(self, a, b, t, label=None):
         return self.vadd(a, self.scale(self.vmath("SUBTRACT", b, a), t), label=label)
+
+    def prune(self):
+        """Remove every node the group output does not read (the unchosen branches of fixed switches)."""
+        keep, todo = set(), [n for n in self.nodes if n.bl_idname == "NodeGroupOutput"]
+        while todo:
+            node = todo.pop()
+            if node.name not in keep:
+                keep.add(node.name)
+                todo.extend(lk.from_node for s in node.inputs for lk in s.links)
+        keep |= {n.name for n in self.nodes if n.bl_idname == "NodeGroupInput"}
+        dead = [n for n in self.nodes if n.bl_idname != "NodeFrame" and n.name not in keep]
+        dead_names = {n.name for n in dead}
+        self.blocks = [[n for n in b if n.name not in dead_names] for b in self.blocks]
+        for node in dead:
+            self.nodes.remove(node)
+        for k, frame in enumerate(self.frames):
+            if frame is not None and not self.blocks[k]:
+                self.nodes.remove(frame)
+                self.frames[k] = None
 
     # -- layout -----------------------------------------------------------------------------------
     def layout(self, x0=0.0, y0=0.0):

@@ -12,17 +12,19 @@ rebuilt in place (same datablock, sockets kept by name), so materials using it
 update without relinking.
 
 Materials use internal groups built from the same code (names start with a dot, see
-:data:`INTERNAL`): each model's surface half and light half, and "IL Light" for one light type.
+:data:`INTERNAL`): each model's surface half and light half, and "IL Light" for one light type;
+and their variants with the switch inputs fixed at 0 or 1 (:func:`variant`), which hold only the
+chosen branches.
 """
 import math
 
 import bpy
 
 from ..core import brdf
-from .builder import Graph
+from .builder import Graph, is_socket
 
 #: Bump whenever a group's contents or sockets change: older groups in a file are rebuilt.
-GROUP_VERSION = 7
+GROUP_VERSION = 8
 
 PHONG, BLINN_PHONG, OREN_NAYAR, COOK_TORRANCE, LIGHT = (
     "IL Phong", "IL Blinn-Phong", "IL Oren-Nayar", "IL Cook-Torrance", "IL Light")
@@ -257,11 +259,12 @@ def _cook_torrance_surface(g, i):
     R = g.reg
     with g.block("Surface: roughness, constants"):
         r = g.max(i["Roughness"], brdf.MIN_ROUGHNESS, label="m or alpha (>= 1e-3)")
-        r2 = g.mul(r, r)
-        s.update({"r^2": R(r2, "r^2"), "1/r": R(g.div(1.0, r), "1/r"), "1 - r^2": R(g.sub(1.0, r2), "1 - r^2"),
-                  "r^2/4": R(g.mul(r2, 0.25), "r^2/4"), "(1 - r^2)/4": R(g.mul(g.sub(1.0, r2), 0.25), "(1 - r^2)/4"),
-                  "pi r^2": R(g.mul(r2, math.pi), "pi r^2"), "r^2 - 1": R(g.sub(r2, 1.0), "r^2 - 1"),
-                  "r^2/pi": R(g.div(r2, math.pi), "r^2/pi")})
+        r2 = R(g.mul(r, r), "r^2")
+        # terms of a register are registers themselves (one node each, computed once per shading point)
+        s.update({"r^2": r2, "1/r": R(g.div(1.0, r), "1/r"), "1 - r^2": g.sub(1.0, r2, label="1 - r^2"),
+                  "r^2/4": g.mul(r2, 0.25, label="r^2/4"), "(1 - r^2)/4": g.madd(r2, -0.25, 0.25, label="(1 - r^2)/4"),
+                  "pi r^2": g.mul(r2, math.pi, label="pi r^2"), "r^2 - 1": g.sub(r2, 1.0, label="r^2 - 1"),
+                  "r^2/pi": g.mul(r2, 1.0 / math.pi, label="r^2/pi")})
         for value in (1.0, 5.0, brdf.EPS, brdf.TINY, 0.396, -1.259, 2.181, 3.535, 1.6):
             s[f"{value:g}"] = R(value)
     n_v = s["n.v"]
@@ -273,6 +276,9 @@ def _cook_torrance_surface(g, i):
                   label="k = pi k_s / (4 n.v), 0 unless n.v > 0")
         s["F0 k"] = g.mul(k, i["F0"], label="F0 k")
         s["(1 - F0) k"] = g.mul(k, g.sub(1.0, i["F0"]), label="(1 - F0) k")
+        s["F0 k r^2/pi"] = g.mul(s["F0 k"], s["r^2/pi"], label="F0 k r^2/pi")
+        s["(1 - F0) k r^2/pi"] = g.mul(s["(1 - F0) k"], s["r^2/pi"], label="(1 - F0) k r^2/pi")
+        s["(1, 1, 1)"] = g.vreg((1.0, 1.0, 1.0), "(1, 1, 1)")
         s["k_d"] = g.vreg(i["Kd"], "k_d")
     return s
 
@@ -305,6 +311,8 @@ def _cook_torrance_light(g, i, s):
         n_h = g.dot(n, h, label="n.h")
         v_h = g.dot(v, h, label="v.h")
         a_l = g.max(n_l, zero, label="max(n.l, 0)")
+    if (dist, geom) == (1.0, 1.0):
+        return _ggx_smith_factor(g, s, n_h, v_h, a_l)
     # n.h enters D and G unclamped at 0 where the twin clamps it: those points have n.l <= 0 or n.v <= 0
     # (n.h = (n.l + n.v)/|l + v|), where G or k makes the specular 0 (both stay finite there).
     with g.block("D: Beckmann"):
@@ -337,6 +345,24 @@ def _cook_torrance_light(g, i, s):
     with g.block("L = I (k_d n.l + pi k_s F D G / (4 n.v)), specular 0 unless n.l, n.v > 0"):
         spec = g.mul(g.mul(Fk, D), G, label="specular")
         return g.add_scaled(spec, s["k_d"], a_l, label="k_d n.l + specular")
+
+
+def _ggx_smith_factor(g, s, n_h, v_h, a_l):
+    """GGX with the height-correlated Smith G (both switches at 1, the default) in fewer nodes than the
+    general form: with t = (n.h)^2 (a^2 - 1) + 1 and G = a_l / (a_l s(v)/2 + sqrt(a^2 + (1 - a^2) a_l^2)/2),
+    D G = (a^2/pi) a_l / (t^2 den), so k_d a_l + F k D G = a_l (k_d + F k (a^2/pi) / (t^2 den)) (REFERENCE.md
+    sec. 1, Walter et al. 2007 eq. 33 and 34; the same values as the general form)."""
+    with g.block("D G / a_l: (a^2/pi) / (t^2 (a_l s(v)/2 + sqrt(a^2 + (1 - a^2) a_l^2)/2))"):
+        t = g.madd(g.mul(n_h, n_h), s["r^2 - 1"], s["1"], label="t = (n.h)^2 (a^2 - 1) + 1")
+        half_root = g.math("SQRT", g.madd(g.mul(a_l, a_l), s["(1 - r^2)/4"], s["r^2/4"]),
+                           label="sqrt(a^2 + (1 - a^2) (n.l)^2)/2")
+        den = g.mul(g.mul(t, t, label="t^2"), g.madd(a_l, s["s GGX(v)/2"], half_root), label="t^2 den")
+    with g.block("F k a^2/pi: Schlick, F0 + (1 - F0)(1 - v.h)^5 with v.h in [0, 1]"):
+        one_minus = g.math("SUBTRACT", s["1"], v_h, clamp=True, label="1 - v.h, clamped to [0, 1]")
+        fk = g.madd(g.pow(one_minus, s["5"]), s["(1 - F0) k r^2/pi"], s["F0 k r^2/pi"], label="F k a^2/pi")
+    with g.block("a_l (k_d + F k D G / a_l)"):
+        per_nl = g.add_scaled(s["k_d"], s["(1, 1, 1)"], g.div(fk, den), label="k_d + F k D G / a_l")
+        return g.scale(per_nl, a_l, label="k_d n.l + specular")
 
 
 #: model group: (surface half, light half, the switch inputs the light half reads, surface term added once).
@@ -399,13 +425,15 @@ def _light_half_inputs(name):
     return _LIGHT_IN + [SUM] + switches + keys
 
 
-def _build_light_half(tree, name):
+def _build_light_half(tree, name, fixed=()):
     g = Graph(tree)
     i, o = _io(g)
+    i = _Fixed(i, fixed)
     keys = [it.name for it in tree.interface.items_tree if it.item_type == "SOCKET" and it.in_out == "INPUT"]
     s = {k: i[k] for k in keys}
     g.feed(g.vmath("MULTIPLY_ADD", i["Light Color"], HALVES[name][1](g, i, s), i[SUM[0]],
                    label="radiance so far + I factor"), o["Color"])
+    g.prune()
     g.layout()
 
 
@@ -436,6 +464,8 @@ def _point_part(g, i, p, spot):
     """Light Vector and I of a point (or spot) light: P/(4 pi^2) f_att, times (s.s')^k inside a spot's cone.
     ``spot``: False, True, or a socket that is 1 for a spot and 0 for a point (the public group's switch)."""
     R = g.reg
+    if not is_socket(i["Physical"]) and i["Physical"] == 1.0:
+        return _point_part_physical(g, i, p, spot)
     with g.block("Vector and attenuation"):
         lvec = g.vmath("SUBTRACT", i["Position"], p, label="position - p")
         d2 = g.dot(lvec, lvec, label="d^2")
@@ -445,18 +475,38 @@ def _point_part(g, i, p, spot):
         emp = g.min(g.div(R(1.0), g.max(poly, R(brdf.TINY))), R(1.0), label="min(1/(...), 1)")
         att = g.lerp(emp, phys, i["Physical"], label="f_att")
     if spot:
-        with g.block("Spot: cutoff and (s.s')^k"):
-            minus_s = g.scale(g.normalize(i["Direction"]), -1.0, label="-s")
-            cos_ss = g.dot(g.normalize(lvec), minus_s, label="s.s'")
-            inside = g.math("GREATER_THAN", cos_ss, g.math("COSINE", i["Spot Cutoff"]), label="inside cone")
-            fall = g.mul(inside, g.pow(g.max(cos_ss, R(0.0)), R(i["Spot Exponent"], "k")), label="spot falloff")
-            if spot is not True:
-                fall = g.lerp(R(1.0), fall, spot, label="falloff of a spot, 1 for a point")
-            att = g.mul(att, fall, label="f_att (s.s')^k")
+        fall = _spot_falloff(g, i, lvec)
+        if spot is not True:
+            fall = g.lerp(R(1.0), fall, spot, label="falloff of a spot, 1 for a point")
+        att = g.mul(att, fall, label="f_att (s.s')^k")
     with g.block("Colour P/(4 pi^2) f_att"):
         col = g.scale(g.scale(i["Color"], g.div(i["Power"], 4.0 * math.pi ** 2), label="colour P/(4 pi^2)"), att,
                       label="Light Color")
     return lvec, col
+
+
+def _point_part_physical(g, i, p, spot):
+    """:func:`_point_part` with Physical fixed at 1: I = (colour P/(4 pi^2)) (s.s')^k / d^2 in one Vector Math
+    divide (Cycles' divide is 0 where d = 0, the twin's 1/max(d^2, 1e-12) is finite there too: both are
+    undefined at the light's own position)."""
+    with g.block("Vector, d^2"):
+        lvec = g.vmath("SUBTRACT", i["Position"], p, label="position - p")
+        d2 = g.dot(lvec, lvec, label="d^2")
+    col = g.scale(i["Color"], g.div(i["Power"], 4.0 * math.pi ** 2), label="colour P/(4 pi^2)")
+    if spot:
+        col = g.scale(col, _spot_falloff(g, i, lvec), label="colour P/(4 pi^2) (s.s')^k")
+    with g.block("Colour P/(4 pi^2) (s.s')^k / d^2"):
+        return lvec, g.vmath("DIVIDE", col, d2, label="Light Color")
+
+
+def _spot_falloff(g, i, lvec):
+    """(s.s')^k inside the spot's cone, 0 outside."""
+    R = g.reg
+    with g.block("Spot: cutoff and (s.s')^k"):
+        minus_s = g.scale(g.normalize(i["Direction"]), -1.0, label="-s")
+        cos_ss = g.dot(g.normalize(lvec), minus_s, label="s.s'")
+        inside = g.math("GREATER_THAN", cos_ss, g.math("COSINE", i["Spot Cutoff"]), label="inside cone")
+        return g.mul(inside, g.pow(g.max(cos_ss, R(0.0)), R(i["Spot Exponent"], "k")), label="spot falloff")
 
 
 def _sun_part(g, i):
@@ -477,10 +527,11 @@ def _hemi_part(g, i, n):
     return n, col
 
 
-def _build_light_of(tree, kind):
+def _build_light_of(tree, kind, fixed=()):
     """One light type only (what "IL Light" computes for that Type, without the other types' nodes)."""
     g = Graph(tree)
     i, o = _io(g)
+    i = _Fixed(i, fixed)
     if kind in ("POINT", "SPOT", "HEMI"):
         with g.block("Surface"):
             geo = g.node("ShaderNodeNewGeometry")
@@ -493,6 +544,7 @@ def _build_light_of(tree, kind):
         lvec, col = _hemi_part(g, i, geo.outputs["Normal"])
     g.feed(lvec, o["Light Vector"])
     g.feed(col, o["Light Color"])
+    g.prune()
     g.layout()
 
 
@@ -510,22 +562,63 @@ def _model_params(name):
 
 
 def _internal():
-    """{name: (inputs, outputs, description, build)} of the groups materials use (names start with a dot)."""
+    """{name: (inputs, outputs, description, build(tree, fixed), switches)} of the groups materials use
+    (names start with a dot); ``switches``: the inputs a variant can fix (see :func:`variant`)."""
     out = {}
     for kind, name in LIGHT_OF_TYPE.items():
         out[name] = (lambda: INPUTS[LIGHT], OUTPUTS[LIGHT], f"{DESCRIPTIONS[LIGHT]}: {kind.lower()} only",
-                     lambda t, k=kind: _build_light_of(t, k))
+                     lambda t, f, k=kind: _build_light_of(t, k, f),
+                     ("Physical",) if kind in ("POINT", "SPOT") else ())
     for model in HALVES:
         out[surface_group_name(model)] = (lambda m=model: _model_params(m), [],
                                           f"{model}: the terms every light shares",
-                                          lambda t, m=model: _build_surface_half(t, m))
+                                          lambda t, f, m=model: _build_surface_half(t, m), ())
         out[light_group_name(model)] = (lambda m=model: _light_half_inputs(m), [("Color", C)],
                                         f"{model}: one light's radiance from the surface terms",
-                                        lambda t, m=model: _build_light_half(t, m))
+                                        lambda t, f, m=model: _build_light_half(t, m, f), tuple(HALVES[model][2]))
     return out
 
 
 INTERNAL = _internal()
+#: {variant name: (internal group, fixed switches)}, filled by :func:`variant`.
+VARIANTS = {}
+
+#: What each value of a switch input selects (0, 1): the words in a variant's name.
+SWITCH_VALUES = {"Distribution": ("Beckmann", "GGX"), "Geometry": ("Cook-Torrance 1982", "Smith"),
+                 "Normalized": ("classic", "normalised"), "Physical": ("empirical", "1 over d^2")}
+
+
+class _Fixed:
+    """Group inputs where the switches a variant fixes read as their numbers (0 or 1)."""
+
+    def __init__(self, sockets, fixed):
+        self.sockets, self.fixed = sockets, dict(fixed)
+
+    def __getitem__(self, key):
+        return self.fixed[key] if key in self.fixed else self.sockets[key]
+
+
+def switches(base):
+    """The switch inputs of the internal group ``base`` that a variant can fix (empty: no variants)."""
+    return INTERNAL[base][4] if base in INTERNAL else ()
+
+
+def variant(base, values):
+    """The internal group ``base`` built with its switches fixed at ``values`` ({switch: 0 or 1}, every
+    switch of ``base``), so that it holds only the chosen branches; ``base`` itself when a value is missing
+    or not 0 or 1 (then the switches stay Mix factors, both branches converted).
+
+    Blender converts every node a material reaches at every render, also a switch's unused branch (Cycles
+    folds it only afterwards), so a material links the variant its switches select. Same interface as
+    ``base``, so a material's links survive swapping one for the other.
+    """
+    names = switches(base)
+    if not names or any(values.get(k) not in (0.0, 1.0) for k in names):
+        return ensure_group(base)
+    fixed = tuple((k, float(values[k])) for k in names)
+    name = f"{base} [{', '.join(SWITCH_VALUES[k][int(v)] for k, v in fixed)}]"
+    VARIANTS[name] = (base, fixed)
+    return ensure_group(name)
 
 
 def is_current(name):
@@ -537,10 +630,15 @@ def ensure_group(name):
     """The group ``name``, built if missing or older than GROUP_VERSION."""
     if is_current(name):
         return bpy.data.node_groups[name]
-    if name in INTERNAL:
-        inputs, outputs, description, build = INTERNAL[name]
+    base, fixed = VARIANTS.get(name, (name, ()))
+    if base in INTERNAL:
+        inputs, outputs, description, build, _ = INTERNAL[base]
+        if fixed:
+            description += f" ({', '.join(f'{k} {v:g}' for k, v in fixed)})"
         tree = fresh_tree(name, inputs(), outputs, description)
         tree["il_version"] = GROUP_VERSION
+        tree["il_base"] = base
+        build = (lambda t, b=build: b(t, fixed))
     else:
         tree, build = _fresh(name), BUILDERS[name]
     build(tree)

@@ -15,11 +15,17 @@ A material built here holds, left to right:
 - the total into one Emission shader.
 Blender converts every node of a material at every render (about 13 us a node here), so each light
 costs only its own type's nodes and the model's light half; the public "IL <model>" groups hold both
-halves. Without lights the material still works: one public model node with a black light, i.e. ambient
+halves. The switches (Distribution, Geometry, Normalized, Physical) are hub nodes as well, but the light
+halves and light groups linked are the variants their values select (".IL Cook-Torrance Light [GGX,
+Smith]": only the chosen branches, see :func:`specialize`); the add-on's handlers relink them when a switch
+changes, and a switch between 0 and 1, animated or driven gets the group with both branches (always
+right, only slower). Without lights the material still works: one public model node with a black light, i.e. ambient
 and emission only. A light whose type changes needs Relink Lights (as before: the type is not driven).
 The emission is the model's radiance, not a lamp: its emission sampling is off, so Cycles builds
 no light tree over the shaded triangles (other surfaces still receive it through their BSDF rays).
 """
+import threading
+
 import bpy
 
 from ..blender import compat
@@ -249,7 +255,92 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
     mat["il_model"] = model
     mat["il_attenuation"] = attenuation
     mat["il_version"] = groups.GROUP_VERSION
+    specialize(mat)
     return mat
+
+
+# -- switches fixed at build time ---------------------------------------------------------------------
+
+def _switch_value(tree, socket):
+    """The number a group node's switch input holds for every shading point, or None: its own value when
+    unlinked, a parameter node's when linked straight from one that no animation or driver changes."""
+    if not socket.is_linked:
+        return socket.default_value
+    link = socket.links[0]
+    node = link.from_node
+    if node.bl_idname != "ShaderNodeValue" or link.is_muted:
+        return None
+    ad = tree.animation_data
+    path = f'nodes["{node.name}"].outputs[0].default_value'
+    if ad is not None and (any(fc.data_path == path for fc in ad.drivers)
+                           or any(fc.data_path == path for fc in compat.fcurves(ad))):
+        return None
+    return node.outputs[0].default_value
+
+
+def specialize(mat):
+    """Link, in ``mat``, each IL internal group node to the variant its switches select
+    (:func:`groups.variant`: Distribution, Geometry, Normalized, Physical at 0 or 1 give a group with only
+    the chosen branches; any other value, or a switch that is animated, driven or fed by other nodes,
+    the group with both). Run at build, by the add-on's handlers when a switch changes, and before renders.
+    Returns how many nodes changed group."""
+    tree = getattr(mat, "node_tree", None)
+    if tree is None or not mat.get("il_model"):
+        return 0
+    changed = 0
+    for node in tree.nodes:
+        group = getattr(node, "node_tree", None)
+        base = group.get("il_base") if group is not None else None
+        names = groups.switches(base) if base else ()
+        if not names:
+            continue
+        values = {k: _switch_value(tree, node.inputs[k]) for k in names}
+        want = groups.variant(base, values)
+        if want != group:
+            node.node_tree = want
+            changed += 1
+    return changed
+
+
+def specialize_all():
+    """:func:`specialize` every IL material of the file; returns how many nodes changed group."""
+    return sum(specialize(m) for m in il_materials())
+
+
+@bpy.app.handlers.persistent
+def on_depsgraph_update(scene, depsgraph):
+    """A switch edited (panel, node editor, Python, undo): relink that material's variants."""
+    for update in depsgraph.updates:
+        if isinstance(update.id, bpy.types.Material) and update.id.get("il_model"):
+            specialize(update.id.original)
+
+
+@bpy.app.handlers.persistent
+def on_render_or_load(*_):
+    """Before a render started from Python (``blender -b``: no depsgraph update ran since the last edit) and
+    after a file opens. Renders started from the UI run this in their own thread: there the depsgraph
+    handler has already done it, and data must not change, so only the main thread acts."""
+    if threading.current_thread() is threading.main_thread():
+        specialize_all()
+
+
+#: (handler list, function) pairs the add-on adds on register and removes on unregister.
+HANDLERS = (("depsgraph_update_post", on_depsgraph_update), ("render_pre", on_render_or_load),
+            ("load_post", on_render_or_load))
+
+
+def add_handlers():
+    for name, fn in HANDLERS:
+        handlers = getattr(bpy.app.handlers, name)
+        if fn not in handlers:
+            handlers.append(fn)
+
+
+def remove_handlers():
+    for name, fn in HANDLERS:
+        handlers = getattr(bpy.app.handlers, name)
+        while fn in handlers:
+            handlers.remove(fn)
 
 
 _SKIP_REASONS = {"type": ("not a mesh", "not meshes"), "faces": ("a mesh without faces", "meshes without faces")}

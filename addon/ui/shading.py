@@ -106,4 +106,14 @@ class IL_PT_shading(Sidebar, bpy.types.Panel):
 
 
 classes = (IL_PG_shading, IL_OT_add_node_groups, IL_OT_assign_shading_model, IL_OT_relink_lights, IL_PT_shading)
-register, unregister = bpy.utils.register_classes_factory(classes)
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
+
+
+def register():
+    _register_classes()
+    material.add_handlers()
+
+
+def unregister():
+    material.remove_handlers()
+    _unregister_classes()

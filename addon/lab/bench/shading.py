@@ -403,8 +403,20 @@ def _nodes(tree):
 
 def node_counts():
     """{group name: nodes in it (frames, group input and output not counted)} of every IL group, public and
-    internal (the per-type light groups and the surface and light halves that materials use)."""
+    internal (the per-type light groups and the surface and light halves that materials use, with the switches
+    left free: a material links the variant its switch values select, see :func:`material_node_counts`)."""
     return {name: _nodes(groups.ensure_group(name)) for name in list(groups.BUILDERS) + list(groups.INTERNAL)}
+
+
+def material_node_counts(mat, light_name):
+    """(nodes of the groups ``mat`` links for the light ``light_name``: its type's light group and the model's
+    light half, as the material's switches select them; nodes of the surface half)."""
+    nodes = mat.node_tree.nodes
+    per_light = sum(_nodes(n.node_tree) for n in nodes if n.bl_idname == "ShaderNodeGroup"
+                    and n.name.endswith(f": {light_name}"))
+    once = sum(_nodes(n.node_tree) for n in nodes if n.bl_idname == "ShaderNodeGroup"
+               and n.name.endswith("surface (shared by every light)"))
+    return per_light, once
 
 
 def _timed_render(scene):
@@ -422,11 +434,11 @@ def render_cost(configs=COST_CONFIGS, light_counts=(1, 4), repeats=3, models=COS
 
     Rows {"model", "lights", "size", "samples", "seconds", "ratio" (over Principled's with the same lights and
     settings), "cpu_seconds" and "cpu_ratio" (CPU time of all the process' threads, best of the repeats: less
-    sensitive than wall time to other jobs on a shared machine), "nodes_per_light" (nodes of a point light's
-    group and the model's light half: what Blender converts for every light at every render), "nodes_once"
-    (the model's surface half), "ns_per_sample" (seconds per camera sample)}.
+    sensitive than wall time to other jobs on a shared machine), "nodes_per_light" (nodes of the groups the
+    material links for a point light: its light group and the model's light half, the variants its switches
+    select; what Blender converts for every light at every render), "nodes_once" (the model's surface half), "ns_per_sample" (seconds per camera sample)}.
     """
-    counts = node_counts()
+    counts = {}
     scenes, mats = {}, {}
     try:
         for light_count in light_counts:
@@ -440,6 +452,9 @@ def render_cost(configs=COST_CONFIGS, light_counts=(1, 4), repeats=3, models=COS
                     mat = material.assign_shading_model(scene, objs, kind, params=COST_PARAMS.get(model),
                                                         name=f"Cost {model}")[0]
                 mats[(light_count, model)] = mat
+                if model != "PRINCIPLED":
+                    key = next(o.name for o in scene.objects if o.type == "LIGHT" and o.data.type == "POINT")
+                    counts[model] = material_node_counts(mat, key)
         best = {}
         for size, samples in configs:
             for light_count, scene in scenes.items():
@@ -461,15 +476,12 @@ def render_cost(configs=COST_CONFIGS, light_counts=(1, 4), repeats=3, models=COS
                 base, cpu_base = best.get((light_count, size, samples, "PRINCIPLED"), (None, None))
                 for model in models:
                     sec, cpu = best[(light_count, size, samples, model)]
-                    kind = "COOK_TORRANCE" if model.startswith("COOK_TORRANCE") else model
-                    name = groups.MODEL_GROUPS.get(kind)
-                    per_light = (None if name is None else
-                                 counts[groups.LIGHT_OF_TYPE["POINT"]] + counts[groups.light_group_name(name)])
+                    per_light, once = counts.get(model, (None, None))
                     rows.append({"model": model, "lights": light_count, "size": size, "samples": samples,
                                  "seconds": sec, "ratio": sec / base if base else None,
                                  "cpu_seconds": cpu, "cpu_ratio": cpu / cpu_base if cpu_base else None,
                                  "nodes_per_light": per_light,
-                                 "nodes_once": None if name is None else counts[groups.surface_group_name(name)],
+                                 "nodes_once": once,
                                  "ns_per_sample": sec / (size * size * samples) * 1e9})
     finally:
         for scene in scenes.values():
