@@ -285,7 +285,7 @@ def specialize(mat):
     the group with both). Run at build, by the add-on's handlers when a switch changes, and before renders.
     Returns how many nodes changed group."""
     tree = getattr(mat, "node_tree", None)
-    if tree is None or not mat.get("il_model"):
+    if tree is None or not mat.get("il_model") or mat.library is not None:
         return 0
     changed = 0
     for node in tree.nodes:
