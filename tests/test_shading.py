@@ -257,6 +257,10 @@ def test_constant_switches_link_groups_without_the_unused_branches_and_follow_ed
     fc.driver.expression = "1.0"
     update()
     assert _halves(mat, "Key")[1] == ".IL Light Point"
+    mat["il_version"] = groups.GROUP_VERSION - 1   # a material of an older file: its links predate the variants
+    hubs["Distribution"].outputs[0].default_value = 0.0
+    update()
+    assert _halves(mat, "Key")[0] == ".IL Cook-Torrance Light [GGX, Cook-Torrance 1982]"
 
 
 def test_a_switch_set_from_python_then_rendered_renders_the_model_it_selects():

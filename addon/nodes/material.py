@@ -282,11 +282,13 @@ def specialize(mat):
     """Link, in ``mat``, each IL internal group node to the variant its switches select
     (:func:`groups.variant`: Distribution, Geometry, Normalized, Physical at 0 or 1 give a group with only
     the chosen branches; any other value, or a switch that is animated, driven or fed by other nodes,
-    the group with both). Run at build, by the add-on's handlers when a switch changes, and before renders.
-    Returns how many nodes changed group."""
+    the group with both). Run at build, by the add-on's handlers when a switch changes, and before renders;
+    materials built by an older group version or linked from a library are left as they are. Returns how many
+    nodes changed group."""
     tree = getattr(mat, "node_tree", None)
-    if tree is None or not mat.get("il_model") or mat.library is not None:
-        return 0
+    if (tree is None or not mat.get("il_model") or mat.library is not None
+            or mat.get("il_version") != groups.GROUP_VERSION):
+        return 0    # older materials lack the links a variant reads (the general groups do not): Relink Lights
     changed = 0
     for node in tree.nodes:
         group = getattr(node, "node_tree", None)
