@@ -74,13 +74,12 @@ class Graph:
 
     # -- registers: constants loaded once per shading point ----------------------------------------
     def registers(self, geometry):
-        """Set up :meth:`reg`: 0 = Backfacing - Backfacing of this Geometry node (a value Cycles cannot
-        fold, so nodes built on it stay nodes, computed once per shading point and shared by every node
-        group instance of the material)."""
-        back = geometry.outputs["Backfacing"]
-        self._zero = self.math("SUBTRACT", back, back, label="0 (register)")
-        self._zero_v = self.vmath("SUBTRACT", geometry.outputs["Normal"], geometry.outputs["Normal"],
-                                  label="(0, 0, 0) (register)")
+        """Set up :meth:`reg`: (0, 0, 0) = Normal - Normal of this Geometry node and 0 its dot product with
+        itself (values Cycles cannot fold, so nodes built on them stay nodes, computed once per shading point
+        and shared by every node group instance of the material)."""
+        normal = geometry.outputs["Normal"]
+        self._zero_v = self.vmath("SUBTRACT", normal, normal, label="(0, 0, 0) (register)")
+        self._zero = self.dot(self._zero_v, self._zero_v, label="0 (register)")
 
     def reg(self, value, label=None):
         """``value`` (a number or a socket that is constant in practice) as the output of a node computed

@@ -24,7 +24,7 @@ from ..core import brdf
 from .builder import Graph, is_socket
 
 #: Bump whenever a group's contents or sockets change: older groups in a file are rebuilt.
-GROUP_VERSION = 8
+GROUP_VERSION = 9
 
 PHONG, BLINN_PHONG, OREN_NAYAR, COOK_TORRANCE, LIGHT = (
     "IL Phong", "IL Blinn-Phong", "IL Oren-Nayar", "IL Cook-Torrance", "IL Light")
@@ -143,12 +143,12 @@ def _io(g):
 
 
 def _surface_common(g):
-    """Normalised n and v, n.v and the constant registers: what every light shares (computed once)."""
+    """n and v (unit vectors as Cycles and EEVEE give them), n.v and the constant registers: what every light
+    shares (computed once)."""
     with g.block("Surface: n, v, n.v, constants (computed once for all lights)"):
         geo = g.node("ShaderNodeNewGeometry")
         g.registers(geo)
-        n = g.normalize(geo.outputs["Normal"], label="n")
-        v = g.normalize(geo.outputs["Incoming"], label="v (toward viewer)")
+        n, v = geo.outputs["Normal"], geo.outputs["Incoming"]
         n_v = g.dot(n, v, label="n.v")
     return {"n": n, "v": v, "n.v": n_v, "0": g.reg(0.0)}
 
@@ -259,25 +259,29 @@ def _cook_torrance_surface(g, i):
     R = g.reg
     with g.block("Surface: roughness, constants"):
         r = g.max(i["Roughness"], brdf.MIN_ROUGHNESS, label="m or alpha (>= 1e-3)")
-        r2 = R(g.mul(r, r), "r^2")
-        # terms of a register are registers themselves (one node each, computed once per shading point)
-        s.update({"r^2": r2, "1/r": R(g.div(1.0, r), "1/r"), "1 - r^2": g.sub(1.0, r2, label="1 - r^2"),
-                  "r^2/4": g.mul(r2, 0.25, label="r^2/4"), "(1 - r^2)/4": g.madd(r2, -0.25, 0.25, label="(1 - r^2)/4"),
-                  "pi r^2": g.mul(r2, math.pi, label="pi r^2"), "r^2 - 1": g.sub(r2, 1.0, label="r^2 - 1"),
-                  "r^2/pi": g.mul(r2, 1.0 / math.pi, label="r^2/pi")})
+        r2 = g.mul(r, r, label="r^2 (constant)")
+        # registers of constants (one node evaluated per shading point, no constant loaded per light)
+        s.update({"r^2": R(r2, "r^2"), "1/r": R(g.div(1.0, r), "1/r"),
+                  "r^2/4": R(g.mul(r2, 0.25), "r^2/4"), "(1 - r^2)/4": R(g.mul(g.sub(1.0, r2), 0.25), "(1 - r^2)/4"),
+                  "pi r^2": R(g.mul(r2, math.pi), "pi r^2"), "r^2 - 1": R(g.sub(r2, 1.0), "r^2 - 1")})
         for value in (1.0, 5.0, brdf.EPS, brdf.TINY, 0.396, -1.259, 2.181, 3.535, 1.6):
             s[f"{value:g}"] = R(value)
     n_v = s["n.v"]
     with g.block("Surface: n.v terms, Lambda(v), pi k_s / (4 n.v) where n.v > 0, times F0 and 1 - F0"):
-        s["max(n.v, 0)"] = g.max(n_v, 0.0, label="max(n.v, 0)")
+        c = g.max(n_v, brdf.EPS, label="max(n.v, 1e-4)")
+        s["max(n.v, 0)"] = g.max(n_v, s["0"], label="max(n.v, 0)")
         s["1 + Lambda Beckmann(v)"] = g.add(_lambda_beckmann(g, s, n_v, "v"), 1.0, label="1 + Lambda Beckmann(v)")
-        s["s GGX(v)/2"] = g.mul(_s_ggx(g, s, n_v, "v"), 0.5, label="(1 + 2 Lambda GGX(v))/2")
-        k = g.mul(g.div(g.mul(i["Ks"], math.pi), g.mul(g.max(n_v, brdf.EPS), 4.0)), g.gt(n_v, 0.0),
+        # (1 + 2 Lambda_GGX(v))/2 = sqrt(a^2 + (1 - a^2) c^2)/(2c) = sqrt(a^2/(4 c^2) + (1 - a^2)/4)
+        s["s GGX(v)/2"] = g.math("SQRT", g.add(g.div(s["r^2/4"], g.mul(c, c)), s["(1 - r^2)/4"]),
+                                 label="(1 + 2 Lambda GGX(v))/2")
+        k = g.mul(g.div(g.mul(i["Ks"], math.pi / 4.0), c), g.gt(n_v, s["0"]),
                   label="k = pi k_s / (4 n.v), 0 unless n.v > 0")
+        one_minus_f0 = g.sub(1.0, i["F0"], label="1 - F0 (constant)")
         s["F0 k"] = g.mul(k, i["F0"], label="F0 k")
-        s["(1 - F0) k"] = g.mul(k, g.sub(1.0, i["F0"]), label="(1 - F0) k")
-        s["F0 k r^2/pi"] = g.mul(s["F0 k"], s["r^2/pi"], label="F0 k r^2/pi")
-        s["(1 - F0) k r^2/pi"] = g.mul(s["(1 - F0) k"], s["r^2/pi"], label="(1 - F0) k r^2/pi")
+        s["(1 - F0) k"] = g.mul(k, one_minus_f0, label="(1 - F0) k")
+        s["F0 k r^2/pi"] = g.mul(k, g.mul(i["F0"], g.div(r2, math.pi)), label="F0 k r^2/pi")
+        s["(1 - F0) k r^2/pi"] = g.mul(k, g.mul(one_minus_f0, g.div(r2, math.pi)), label="(1 - F0) k r^2/pi")
+        s["r^2/pi"] = R(g.div(r2, math.pi), "r^2/pi")
         s["(1, 1, 1)"] = g.vreg((1.0, 1.0, 1.0), "(1, 1, 1)")
         s["k_d"] = g.vreg(i["Kd"], "k_d")
     return s
@@ -293,13 +297,6 @@ def _lambda_beckmann(g, s, cos_theta, which):
     fit = g.div(g.madd(a, g.madd(a, s["0.396"], s["-1.259"]), one), g.mul(a, g.madd(a, s["2.181"], s["3.535"])),
                 label=f"Walter fit ({which})")
     return g.mul(fit, g.math("LESS_THAN", a, s["1.6"]), label=f"Lambda Beckmann ({which})")
-
-
-def _s_ggx(g, s, cos_theta, which):
-    """1 + 2 Lambda_GGX = sqrt(1 + alpha^2 tan^2 theta) = sqrt(alpha^2 + (1 - alpha^2) c^2) / c."""
-    c = g.max(cos_theta, s[f"{brdf.EPS:g}"])
-    root = g.math("SQRT", g.madd(g.mul(c, c), s["1 - r^2"], s["r^2"]), label=f"sqrt(a^2 + (1 - a^2) c^2) ({which})")
-    return g.div(root, c, label=f"1 + 2 Lambda GGX ({which})")
 
 
 def _cook_torrance_light(g, i, s):
