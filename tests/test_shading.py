@@ -263,6 +263,38 @@ def test_constant_switches_link_groups_without_the_unused_branches_and_follow_ed
     assert _halves(mat, "Key")[0] == ".IL Cook-Torrance Light [GGX, Cook-Torrance 1982]"
 
 
+@pytest.mark.both_versions
+def test_switches_animated_through_nla_or_on_the_group_node_keep_both_branches():
+    """A switch whose value changes over time gets the group with both branches, also when its keyframes are
+    in an NLA strip (no active action), when the hub node was renamed with quotes, and when the driver or
+    keyframes are on the light half's own input (the hub unlinked)."""
+    scene, ball = _scene_with_ball(8)
+    sc.light(scene, "Key", "POINT", 100.0, location=(1.0, -2.0, 1.0))
+    mat, _ = material.assign_shading_model(scene, [ball], "COOK_TORRANCE")
+    tree = mat.node_tree
+    hub = tree.nodes["Distribution"]
+    hub.name = 'Distribution "D"'
+    for frame, value in ((1, 0.0), (2, 1.0)):
+        hub.outputs[0].default_value = value
+        hub.outputs[0].keyframe_insert("default_value", frame=frame)
+    material.specialize(mat)
+    assert _halves(mat, "Key")[0] == ".IL Cook-Torrance Light"
+    ad = tree.animation_data
+    ad.nla_tracks.new().strips.new("switch", 1, ad.action)
+    ad.action = None
+    material.specialize(mat)
+    assert _halves(mat, "Key")[0] == ".IL Cook-Torrance Light"
+    half, light = tree.nodes["IL Cook-Torrance: Key"], tree.nodes["IL Light: Key"]
+    tree.links.remove(next(lk for lk in tree.links if lk.to_socket == light.inputs["Physical"]))
+    light.inputs["Physical"].default_value = 1.0
+    material.specialize(mat)
+    assert _halves(mat, "Key")[1] == ".IL Light Point [1 over d^2]"
+    light.inputs["Physical"].driver_add("default_value").driver.expression = "frame > 1"
+    tree.links.remove(next(lk for lk in tree.links if lk.to_socket == half.inputs["Geometry"]))
+    material.specialize(mat)
+    assert _halves(mat, "Key") == (".IL Cook-Torrance Light", ".IL Light Point")
+
+
 def test_a_switch_set_from_python_then_rendered_renders_the_model_it_selects():
     """A script that sets a switch and renders at once (``blender -b``: no depsgraph update in between) gets the
     group that switch selects (render handler), and the picture the twin gives; Geometry 0.4 mixes both G terms

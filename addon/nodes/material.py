@@ -261,21 +261,27 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
 
 # -- switches fixed at build time ---------------------------------------------------------------------
 
-def _switch_value(tree, socket):
-    """The number a group node's switch input holds for every shading point, or None: its own value when
-    unlinked, a parameter node's when linked straight from one that no animation or driver changes."""
-    if not socket.is_linked:
-        return socket.default_value
-    link = socket.links[0]
-    node = link.from_node
-    if node.bl_idname != "ShaderNodeValue" or link.is_muted:
-        return None
+def _animated_paths(tree):
+    """The data paths of ``tree`` that drivers, its action or its NLA strips' actions change."""
     ad = tree.animation_data
-    path = f'nodes["{node.name}"].outputs[0].default_value'
-    if ad is not None and (any(fc.data_path == path for fc in ad.drivers)
-                           or any(fc.data_path == path for fc in compat.fcurves(ad))):
-        return None
-    return node.outputs[0].default_value
+    if ad is None:
+        return set()
+    curves = list(ad.drivers) + compat.fcurves(ad)
+    for track in ad.nla_tracks:
+        for strip in track.strips:
+            curves += compat.fcurves(strip)
+    return {fc.data_path for fc in curves}
+
+
+def _switch_value(socket, link, animated):
+    """The number a group node's switch input holds for every shading point, or None: its own value when
+    unlinked (``link`` None), a parameter node's when linked straight from one; None when that value is in
+    ``animated`` (:func:`_animated_paths`)."""
+    if link is not None:
+        if link.from_node.bl_idname != "ShaderNodeValue" or link.is_muted:
+            return None
+        socket = link.from_node.outputs[0]
+    return None if f"{socket.path_from_id()}.default_value" in animated else socket.default_value
 
 
 def specialize(mat):
@@ -289,14 +295,16 @@ def specialize(mat):
     if (tree is None or not mat.get("il_model") or mat.library is not None
             or mat.get("il_version") != groups.GROUP_VERSION):
         return 0    # older materials lack the links a variant reads (the general groups do not): Relink Lights
-    changed = 0
+    changed, animated = 0, _animated_paths(tree)
+    into = {lk.to_socket.as_pointer(): lk for lk in tree.links}   # NodeSocket.links reads every link of the tree
     for node in tree.nodes:
         group = getattr(node, "node_tree", None)
         base = group.get("il_base") if group is not None else None
         names = groups.switches(base) if base else ()
         if not names:
             continue
-        values = {k: _switch_value(tree, node.inputs[k]) for k in names}
+        values = {k: _switch_value(node.inputs[k], into.get(node.inputs[k].as_pointer()), animated)
+                  for k in names}
         want = groups.variant(base, values)
         if want != group:
             node.node_tree = want
