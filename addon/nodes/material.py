@@ -284,6 +284,35 @@ def _switch_value(socket, link, animated):
     return None if f"{socket.path_from_id()}.default_value" in animated else socket.default_value
 
 
+def _sockets(group):
+    return [(i.in_out, i.name, i.identifier) for i in group.interface.items_tree if i.item_type == "SOCKET"]
+
+
+def _swap_group(tree, node, group, into):
+    """``node.node_tree = group``, keeping the node's links and input values by socket name. Blender keeps
+    them by socket identifier, and a group rebuilt in place from an older version numbers the sockets it
+    gained differently from one built fresh. ``into`` ({input socket pointer: link}) is rebuilt then."""
+    if _sockets(node.node_tree) == _sockets(group):
+        node.node_tree = group
+        return
+    ins = {s.name: into[s.as_pointer()].from_socket for s in node.inputs if s.as_pointer() in into}
+    values = {s.name: (tuple(s.default_value) if hasattr(s.default_value, "__len__") else s.default_value)
+              for s in node.inputs if hasattr(s, "default_value")}
+    outs = [(lk.from_socket.name, lk.to_socket) for lk in tree.links if lk.from_node == node]
+    into.clear()
+    node.node_tree = group
+    for lk in [lk for lk in tree.links if node in (lk.from_node, lk.to_node)]:
+        tree.links.remove(lk)
+    for socket in node.inputs:
+        if socket.name in values and hasattr(socket, "default_value"):
+            socket.default_value = values[socket.name]
+        if socket.name in ins:
+            tree.links.new(ins[socket.name], socket)
+    for name, to_socket in outs:
+        tree.links.new(node.outputs[name], to_socket)
+    into.update({lk.to_socket.as_pointer(): lk for lk in tree.links})
+
+
 def specialize(mat):
     """Link, in ``mat``, each IL internal group node to the variant its switches select
     (:func:`groups.variant`: Distribution, Geometry, Normalized, Physical at 0 or 1 give a group with only
@@ -307,7 +336,7 @@ def specialize(mat):
                   for k in names}
         want = groups.variant(base, values)
         if want != group:
-            node.node_tree = want
+            _swap_group(tree, node, want, into)
             changed += 1
     return changed
 
