@@ -295,6 +295,24 @@ def test_switches_animated_through_nla_or_on_the_group_node_keep_both_branches()
     assert _halves(mat, "Key") == (".IL Cook-Torrance Light", ".IL Light Point")
 
 
+def test_a_muted_switch_hub_gets_the_group_with_both_branches():
+    """A muted hub node no longer feeds its switch (Blender reads the light half's own input then): the material
+    renders what the group with both branches gives, not the variant of the muted value."""
+    scene, ball = _scene_with_ball(16)
+    sc.light(scene, "Key", "POINT", 100.0, location=(1.0, -2.0, 1.0))
+    mat, _ = material.assign_shading_model(scene, [ball], "COOK_TORRANCE", params={"Roughness": 0.3})
+    hub, half = mat.node_tree.nodes["Distribution"], mat.node_tree.nodes["IL Cook-Torrance: Key"]
+    _, _, ggx = _pixels(scene)
+    hub.outputs[0].default_value = 0.0
+    _, _, beckmann = _pixels(scene)
+    assert np.max(np.abs(ggx - beckmann)) > 0.01
+    half.inputs["Distribution"].default_value = 1.0
+    hub.mute = True
+    _, _, L = _pixels(scene)
+    assert _halves(mat, "Key")[0] == ".IL Cook-Torrance Light"
+    assert np.max(np.abs(L - ggx)) <= 1e-5 * np.max(ggx)
+
+
 #: Surface terms added since group version 7: a file from version 7 has materials and groups without them.
 NEW_IN_8 = ("F0 k r^2/pi", "(1 - F0) k r^2/pi", "(1, 1, 1)")
 

@@ -275,10 +275,10 @@ def _animated_paths(tree):
 
 def _switch_value(socket, link, animated):
     """The number a group node's switch input holds for every shading point, or None: its own value when
-    unlinked (``link`` None), a parameter node's when linked straight from one; None when that value is in
-    ``animated`` (:func:`_animated_paths`)."""
+    unlinked (``link`` None), a parameter node's when linked straight from one (not muted, nor the link);
+    None when that value is in ``animated`` (:func:`_animated_paths`)."""
     if link is not None:
-        if link.from_node.bl_idname != "ShaderNodeValue" or link.is_muted:
+        if link.from_node.bl_idname != "ShaderNodeValue" or link.is_muted or link.from_node.mute:
             return None
         socket = link.from_node.outputs[0]
     return None if f"{socket.path_from_id()}.default_value" in animated else socket.default_value
