@@ -317,13 +317,14 @@ def specialize(mat):
     """Link, in ``mat``, each IL internal group node to the variant its switches select
     (:func:`groups.variant`: Distribution, Geometry, Normalized, Physical at 0 or 1 give a group with only
     the chosen branches; any other value, or a switch that is animated, driven or fed by other nodes,
-    the group with both). Run at build, by the add-on's handlers when a switch changes, and before renders;
-    materials built by an older group version or linked from a library are left as they are. Returns how many
-    nodes changed group."""
+    the group with both). Run at build, by the add-on's handlers when a switch changes, and before renders.
+    A material built by an older group version gets the groups with both branches (its links may predate
+    the terms a variant reads: Relink Lights gives it variants); one linked from a library is left as it is.
+    Returns how many nodes changed group."""
     tree = getattr(mat, "node_tree", None)
-    if (tree is None or not mat.get("il_model") or mat.library is not None
-            or mat.get("il_version") != groups.GROUP_VERSION):
-        return 0    # older materials lack the links a variant reads (the general groups do not): Relink Lights
+    if tree is None or not mat.get("il_model") or mat.library is not None:
+        return 0
+    current = mat.get("il_version") == groups.GROUP_VERSION
     changed, animated = 0, _animated_paths(tree)
     into = {lk.to_socket.as_pointer(): lk for lk in tree.links}   # NodeSocket.links reads every link of the tree
     for node in tree.nodes:
@@ -332,9 +333,12 @@ def specialize(mat):
         names = groups.switches(base) if base else ()
         if not names:
             continue
-        values = {k: _switch_value(node.inputs[k], into.get(node.inputs[k].as_pointer()), animated)
-                  for k in names}
-        want = groups.variant(base, values)
+        if current:
+            values = {k: _switch_value(node.inputs[k], into.get(node.inputs[k].as_pointer()), animated)
+                      for k in names}
+            want = groups.variant(base, values)
+        else:
+            want = groups.ensure_group(base)
         if want != group:
             _swap_group(tree, node, want, into)
             changed += 1
