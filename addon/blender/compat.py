@@ -105,7 +105,8 @@ DIFFUSE_DIRECT_PASS = "Diffuse Direct" if IS_5 else "DiffDir"
 
 
 def fcurves(anim_data):
-    """The F-curves of ``anim_data``'s action for its slot (layered actions in both versions), or []."""
+    """The F-curves of ``anim_data``'s (or an NLA strip's) action for its slot (layered actions in both
+    versions), or []."""
     from bpy_extras import anim_utils
     action = getattr(anim_data, "action", None)
     if action is None:

@@ -401,12 +401,20 @@ _SOCKET = {"VALUE": F, "VECTOR": V, "RGBA": C}
 SUM = ("Radiance So Far", C, BLACK, None, "Radiance of the lights summed before this one")
 
 
+def _surface_outputs(name):
+    """[(term, socket type)] of the surface half of ``name``, learnt by building it in a scratch group (so that
+    rebuilding the real group keeps the outputs materials link, by name)."""
+    scratch = bpy.data.node_groups.new(".IL scratch", "ShaderNodeTree")
+    try:
+        sync_interface(scratch, _model_params(name), [])
+        i, _ = _io(Graph(scratch))
+        return [(key, _SOCKET[sock.type]) for key, sock in HALVES[name][0](Graph(scratch), i).items()]
+    finally:
+        bpy.data.node_groups.remove(scratch)
+
+
 def _build_surface_half(tree, name):
-    """The surface terms as outputs (built once to learn their names and types, then with those outputs)."""
-    i, _ = _io(Graph(tree))
-    outputs = [(key, _SOCKET[sock.type]) for key, sock in HALVES[name][0](Graph(tree), i).items()]
-    tree.nodes.clear()
-    sync_interface(tree, _model_params(name), outputs)
+    """The surface terms as outputs (the interface is :func:`_surface_outputs`)."""
     g = Graph(tree)
     i, o = _io(g)
     for key, sock in HALVES[name][0](g, i).items():
@@ -559,18 +567,18 @@ def _model_params(name):
 
 
 def _internal():
-    """{name: (inputs, outputs, description, build(tree, fixed), switches)} of the groups materials use
+    """{name: (inputs(), outputs(), description, build(tree, fixed), switches)} of the groups materials use
     (names start with a dot); ``switches``: the inputs a variant can fix (see :func:`variant`)."""
     out = {}
     for kind, name in LIGHT_OF_TYPE.items():
-        out[name] = (lambda: INPUTS[LIGHT], OUTPUTS[LIGHT], f"{DESCRIPTIONS[LIGHT]}: {kind.lower()} only",
+        out[name] = (lambda: INPUTS[LIGHT], lambda: OUTPUTS[LIGHT], f"{DESCRIPTIONS[LIGHT]}: {kind.lower()} only",
                      lambda t, f, k=kind: _build_light_of(t, k, f),
                      ("Physical",) if kind in ("POINT", "SPOT") else ())
     for model in HALVES:
-        out[surface_group_name(model)] = (lambda m=model: _model_params(m), [],
+        out[surface_group_name(model)] = (lambda m=model: _model_params(m), lambda m=model: _surface_outputs(m),
                                           f"{model}: the terms every light shares",
                                           lambda t, f, m=model: _build_surface_half(t, m), ())
-        out[light_group_name(model)] = (lambda m=model: _light_half_inputs(m), [("Color", C)],
+        out[light_group_name(model)] = (lambda m=model: _light_half_inputs(m), lambda: [("Color", C)],
                                         f"{model}: one light's radiance from the surface terms",
                                         lambda t, f, m=model: _build_light_half(t, m, f), tuple(HALVES[model][2]))
     return out
@@ -632,7 +640,7 @@ def ensure_group(name):
         inputs, outputs, description, build, _ = INTERNAL[base]
         if fixed:
             description += f" ({', '.join(f'{k} {v:g}' for k, v in fixed)})"
-        tree = fresh_tree(name, inputs(), outputs, description)
+        tree = fresh_tree(name, inputs(), outputs(), description)
         tree["il_version"] = GROUP_VERSION
         tree["il_base"] = base
         build = (lambda t, b=build: b(t, fixed))

@@ -261,45 +261,86 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
 
 # -- switches fixed at build time ---------------------------------------------------------------------
 
-def _switch_value(tree, socket):
-    """The number a group node's switch input holds for every shading point, or None: its own value when
-    unlinked, a parameter node's when linked straight from one that no animation or driver changes."""
-    if not socket.is_linked:
-        return socket.default_value
-    link = socket.links[0]
-    node = link.from_node
-    if node.bl_idname != "ShaderNodeValue" or link.is_muted:
-        return None
+def _animated_paths(tree):
+    """The data paths of ``tree`` that drivers, its action or its NLA strips' actions change."""
     ad = tree.animation_data
-    path = f'nodes["{node.name}"].outputs[0].default_value'
-    if ad is not None and (any(fc.data_path == path for fc in ad.drivers)
-                           or any(fc.data_path == path for fc in compat.fcurves(ad))):
-        return None
-    return node.outputs[0].default_value
+    if ad is None:
+        return set()
+    curves = list(ad.drivers) + compat.fcurves(ad)
+    for track in ad.nla_tracks:
+        for strip in track.strips:
+            curves += compat.fcurves(strip)
+    return {fc.data_path for fc in curves}
+
+
+def _switch_value(socket, link, animated):
+    """The number a group node's switch input holds for every shading point, or None: its own value when
+    unlinked (``link`` None), a parameter node's when linked straight from one (not muted, nor the link);
+    None when that value is in ``animated`` (:func:`_animated_paths`)."""
+    if link is not None:
+        if link.from_node.bl_idname != "ShaderNodeValue" or link.is_muted or link.from_node.mute:
+            return None
+        socket = link.from_node.outputs[0]
+    return None if f"{socket.path_from_id()}.default_value" in animated else socket.default_value
+
+
+def _sockets(group):
+    return [(i.in_out, i.name, i.identifier) for i in group.interface.items_tree if i.item_type == "SOCKET"]
+
+
+def _swap_group(tree, node, group, into):
+    """``node.node_tree = group``, keeping the node's links and input values by socket name. Blender keeps
+    them by socket identifier, and a group rebuilt in place from an older version numbers the sockets it
+    gained differently from one built fresh. ``into`` ({input socket pointer: link}) is rebuilt then."""
+    if _sockets(node.node_tree) == _sockets(group):
+        node.node_tree = group
+        return
+    ins = {s.name: into[s.as_pointer()].from_socket for s in node.inputs if s.as_pointer() in into}
+    values = {s.name: (tuple(s.default_value) if hasattr(s.default_value, "__len__") else s.default_value)
+              for s in node.inputs if hasattr(s, "default_value")}
+    outs = [(lk.from_socket.name, lk.to_socket) for lk in tree.links if lk.from_node == node]
+    into.clear()
+    node.node_tree = group
+    for lk in [lk for lk in tree.links if node in (lk.from_node, lk.to_node)]:
+        tree.links.remove(lk)
+    for socket in node.inputs:
+        if socket.name in values and hasattr(socket, "default_value"):
+            socket.default_value = values[socket.name]
+        if socket.name in ins:
+            tree.links.new(ins[socket.name], socket)
+    for name, to_socket in outs:
+        tree.links.new(node.outputs[name], to_socket)
+    into.update({lk.to_socket.as_pointer(): lk for lk in tree.links})
 
 
 def specialize(mat):
     """Link, in ``mat``, each IL internal group node to the variant its switches select
     (:func:`groups.variant`: Distribution, Geometry, Normalized, Physical at 0 or 1 give a group with only
     the chosen branches; any other value, or a switch that is animated, driven or fed by other nodes,
-    the group with both). Run at build, by the add-on's handlers when a switch changes, and before renders;
-    materials built by an older group version or linked from a library are left as they are. Returns how many
-    nodes changed group."""
+    the group with both). Run at build, by the add-on's handlers when a switch changes, and before renders.
+    A material built by an older group version gets the groups with both branches (its links may predate
+    the terms a variant reads: Relink Lights gives it variants); one linked from a library is left as it is.
+    Returns how many nodes changed group."""
     tree = getattr(mat, "node_tree", None)
-    if (tree is None or not mat.get("il_model") or mat.library is not None
-            or mat.get("il_version") != groups.GROUP_VERSION):
-        return 0    # older materials lack the links a variant reads (the general groups do not): Relink Lights
-    changed = 0
+    if tree is None or not mat.get("il_model") or mat.library is not None:
+        return 0
+    current = mat.get("il_version") == groups.GROUP_VERSION
+    changed, animated = 0, _animated_paths(tree)
+    into = {lk.to_socket.as_pointer(): lk for lk in tree.links}   # NodeSocket.links reads every link of the tree
     for node in tree.nodes:
         group = getattr(node, "node_tree", None)
         base = group.get("il_base") if group is not None else None
         names = groups.switches(base) if base else ()
         if not names:
             continue
-        values = {k: _switch_value(tree, node.inputs[k]) for k in names}
-        want = groups.variant(base, values)
+        if current:
+            values = {k: _switch_value(node.inputs[k], into.get(node.inputs[k].as_pointer()), animated)
+                      for k in names}
+            want = groups.variant(base, values)
+        else:
+            want = groups.ensure_group(base)
         if want != group:
-            node.node_tree = want
+            _swap_group(tree, node, want, into)
             changed += 1
     return changed
 
