@@ -116,7 +116,8 @@ class NearField:
         lr = np.where(overlap & self.fine[r], "fine", "texel")
         ls = np.where(overlap, np.where(self.fine[j], "fine", "texel"), "patch")
         if (lr == "fine").any() or (ls == "fine").any():
-            self.elements["fine"] = texel_elements(patches, 2 * cell)
+            self.elements["fine"] = _rows_of(n, np.flatnonzero(self.fine),
+                                             texel_elements(patches.take(np.flatnonzero(self.fine)), 2 * cell))
         self.groups = []
         for fr in ("texel", "fine"):
             for fs in ("patch", "texel", "fine"):
@@ -144,18 +145,29 @@ class NearField:
             out[idx] = np.einsum("pa,pa->p", self.weights(fr)[self.recv[idx]], K.sum(axis=2, dtype=np.float64))
         return out
 
-    def box(self, values):
-        """Fine element values (N, (2c)², C) to their texels' area-weighted means (N, c², C)."""
-        n, c = len(self.patches), self.cell
-        a2 = self.elements["fine"][2].reshape(n, c, 2, c, 2)
+    def box(self, values, rows):
+        """Fine element values (R, (2c)², C) of the patches ``rows`` to their texels' area-weighted means
+        (R, c², C)."""
+        n, c = len(rows), self.cell
+        a2 = self.elements["fine"][2][rows].reshape(n, c, 2, c, 2)
         den = np.maximum(a2.sum(axis=(2, 4)), 1e-300).reshape(n, c * c, 1)
         return (values.reshape(n, c, 2, c, 2, -1) * a2[..., None]).sum(axis=(2, 4)).reshape(n, c * c, -1) / den
 
     def spread(self, values):
-        """Texel values (N, c², C) to their fine elements (N, (2c)², C)."""
-        n, c = len(self.patches), self.cell
+        """Texel values (R, c², C) to their fine elements (R, (2c)², C)."""
+        n, c = len(values), self.cell
         v = values.reshape(n, c, 1, c, 1, -1)
         return np.broadcast_to(v, (n, c, 2, c, 2, v.shape[-1])).reshape(n, 4 * c * c, -1)
+
+
+def _rows_of(n, rows, arrays):
+    """Arrays of ``rows`` of n patches as arrays of all n (zero, False elsewhere)."""
+    out = []
+    for a in arrays:
+        full = np.zeros((n,) + a.shape[1:], a.dtype)
+        full[rows] = a
+        out.append(full)
+    return tuple(out)
 
 
 def near_field_gather(patches, F, B, near, tol=1e-5, max_iter=1000):
@@ -166,15 +178,17 @@ def near_field_gather(patches, F, B, near, tol=1e-5, max_iter=1000):
     sources it does not overlap is taken at the texel's centre. Returns a :class:`Gather`."""
     recv, src = near.recv, near.src
     has_fine = "fine" in near.elements
-    fine = near.fine if has_fine else np.zeros(len(patches), bool)
+    fine = np.flatnonzero(near.fine) if has_fine else np.zeros(0, int)      # the fine level: these patches only
+    pos = np.full(len(patches), -1)
+    pos[fine] = np.arange(len(fine))
     E, rho = patches.emission[:, None, :], patches.rho[:, None, :]
     area, tmask = near.elements["texel"][2], near.elements["texel"][3]
     w = near.weights("texel")
     B0 = np.asarray(B, np.float64)[:, None, :]
     Be = {"texel": np.where(tmask[..., None], B0, 0.0)}
     if has_fine:
-        fmask = near.elements["fine"][3]
-        Be["fine"] = np.where(fmask[..., None], B0, 0.0)
+        fmask = near.elements["fine"][3][fine]
+        Be["fine"] = np.where(fmask[..., None], B0[fine], 0.0)
     scale = max(float(np.abs(E).max()), 1e-300)
     saved = F[recv, src].copy()
     F[recv, src] = 0.0
@@ -187,13 +201,15 @@ def near_field_gather(patches, F, B, near, tol=1e-5, max_iter=1000):
             for fr, fs, idx, K in near.groups:
                 r = recv[idx]
                 first = np.flatnonzero(np.r_[True, r[1:] != r[:-1]])
-                H[fr][r[first]] += np.add.reduceat(np.matmul(K, Be[fs][src[idx]]), first, axis=0)
+                rows = r[first] if fr == "texel" else pos[r[first]]
+                H[fr][rows] += np.add.reduceat(np.matmul(K, Be[fs][src[idx] if fs != "fine" else pos[src[idx]]]),
+                                               first, axis=0)
             Ht = H["texel"] + far[:, None, :]
             Bn = {"texel": np.where(tmask[..., None], E + rho * Ht, 0.0)}
             if has_fine:
-                Hf = H["fine"] + near.spread(H["texel"]) + far[:, None, :]
-                Bn["fine"] = np.where(fmask[..., None], E + rho * Hf, 0.0)
-                Bn["texel"][fine] = near.box(Bn["fine"])[fine]
+                Hf = H["fine"] + near.spread(H["texel"][fine]) + far[fine, None, :]
+                Bn["fine"] = np.where(fmask[..., None], E[fine] + rho[fine] * Hf, 0.0)
+                Bn["texel"][fine] = near.box(Bn["fine"], fine)
             delta = max(float(np.abs(Bn[f] - Be[f]).max()) for f in Bn) / max(float(np.abs(Bn["texel"]).max()), scale)
             Be.update(Bn)
             if delta < tol:
@@ -202,6 +218,6 @@ def near_field_gather(patches, F, B, near, tol=1e-5, max_iter=1000):
     finally:
         F[recv, src] = saved
     if has_fine:
-        Ht[fine] = near.box(Hf)[fine]
+        Ht[fine] = near.box(Hf, fine)
     return Gather(np.where(tmask[..., None], Ht, np.nan), np.where(tmask[..., None], Be["texel"], np.nan), area,
                   tmask, it, converged)
