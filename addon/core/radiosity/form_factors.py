@@ -188,7 +188,7 @@ def pair_form_factors(cx, cy, cz, pn, p, n, j):
     return out
 
 
-def visible_form_factors(patches, visibility, reciprocal=True, chunk_pairs=200_000, dtype=np.float64):
+def visible_form_factors(patches, visibility, reciprocal=True, chunk_pairs=50_000, dtype=np.float64):
     """:func:`form_factors` (quadrature 1) with boolean ``visibility`` (N, N, symmetric), evaluated only for
     the visible pairs (the rest are 0 in both: pairs behind each other's plane, occluded, or on one plane).
 

@@ -23,7 +23,7 @@ from .form_factors import pair_form_factors
 from .patches import bounding_radius, longest_edge
 from .solvers import product
 
-GATHER_CHUNK_EVALS = 200_000      # point-to-polygon evaluations per chunk (about 500 B each at peak)
+GATHER_CHUNK_EVALS = 50_000       # point-to-polygon evaluations per chunk (about 500 B each at peak)
 
 
 @dataclass
