@@ -123,6 +123,7 @@ class Occluders:
         self.d = np.einsum("fk,fk->f", n, polys[:, 0])
         self.m = np.cross(n[:, None, :], e)                       # inward for counter-clockwise corners
         self.h = np.einsum("fmk,fmk->fm", self.m, polys)
+        self._side = None
 
     def __len__(self):
         return len(self.polys)
@@ -131,8 +132,14 @@ class Occluders:
         return Occluders(self.polys[idx], self.group[idx])
 
     def side(self, points):
-        """Signed distances (P, F) of points to the occluders' planes."""
-        return points @ self.normal.T - self.d
+        """Signed distances (P, F) of points to the occluders' planes (the last points' kept: blocking,
+        visibility_faces and visible_faces ask for the same patch points in turn). Read only."""
+        if getattr(self, "_side", None) is not None and np.array_equal(self._side[0], points):
+            return self._side[1]
+        S = points @ self.normal.T
+        S -= self.d
+        self._side = (np.array(points), S)
+        return S
 
     def edges(self, points):
         """m_k·x − h_k (P, F, 4): all >= 0 where x's projection lies inside the polygon."""
@@ -186,8 +193,15 @@ def _plane(c):
 def blocking(occ, points, eps=1e-12):
     """The occluders that can block a segment between two of ``points``: those with points strictly on both
     sides of their plane."""
-    s = occ.side(points)
-    return occ.take(np.flatnonzero((s > eps).any(axis=0) & (s < -eps).any(axis=0)))
+    pos, neg = np.zeros(len(occ), bool), np.zeros(len(occ), bool)
+    for k in range(0, len(points), 2048):
+        s = points[k:k + 2048] @ occ.normal.T
+        s -= occ.d
+        pos |= (s > eps).any(axis=0)
+        neg |= (s < -eps).any(axis=0)
+    out = occ.take(np.flatnonzero(pos & neg))
+    out.side(points)
+    return out
 
 
 def _blocked(so, st, go, gt, o, t, end):
