@@ -500,7 +500,8 @@ def visibility_faces(patches, occ, offset=1e-4, progress=None, leaf=CLUSTER_LEAF
     cb = _ClusterBounds(occ, pts, S, groups)
     m3 = occ.m.reshape(-1, 3)
     end = 2 * offset
-    # rows and columns in cluster order: a cluster's pairs with the clusters after it are one block
+    # W: rows in cluster order (a cluster's pairs with the clusters after it are one block), columns the
+    # patches'
     order = np.concatenate(groups) if n else np.zeros(0, int)
     start = np.concatenate([[0], np.cumsum([len(g) for g in groups])]).astype(int)
     c, nrm = patches.center[order], patches.normal[order]
@@ -542,9 +543,9 @@ def visibility_faces(patches, occ, offset=1e-4, progress=None, leaf=CLUSTER_LEAF
             gb = (pts[jb] @ occ.m[f].reshape(-1, 3).T).reshape(len(jb), len(f), 4) - occ.h[f]
             ok[:, cols] &= ~_crossed(S[ia[:, None], f], S[jb[:, None], f], ga[:, f], gb, pts[ia], pts[jb], end,
                                      ia, jb)
-        W[s0:s1, s0:] = ok
-        W[s1:, s0:s1] = ok[:, s1 - s0:].T
-        W[s0:s1, s0:s1] |= ok[:, :s1 - s0].T
+        W[s0:s1, order[s0:]] = ok
+        W[s1:, ia] = ok[:, s1 - s0:].T
+        W[s0:s1, ia] |= ok[:, :s1 - s0].T
     inv = np.empty(n, int)
     inv[order] = np.arange(n)
-    return np.take(W[inv], inv, axis=1)
+    return W[inv]
