@@ -485,9 +485,11 @@ def visibility_faces(patches, occ, offset=1e-4, progress=None, leaf=CLUSTER_LEAF
     """Centre-to-centre visibility (N, N) bool against :class:`Occluders` ``occ`` (:func:`occluders`): the
     pairs each in front of the other's plane (as :func:`candidate_pair_blocks`), each segment from centre to
     centre lifted ``offset`` along the normals, the ray from the smaller index to the larger, a crossing within
-    ``2 offset`` of its target not counted (as lab.radiosity.visibility_bvh casts it). Only the occluders with points on both sides of their plane count;
-    the points are grouped in :func:`clusters` and every pair of clusters is first classified against each
-    occluder (:func:`_classify`): rays are tested only against the occluders it leaves undecided.
+    ``2 offset`` of its target not counted (as lab.radiosity.visibility_bvh casts it). Only the occluders with
+    points on both sides of their plane count. The points are grouped in :func:`clusters`; every pair of
+    clusters with a candidate pair is first classified against the occluders (:func:`_classify`, a non-planar
+    face's triangles first as one slab, :func:`_candidates`), and its rays are tested only against the
+    occluders it leaves undecided, the cluster pairs with the same undecided occluders in one go.
     ``progress()`` is called between rows of clusters."""
     n = len(patches)
     pts = patches.center + offset * patches.normal
