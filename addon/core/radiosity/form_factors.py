@@ -8,6 +8,7 @@ closer than NEAR_RATIO times the receiver's diameter).
 import numpy as np
 
 from ..errors import InputError
+from .parallel import ordered_map
 from .patches import bilinear, bounding_radius, polygon_area_normal
 
 
@@ -209,23 +210,27 @@ def visible_form_factors(patches, visibility, reciprocal=True, chunk_pairs=50_00
     cx, cy, cz = (np.ascontiguousarray(c[..., k]) for k in range(3))
     per_row = V.sum(axis=1) if not reciprocal else np.array([V[r, r + 1:].sum() for r in range(n)])
     cum = np.concatenate([[0], np.cumsum(per_row)])
-    s = 0
+    bounds, s = [], 0
     while s < n:
         e = max(s + 1, int(np.searchsorted(cum, cum[s] + chunk_pairs, side="right")) - 1)
+        bounds.append((s, e))
+        s = e
+
+    def chunk(se):
+        s, e = se
         i, j = np.nonzero(V[s:e])
         i += s
         if reciprocal:
             up = j > i
             i, j = i[up], j[up]
             small = area[i] <= area[j]
-            r, q = np.where(small, i, j), np.where(small, j, i)
-            f = pair_form_factors(cx, cy, cz, pn, np.take(patches.center, r, axis=0),
-                                  np.take(patches.normal, r, axis=0), q)
-            F[r, q] = f
+            i, j = np.where(small, i, j), np.where(small, j, i)
+        return i, j, pair_form_factors(cx, cy, cz, pn, np.take(patches.center, i, axis=0),
+                                       np.take(patches.normal, i, axis=0), j)
+    for r, q, f in ordered_map(chunk, bounds):
+        F[r, q] = f
+        if reciprocal:
             F[q, r] = f * area[r] / area[q]
-        elif len(i):
-            F[i, j] = pair_form_factors(cx, cy, cz, pn, patches.center[i], patches.normal[i], j)
-        s = e
     np.fill_diagonal(F, 0.0)
     return F
 

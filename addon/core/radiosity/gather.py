@@ -20,6 +20,7 @@ import numpy as np
 
 from .atlas import texel_elements
 from .form_factors import pair_form_factors
+from .parallel import ordered_map
 from .patches import bounding_radius, longest_edge
 from .solvers import product
 
@@ -59,14 +60,17 @@ def element_form_factors(patches, elements, recv, src, visible=None, chunk_evals
     cx, cy, cz = (np.ascontiguousarray(flat[..., k]) for k in range(3))
     pn = np.repeat(patches.normal, ms, axis=0)
     step = max(1, chunk_evals // (m * ms))
-    for s in range(0, len(recv), step):
+
+    def chunk(s):
         r, j = recv[s:s + step], src[s:s + step]
-        p = len(r)
         live = mask[r][:, :, None] & smask[j][:, None, :]                          # (p, m, m')
         pp, aa, bb = np.nonzero(live)
-        k = np.zeros((p, m, ms))
+        k = np.zeros((len(r), m, ms))
         k[pp, aa, bb] = pair_form_factors(cx, cy, cz, pn, pts[r][pp, aa], patches.normal[r][pp],
                                            j[pp] * ms + bb)
+        return k
+    for s, k in zip(range(0, len(recv), step), ordered_map(chunk, range(0, len(recv), step))):
+        r, j = recv[s:s + step], src[s:s + step]
         if visible is not None:
             hit = k.any(axis=2)
             if hit.any():

@@ -5,6 +5,7 @@ faces can block (lab.radiosity)."""
 import numpy as np
 
 from ..geometry import ray_triangle_hits
+from .parallel import ordered_map
 from .form_factors import NEAR_RATIO, near_pairs
 
 
@@ -509,9 +510,11 @@ def visibility_faces(patches, occ, offset=1e-4, progress=None, leaf=CLUSTER_LEAF
     c, nrm = patches.center[order], patches.normal[order]
     own = np.einsum("ik,ik->i", c, nrm)
     W = np.zeros((n, n), bool)
-    for a, ia in enumerate(groups):
-        if progress:
-            progress()
+
+    def row(a):
+        """Row block a: its pairs with the clusters from a on (rows s0:s1 and their transposes, which no
+        other row block writes: rows run in two threads)."""
+        ia = groups[a]
         s0, s1 = start[a], start[a + 1]
         # j in front of i: (c_j − c_i)·n_i > 0; i in front of j: (c_j − c_i)·n_j < 0
         ok = (c[s0:] @ nrm[s0:s1].T).T - own[s0:s1, None] > 1e-9
@@ -548,6 +551,10 @@ def visibility_faces(patches, occ, offset=1e-4, progress=None, leaf=CLUSTER_LEAF
         W[s0:s1, order[s0:]] = ok
         W[s1:, ia] = ok[:, s1 - s0:].T
         W[s0:s1, ia] |= ok[:, :s1 - s0].T
+
+    for _ in ordered_map(row, range(len(groups))):
+        if progress:
+            progress()
     inv = np.empty(n, int)
     inv[order] = np.arange(n)
     return W[inv]
