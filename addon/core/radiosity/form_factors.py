@@ -249,7 +249,7 @@ def near_pairs(patches, i, j, ratio=NEAR_RATIO):
     bounding-sphere gap |c_i − c_j| − r_i − r_j below ``ratio`` × the receiver's diameter 2 r_i."""
     i, j = np.asarray(i, int), np.asarray(j, int)
     r = bounding_radius(patches)
-    gap = np.linalg.norm(patches.center[i] - patches.center[j], axis=1) - r[i] - r[j]
+    gap = np.linalg.norm(np.take(patches.center, i, axis=0) - np.take(patches.center, j, axis=0), axis=1) - r[i] - r[j]
     a = gap < ratio * 2 * r[i]
     b = gap < ratio * 2 * r[j]
     return np.concatenate([i[a], j[b]]), np.concatenate([j[a], i[b]])

@@ -50,7 +50,8 @@ def element_form_factors(patches, elements, recv, src, visible=None, chunk_evals
     element b of patch src_p (by the rules of :func:`core.radiosity.form_factors.polygon_form_factors`; 0 for elements that do not exist).
     ``elements`` is :func:`texel_elements`' (polys, points, area, mask), ``src_elements`` the sources' when
     they differ; ``visible(points, normals, src)`` as in
-    :func:`core.radiosity.form_factors.seen_form_factors` (None: all visible)."""
+    :func:`core.radiosity.form_factors.seen_form_factors` (None: all visible; called in the worker threads of
+    core.radiosity.parallel when it has a true ``threadsafe`` attribute, else in the caller's)."""
     _, pts, _, mask = elements
     polys, _, _, smask = elements if src_elements is None else src_elements
     n, m, ms = len(patches), pts.shape[1], polys.shape[1]
@@ -61,16 +62,7 @@ def element_form_factors(patches, elements, recv, src, visible=None, chunk_evals
     pn = np.repeat(patches.normal, ms, axis=0)
     step = max(1, chunk_evals // (m * ms))
 
-    def chunk(s):
-        r, j = recv[s:s + step], src[s:s + step]
-        live = mask[r][:, :, None] & smask[j][:, None, :]                          # (p, m, m')
-        pp, aa, bb = np.nonzero(live)
-        k = np.zeros((len(r), m, ms))
-        k[pp, aa, bb] = pair_form_factors(cx, cy, cz, pn, pts[r][pp, aa], patches.normal[r][pp],
-                                           j[pp] * ms + bb)
-        return k
-    for s, k in zip(range(0, len(recv), step), ordered_map(chunk, range(0, len(recv), step))):
-        r, j = recv[s:s + step], src[s:s + step]
+    def seen(k, r, j):
         if visible is not None:
             hit = k.any(axis=2)
             if hit.any():
@@ -78,6 +70,20 @@ def element_form_factors(patches, elements, recv, src, visible=None, chunk_evals
                 v = np.ones(hit.shape)
                 v[hp, ha] = visible(pts[r][hp, ha], patches.normal[r][hp], j[hp])
                 k *= v[:, :, None]
+        return k
+    threads = getattr(visible, "threadsafe", False)
+
+    def chunk(s):
+        r, j = recv[s:s + step], src[s:s + step]
+        live = mask[r][:, :, None] & smask[j][:, None, :]                          # (p, m, m')
+        pp, aa, bb = np.nonzero(live)
+        k = np.zeros((len(r), m, ms))
+        k[pp, aa, bb] = pair_form_factors(cx, cy, cz, pn, pts[r][pp, aa], patches.normal[r][pp],
+                                           j[pp] * ms + bb)
+        return seen(k, r, j) if threads else k
+    for s, k in zip(range(0, len(recv), step), ordered_map(chunk, range(0, len(recv), step))):
+        if not threads:
+            k = seen(k, recv[s:s + step], src[s:s + step])
         K[s:s + step] = k
     return K
 

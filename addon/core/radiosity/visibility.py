@@ -64,8 +64,9 @@ def near_candidate_pairs(patches, ratio=NEAR_RATIO, leaf=64):
         close = a + np.flatnonzero(gap <= reach * (1 + 1e-9))
         ib = np.concatenate([groups[b] for b in close])
         later = np.repeat(close > a, [len(groups[b]) for b in close])
-        d = c[ib][None, :, :] - c[ia][:, None, :]
-        ok = (np.einsum("abk,ak->ab", d, nrm[ia]) > 1e-9) & (np.einsum("abk,bk->ab", d, nrm[ib]) < -1e-9)
+        d = np.take(c, ib, axis=0)[None, :, :] - c[ia][:, None, :]
+        ok = ((np.einsum("abk,ak->ab", d, nrm[ia]) > 1e-9)
+              & (np.einsum("abk,bk->ab", d, np.take(nrm, ib, axis=0)) < -1e-9))
         ok &= later[None, :] | (ib[None, :] > ia[:, None])
         ra, rb = np.nonzero(ok)
         i, j = ia[ra], ib[rb]
@@ -256,6 +257,7 @@ def visible_faces(patches, occ, offset=1e-4):
                                         lambda p, k: np.einsum("kc,kmc->km", tc[j[p]], sub.m[k]) - sub.h[k],
                                         o, tc[j], 2 * offset)
         return out
+    visible.threadsafe = True                   # numpy only, no state shared between calls
     return visible
 
 
