@@ -123,6 +123,32 @@ def test_face_visibility_equals_the_bvh_rays_pair_by_pair(tmp_path):
                           L.visible_bvh(p)(p.center[i], p.normal[i], j))
 
 
+def test_face_visibility_equals_the_bvh_rays_with_the_warped_wall_finely_cut(tmp_path):
+    """2,866 patches (0.05 m, every third patch of the red wall split again: T-junctions, patches of two sizes),
+    the warped red wall blocking as 1,000-odd triangles in a slab 1.6 mm thick: the rays from its own patches
+    graze it (the saddle's patches see each other), the floor's and ceiling's next to it start beside it. V and
+    the per-point callback equal Blender's BVH rays pair by pair."""
+    from addon.core.radiosity import visibility as rad_visibility
+    sc = import_cornell(str(tmp_path))
+    meshes, _ = L.meshes_from_scene(sc)
+    base = L.scene_patches(meshes)
+    p = rad_subdivision.subdivide_to_size(base, 0.05)
+    wall = np.flatnonzero((p.owner == p.names.index("Room")) & (p.center[:, 0] > 0.549))
+    p, _ = rad_subdivision.split(p, np.isin(np.arange(len(p)), wall[::3]))
+    how, occ = L.visibility_method(base, p)
+    assert how == "faces" and (occ.group >= 0).sum() > 1000
+    V = rad_visibility.visibility_faces(p, occ)
+    Vb = L.visibility_bvh(p)
+    assert np.array_equal(V, Vb)
+    red = (p.owner == p.names.index("Room")) & (p.center[:, 0] > 0.549)
+    i, j = rad_visibility.candidate_pairs(p)
+    blocked = ~V[i, j]
+    assert (red[i] & red[j]).sum() > 1000 and (blocked & (red[i] ^ red[j])).sum() > 1000
+    k = np.flatnonzero(red[i] | red[j])[::7]
+    assert np.array_equal(rad_visibility.visible_faces(p, occ)(p.center[i[k]], p.normal[i[k]], j[k]),
+                          L.visible_bvh(p)(p.center[i[k]], p.normal[i[k]], j[k]))
+
+
 def test_light_facing_the_ceiling_still_lights_the_room(tmp_path):
     """Cycles emits from both sides of an emitting face (measured: a plane bakes the same irradiance under
     an Emission quad facing it or facing away, for every emission_sampling setting): the solution must

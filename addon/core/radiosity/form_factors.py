@@ -8,6 +8,7 @@ closer than NEAR_RATIO times the receiver's diameter).
 import numpy as np
 
 from ..errors import InputError
+from .parallel import ordered_map
 from .patches import bilinear, bounding_radius, polygon_area_normal
 
 
@@ -159,12 +160,13 @@ def pair_form_factors(cx, cy, cz, pn, p, n, j):
     pn; points p and normals n (M, 3); source indices j (M,)) by the rules of :func:`polygon_form_factors`,
     on component arrays (:func:`lambert_polygon` without its temporaries); pairs whose polygon crosses the
     point's tangent plane go through :func:`polygon_form_factors` (clipped)."""
-    x = cx[j] - p[:, 0:1]
-    y = cy[j] - p[:, 1:2]
-    z = cz[j] - p[:, 2:3]
+    x = np.take(cx, j, axis=0) - p[:, 0:1]           # np.take: a row gather several times faster than cx[j]
+    y = np.take(cy, j, axis=0) - p[:, 1:2]
+    z = np.take(cz, j, axis=0) - p[:, 2:3]
     nx, ny, nz = n[:, 0:1], n[:, 1:2], n[:, 2:3]
     d = x * nx + y * ny + z * nz
-    facing = -(x[:, 0] * pn[j, 0] + y[:, 0] * pn[j, 1] + z[:, 0] * pn[j, 2]) > 1e-9
+    pj = np.take(pn, j, axis=0)
+    facing = -(x[:, 0] * pj[:, 0] + y[:, 0] * pj[:, 1] + z[:, 0] * pj[:, 2]) > 1e-9
     front = (d > 1e-9).any(axis=1) & facing
     simple = front & (d >= -1e-9).all(axis=1)
     inv = 1.0 / np.maximum(np.sqrt(x * x + y * y + z * z), 1e-300)
@@ -188,7 +190,7 @@ def pair_form_factors(cx, cy, cz, pn, p, n, j):
     return out
 
 
-def visible_form_factors(patches, visibility, reciprocal=True, chunk_pairs=200_000, dtype=np.float64):
+def visible_form_factors(patches, visibility, reciprocal=True, chunk_pairs=50_000, dtype=np.float64):
     """:func:`form_factors` (quadrature 1) with boolean ``visibility`` (N, N, symmetric), evaluated only for
     the visible pairs (the rest are 0 in both: pairs behind each other's plane, occluded, or on one plane).
 
@@ -208,22 +210,27 @@ def visible_form_factors(patches, visibility, reciprocal=True, chunk_pairs=200_0
     cx, cy, cz = (np.ascontiguousarray(c[..., k]) for k in range(3))
     per_row = V.sum(axis=1) if not reciprocal else np.array([V[r, r + 1:].sum() for r in range(n)])
     cum = np.concatenate([[0], np.cumsum(per_row)])
-    s = 0
+    bounds, s = [], 0
     while s < n:
         e = max(s + 1, int(np.searchsorted(cum, cum[s] + chunk_pairs, side="right")) - 1)
+        bounds.append((s, e))
+        s = e
+
+    def chunk(se):
+        s, e = se
         i, j = np.nonzero(V[s:e])
         i += s
         if reciprocal:
             up = j > i
             i, j = i[up], j[up]
             small = area[i] <= area[j]
-            r, q = np.where(small, i, j), np.where(small, j, i)
-            f = pair_form_factors(cx, cy, cz, pn, patches.center[r], patches.normal[r], q)
-            F[r, q] = f
+            i, j = np.where(small, i, j), np.where(small, j, i)
+        return i, j, pair_form_factors(cx, cy, cz, pn, np.take(patches.center, i, axis=0),
+                                       np.take(patches.normal, i, axis=0), j)
+    for r, q, f in ordered_map(chunk, bounds):
+        F[r, q] = f
+        if reciprocal:
             F[q, r] = f * area[r] / area[q]
-        elif len(i):
-            F[i, j] = pair_form_factors(cx, cy, cz, pn, patches.center[i], patches.normal[i], j)
-        s = e
     np.fill_diagonal(F, 0.0)
     return F
 
@@ -242,7 +249,7 @@ def near_pairs(patches, i, j, ratio=NEAR_RATIO):
     bounding-sphere gap |c_i − c_j| − r_i − r_j below ``ratio`` × the receiver's diameter 2 r_i."""
     i, j = np.asarray(i, int), np.asarray(j, int)
     r = bounding_radius(patches)
-    gap = np.linalg.norm(patches.center[i] - patches.center[j], axis=1) - r[i] - r[j]
+    gap = np.linalg.norm(np.take(patches.center, i, axis=0) - np.take(patches.center, j, axis=0), axis=1) - r[i] - r[j]
     a = gap < ratio * 2 * r[i]
     b = gap < ratio * 2 * r[j]
     return np.concatenate([i[a], j[b]]), np.concatenate([j[a], i[b]])

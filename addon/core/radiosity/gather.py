@@ -20,10 +20,11 @@ import numpy as np
 
 from .atlas import texel_elements
 from .form_factors import pair_form_factors
+from .parallel import ordered_map
 from .patches import bounding_radius, longest_edge
 from .solvers import product
 
-GATHER_CHUNK_EVALS = 200_000      # point-to-polygon evaluations per chunk (about 500 B each at peak)
+GATHER_CHUNK_EVALS = 50_000       # point-to-polygon evaluations per chunk (about 500 B each at peak)
 
 
 @dataclass
@@ -49,7 +50,8 @@ def element_form_factors(patches, elements, recv, src, visible=None, chunk_evals
     element b of patch src_p (by the rules of :func:`core.radiosity.form_factors.polygon_form_factors`; 0 for elements that do not exist).
     ``elements`` is :func:`texel_elements`' (polys, points, area, mask), ``src_elements`` the sources' when
     they differ; ``visible(points, normals, src)`` as in
-    :func:`core.radiosity.form_factors.seen_form_factors` (None: all visible)."""
+    :func:`core.radiosity.form_factors.seen_form_factors` (None: all visible; called in the worker threads of
+    core.radiosity.parallel when it has a true ``threadsafe`` attribute, else in the caller's)."""
     _, pts, _, mask = elements
     polys, _, _, smask = elements if src_elements is None else src_elements
     n, m, ms = len(patches), pts.shape[1], polys.shape[1]
@@ -59,14 +61,8 @@ def element_form_factors(patches, elements, recv, src, visible=None, chunk_evals
     cx, cy, cz = (np.ascontiguousarray(flat[..., k]) for k in range(3))
     pn = np.repeat(patches.normal, ms, axis=0)
     step = max(1, chunk_evals // (m * ms))
-    for s in range(0, len(recv), step):
-        r, j = recv[s:s + step], src[s:s + step]
-        p = len(r)
-        live = mask[r][:, :, None] & smask[j][:, None, :]                          # (p, m, m')
-        pp, aa, bb = np.nonzero(live)
-        k = np.zeros((p, m, ms))
-        k[pp, aa, bb] = pair_form_factors(cx, cy, cz, pn, pts[r][pp, aa], patches.normal[r][pp],
-                                           j[pp] * ms + bb)
+
+    def seen(k, r, j):
         if visible is not None:
             hit = k.any(axis=2)
             if hit.any():
@@ -74,6 +70,20 @@ def element_form_factors(patches, elements, recv, src, visible=None, chunk_evals
                 v = np.ones(hit.shape)
                 v[hp, ha] = visible(pts[r][hp, ha], patches.normal[r][hp], j[hp])
                 k *= v[:, :, None]
+        return k
+    threads = getattr(visible, "threadsafe", False)
+
+    def chunk(s):
+        r, j = recv[s:s + step], src[s:s + step]
+        live = mask[r][:, :, None] & smask[j][:, None, :]                          # (p, m, m')
+        pp, aa, bb = np.nonzero(live)
+        k = np.zeros((len(r), m, ms))
+        k[pp, aa, bb] = pair_form_factors(cx, cy, cz, pn, pts[r][pp, aa], patches.normal[r][pp],
+                                           j[pp] * ms + bb)
+        return seen(k, r, j) if threads else k
+    for s, k in zip(range(0, len(recv), step), ordered_map(chunk, range(0, len(recv), step))):
+        if not threads:
+            k = seen(k, recv[s:s + step], src[s:s + step])
         K[s:s + step] = k
     return K
 
@@ -116,7 +126,8 @@ class NearField:
         lr = np.where(overlap & self.fine[r], "fine", "texel")
         ls = np.where(overlap, np.where(self.fine[j], "fine", "texel"), "patch")
         if (lr == "fine").any() or (ls == "fine").any():
-            self.elements["fine"] = texel_elements(patches, 2 * cell)
+            self.elements["fine"] = _rows_of(n, np.flatnonzero(self.fine),
+                                             texel_elements(patches.take(np.flatnonzero(self.fine)), 2 * cell))
         self.groups = []
         for fr in ("texel", "fine"):
             for fs in ("patch", "texel", "fine"):
@@ -144,18 +155,29 @@ class NearField:
             out[idx] = np.einsum("pa,pa->p", self.weights(fr)[self.recv[idx]], K.sum(axis=2, dtype=np.float64))
         return out
 
-    def box(self, values):
-        """Fine element values (N, (2c)², C) to their texels' area-weighted means (N, c², C)."""
-        n, c = len(self.patches), self.cell
-        a2 = self.elements["fine"][2].reshape(n, c, 2, c, 2)
+    def box(self, values, rows):
+        """Fine element values (R, (2c)², C) of the patches ``rows`` to their texels' area-weighted means
+        (R, c², C)."""
+        n, c = len(rows), self.cell
+        a2 = self.elements["fine"][2][rows].reshape(n, c, 2, c, 2)
         den = np.maximum(a2.sum(axis=(2, 4)), 1e-300).reshape(n, c * c, 1)
         return (values.reshape(n, c, 2, c, 2, -1) * a2[..., None]).sum(axis=(2, 4)).reshape(n, c * c, -1) / den
 
     def spread(self, values):
-        """Texel values (N, c², C) to their fine elements (N, (2c)², C)."""
-        n, c = len(self.patches), self.cell
+        """Texel values (R, c², C) to their fine elements (R, (2c)², C)."""
+        n, c = len(values), self.cell
         v = values.reshape(n, c, 1, c, 1, -1)
         return np.broadcast_to(v, (n, c, 2, c, 2, v.shape[-1])).reshape(n, 4 * c * c, -1)
+
+
+def _rows_of(n, rows, arrays):
+    """Arrays of ``rows`` of n patches as arrays of all n (zero, False elsewhere)."""
+    out = []
+    for a in arrays:
+        full = np.zeros((n,) + a.shape[1:], a.dtype)
+        full[rows] = a
+        out.append(full)
+    return tuple(out)
 
 
 def near_field_gather(patches, F, B, near, tol=1e-5, max_iter=1000):
@@ -166,15 +188,17 @@ def near_field_gather(patches, F, B, near, tol=1e-5, max_iter=1000):
     sources it does not overlap is taken at the texel's centre. Returns a :class:`Gather`."""
     recv, src = near.recv, near.src
     has_fine = "fine" in near.elements
-    fine = near.fine if has_fine else np.zeros(len(patches), bool)
+    fine = np.flatnonzero(near.fine) if has_fine else np.zeros(0, int)      # the fine level: these patches only
+    pos = np.full(len(patches), -1)
+    pos[fine] = np.arange(len(fine))
     E, rho = patches.emission[:, None, :], patches.rho[:, None, :]
     area, tmask = near.elements["texel"][2], near.elements["texel"][3]
     w = near.weights("texel")
     B0 = np.asarray(B, np.float64)[:, None, :]
     Be = {"texel": np.where(tmask[..., None], B0, 0.0)}
     if has_fine:
-        fmask = near.elements["fine"][3]
-        Be["fine"] = np.where(fmask[..., None], B0, 0.0)
+        fmask = near.elements["fine"][3][fine]
+        Be["fine"] = np.where(fmask[..., None], B0[fine], 0.0)
     scale = max(float(np.abs(E).max()), 1e-300)
     saved = F[recv, src].copy()
     F[recv, src] = 0.0
@@ -187,13 +211,15 @@ def near_field_gather(patches, F, B, near, tol=1e-5, max_iter=1000):
             for fr, fs, idx, K in near.groups:
                 r = recv[idx]
                 first = np.flatnonzero(np.r_[True, r[1:] != r[:-1]])
-                H[fr][r[first]] += np.add.reduceat(np.matmul(K, Be[fs][src[idx]]), first, axis=0)
+                rows = r[first] if fr == "texel" else pos[r[first]]
+                H[fr][rows] += np.add.reduceat(np.matmul(K, Be[fs][src[idx] if fs != "fine" else pos[src[idx]]]),
+                                               first, axis=0)
             Ht = H["texel"] + far[:, None, :]
             Bn = {"texel": np.where(tmask[..., None], E + rho * Ht, 0.0)}
             if has_fine:
-                Hf = H["fine"] + near.spread(H["texel"]) + far[:, None, :]
-                Bn["fine"] = np.where(fmask[..., None], E + rho * Hf, 0.0)
-                Bn["texel"][fine] = near.box(Bn["fine"])[fine]
+                Hf = H["fine"] + near.spread(H["texel"][fine]) + far[fine, None, :]
+                Bn["fine"] = np.where(fmask[..., None], E[fine] + rho[fine] * Hf, 0.0)
+                Bn["texel"][fine] = near.box(Bn["fine"], fine)
             delta = max(float(np.abs(Bn[f] - Be[f]).max()) for f in Bn) / max(float(np.abs(Bn["texel"]).max()), scale)
             Be.update(Bn)
             if delta < tol:
@@ -202,6 +228,6 @@ def near_field_gather(patches, F, B, near, tol=1e-5, max_iter=1000):
     finally:
         F[recv, src] = saved
     if has_fine:
-        Ht[fine] = near.box(Hf)[fine]
+        Ht[fine] = near.box(Hf, fine)
     return Gather(np.where(tmask[..., None], Ht, np.nan), np.where(tmask[..., None], Be["texel"], np.nan), area,
                   tmask, it, converged)

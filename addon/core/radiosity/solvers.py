@@ -26,13 +26,28 @@ class Solution:
     converged: bool
 
 
+PRODUCT_BLOCK_BYTES = 4_000_000     # rows of a float32 F multiplied while in cache
+
+
 def product(F, B):
     """F B in float64; a float32 F (core.radiosity.form_factors.visible_form_factors' storage) is multiplied
     as float32, B rounded to it (relative 6e-8, far below any tolerance here): half the memory traffic, no
-    float64 copy of F."""
-    if F.dtype == np.float32:
-        return (F @ np.asarray(B, np.float32)).astype(np.float64)
-    return F @ B
+    float64 copy of F. With several columns, F is read once: a block of its rows (PRODUCT_BLOCK_BYTES, in
+    cache) times each column in turn (a matrix-vector product each: about 2.5 times faster than one
+    matrix-matrix product of 3 columns, which runs below the memory bandwidth)."""
+    if F.dtype != np.float32:
+        return F @ B
+    B = np.asarray(B, np.float32)
+    if B.ndim == 1 or B.shape[1] == 1:
+        return (F @ B).astype(np.float64)
+    cols = [np.ascontiguousarray(B[:, k]) for k in range(B.shape[1])]
+    out = np.empty((len(F), B.shape[1]))
+    rows = max(8, PRODUCT_BLOCK_BYTES // max(4 * F.shape[1], 1))
+    for s in range(0, len(F), rows):
+        blk = F[s:s + rows]
+        for k, b in enumerate(cols):
+            out[s:s + rows, k] = blk @ b
+    return out
 
 
 def residual(F, rho, E, B, FB=None):

@@ -5,6 +5,7 @@ faces can block (lab.radiosity)."""
 import numpy as np
 
 from ..geometry import ray_triangle_hits
+from .parallel import ordered_map
 from .form_factors import NEAR_RATIO, near_pairs
 
 
@@ -63,8 +64,9 @@ def near_candidate_pairs(patches, ratio=NEAR_RATIO, leaf=64):
         close = a + np.flatnonzero(gap <= reach * (1 + 1e-9))
         ib = np.concatenate([groups[b] for b in close])
         later = np.repeat(close > a, [len(groups[b]) for b in close])
-        d = c[ib][None, :, :] - c[ia][:, None, :]
-        ok = (np.einsum("abk,ak->ab", d, nrm[ia]) > 1e-9) & (np.einsum("abk,bk->ab", d, nrm[ib]) < -1e-9)
+        d = np.take(c, ib, axis=0)[None, :, :] - c[ia][:, None, :]
+        ok = ((np.einsum("abk,ak->ab", d, nrm[ia]) > 1e-9)
+              & (np.einsum("abk,bk->ab", d, np.take(nrm, ib, axis=0)) < -1e-9))
         ok &= later[None, :] | (ib[None, :] > ia[:, None])
         ra, rb = np.nonzero(ok)
         i, j = ia[ra], ib[rb]
@@ -123,6 +125,7 @@ class Occluders:
         self.d = np.einsum("fk,fk->f", n, polys[:, 0])
         self.m = np.cross(n[:, None, :], e)                       # inward for counter-clockwise corners
         self.h = np.einsum("fmk,fmk->fm", self.m, polys)
+        self._side = None
 
     def __len__(self):
         return len(self.polys)
@@ -131,8 +134,14 @@ class Occluders:
         return Occluders(self.polys[idx], self.group[idx])
 
     def side(self, points):
-        """Signed distances (P, F) of points to the occluders' planes."""
-        return points @ self.normal.T - self.d
+        """Signed distances (P, F) of points to the occluders' planes (the last points' kept: blocking,
+        visibility_faces and visible_faces ask for the same patch points in turn). Read only."""
+        if getattr(self, "_side", None) is not None and np.array_equal(self._side[0], points):
+            return self._side[1]
+        S = points @ self.normal.T
+        S -= self.d
+        self._side = (np.array(points), S)
+        return S
 
     def edges(self, points):
         """m_k·x − h_k (P, F, 4): all >= 0 where x's projection lies inside the polygon."""
@@ -186,8 +195,15 @@ def _plane(c):
 def blocking(occ, points, eps=1e-12):
     """The occluders that can block a segment between two of ``points``: those with points strictly on both
     sides of their plane."""
-    s = occ.side(points)
-    return occ.take(np.flatnonzero((s > eps).any(axis=0) & (s < -eps).any(axis=0)))
+    pos, neg = np.zeros(len(occ), bool), np.zeros(len(occ), bool)
+    for k in range(0, len(points), 2048):
+        s = points[k:k + 2048] @ occ.normal.T
+        s -= occ.d
+        pos |= (s > eps).any(axis=0)
+        neg |= (s < -eps).any(axis=0)
+    out = occ.take(np.flatnonzero(pos & neg))
+    out.side(points)
+    return out
 
 
 def _blocked(so, st, go, gt, o, t, end):
@@ -241,6 +257,7 @@ def visible_faces(patches, occ, offset=1e-4):
                                         lambda p, k: np.einsum("kc,kmc->km", tc[j[p]], sub.m[k]) - sub.h[k],
                                         o, tc[j], 2 * offset)
         return out
+    visible.threadsafe = True                   # numpy only, no state shared between calls
     return visible
 
 
@@ -302,24 +319,86 @@ class _ClusterBounds:
             for k, idx in enumerate(groups):
                 e = pts[idx] @ n
                 self.cl_lo[k, g], self.cl_hi[k, g] = e.min(), e.max()
-        # per cluster and occluder: all points on one side of its plane (above, below), or of its slab (sabove,
-        # sbelow)
+        # per cluster and occluder: all points on one side of its plane (above, below); per cluster and
+        # non-planar face: all on one side of its slab, clear of it (gabove, gbelow)
         self.above, self.below = self.lo >= 0, self.hi <= 0
-        gg, warped = np.maximum(groups_f, 0), groups_f >= 0
-        if G:
-            self.sabove = warped[None] & (self.cl_lo[:, gg] > self.slab_hi[gg] + CULL_MARGIN)
-            self.sbelow = warped[None] & (self.cl_hi[:, gg] < self.slab_lo[gg] - CULL_MARGIN)
-        else:
-            self.sabove = self.sbelow = np.zeros((C, F), bool)
+        self.gabove = self.cl_lo > self.slab_hi[None] + CULL_MARGIN
+        self.gbelow = self.cl_hi < self.slab_lo[None] - CULL_MARGIN
+        self.whole = np.flatnonzero(groups_f < 0)
+        self.members = [np.flatnonzero(groups_f == g) for g in range(G)]
 
 
 CULL_MARGIN = 1e-9       # metres: a bound of _classify must clear the occluder by this much to rule it out
 
 
+def _longest(cb, a, bs):
+    """(B,) the longest segment between a point of cluster a's box and one of each of ``bs``'."""
+    return np.linalg.norm(np.maximum(np.abs(cb.hi3[bs] - cb.lo3[a]), np.abs(cb.hi3[a] - cb.lo3[bs])), axis=1)
+
+
+def _reach(xlo, xhi, ylo, yhi, lo, hi):
+    """For segments x -> y with x's heights in [xlo, xhi], y's in [ylo, yhi] < lo (below the slab [lo, hi]):
+    bounds (Rx, Ry), relative to the segment's length, of the distance from x and from y of any point of the
+    segment inside the slab. A point at height h lies |h_x − h| / (h_x − h_y) of the way from x, at most
+    (h_x − lo) / (h_x − h_y), largest at h_x = xhi, h_y = yhi; from y (h − h_y) / (h_x − h_y) with
+    h <= min(hi, h_x), largest at h_x = max(xlo, hi), h_y = ylo."""
+    return (np.maximum(xhi - lo, 0.0) / (xhi - yhi),
+            np.minimum((hi - ylo) / (np.maximum(xlo, hi) - ylo), 1.0))
+
+
+def _candidates(cb, a, bs):
+    """(bi, f): the pairs (cluster bs[bi], occluder f) that :func:`_classify` looks at for cluster a. A whole
+    face: unless both clusters lie on one side of its plane. A triangle of a non-planar face: unless both
+    clusters lie clear of the face's slab on one side; and where one of them lies clear of it, only the
+    triangles within reach of both ends (:func:`_reach`: every triangle lies inside the slab, so a segment
+    can cross one only where it runs inside the slab)."""
+    parts_b, parts_f = [], []
+    w = cb.whole
+    if len(w):
+        same = (cb.above[a, w][None] & cb.above[bs][:, w]) | (cb.below[a, w][None] & cb.below[bs][:, w])
+        bi, k = np.nonzero(~same)
+        parts_b.append(bi)
+        parts_f.append(w[k])
+    L = None
+    for g, mem in enumerate(cb.members):
+        if not len(mem):
+            continue
+        ua, da = cb.gabove[a, g], cb.gbelow[a, g]
+        ub, db = cb.gabove[bs, g], cb.gbelow[bs, g]
+        keep = np.flatnonzero(~((ua & ub) | (da & db)))
+        if not len(keep):
+            continue
+        if L is None:
+            L = _longest(cb, a, bs)
+        lo, hi = cb.slab_lo[g], cb.slab_hi[g]
+        alo, ahi = cb.cl_lo[a, g], cb.cl_hi[a, g]
+        blo, bhi = cb.cl_lo[bs[keep], g], cb.cl_hi[bs[keep], g]
+        ra, rb = np.full(len(keep), np.inf), np.full(len(keep), np.inf)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for (clear_b, clear_a, sgn) in ((db[keep], da, 1.0), (ub[keep], ua, -1.0)):
+                xlo, xhi, ylo, yhi = (alo, ahi, blo, bhi) if sgn > 0 else (-ahi, -alo, -bhi, -blo)
+                slo, shi = (lo, hi) if sgn > 0 else (-hi, -lo)
+                r1, r2 = _reach(xlo, xhi, ylo, yhi, slo, shi)          # b clear of the slab: a the x end
+                ra = np.where(clear_b, np.minimum(ra, r1), ra)
+                rb = np.where(clear_b, np.minimum(rb, r2), rb)
+                if clear_a:                                          # a clear of it: b the x end
+                    r1, r2 = _reach(ylo, yhi, xlo, xhi, slo, shi)
+                    rb, ra = np.minimum(rb, r1), np.minimum(ra, r2)
+        lk = L[keep]
+        ok = ((cb.gap[a, mem][None] <= (ra * lk)[:, None] + CULL_MARGIN)
+              & (cb.gap[bs[keep]][:, mem] <= (rb * lk)[:, None] + CULL_MARGIN))
+        bi, k = np.nonzero(ok)
+        parts_b.append(keep[bi])
+        parts_f.append(mem[k])
+    if not parts_b:
+        return np.zeros(0, int), np.zeros(0, int)
+    return np.concatenate(parts_b), np.concatenate(parts_f)
+
+
 def _classify(occ, cb, a, bs, end):
-    """(B, F) int8, per cluster b of ``bs`` and occluder, for every segment between a point of cluster a and one
-    of cluster b (:class:`_ClusterBounds` ``cb``): 0 none crosses it, 1 all do (before ``end`` of either end),
-    2 undecided.
+    """(bi, f, v): per cluster b = bs[bi] and occluder f, for every segment between a point of cluster a and one
+    of cluster b (:class:`_ClusterBounds` ``cb``), v = 1 all cross it (before ``end`` of either end) or 2
+    undecided; the pairs left out none crosses (among them every pair :func:`_candidates` leaves out).
 
     None: both clusters on one side of the plane, or outside the slab of the non-planar face the occluder was
     cut from (on one side of it); or the occluder's bounding sphere misses the capsule of
@@ -332,14 +411,9 @@ def _classify(occ, cb, a, bs, end):
     boxes on opposite sides and those 64 crossings all inside the polygon (the plane's section of the hull of
     both boxes is the hull of those 64 crossings)."""
     bs = np.asarray(bs)
-    out = np.full((len(bs), len(occ)), 2, np.int8)
-    same = (cb.above[a][None] & cb.above[bs]) | (cb.below[a][None] & cb.below[bs])
-    same |= (cb.sabove[a][None] & cb.sabove[bs]) | (cb.sbelow[a][None] & cb.sbelow[bs])
-    out[same] = 0
-    lo_a, hi_a = cb.lo[a], cb.hi[a]
-    bi, f = np.nonzero(~same)
+    bi, f = _candidates(cb, a, bs)
     if not len(f):
-        return out
+        return bi, f, np.zeros(0, np.int8)
     b = bs[bi]
     ca = cb.centre[a]
     seg = cb.centre[b] - ca                                                         # (K, 3)
@@ -353,28 +427,29 @@ def _classify(occ, cb, a, bs, end):
     with np.errstate(invalid="ignore", divide="ignore"):
         one = ((la < 0) & (hb > 0) & (ga <= -la * L / (-la + cb.pos[b, f])) & (gb <= hb * L / (hb + cb.neg[a, f])))
         two = ((ha > 0) & (lb < 0) & (ga <= ha * L / (ha + cb.neg[b, f])) & (gb <= -lb * L / (-lb + cb.pos[a, f])))
-    cut = miss | ~(one | two)
-    out[bi[cut], f[cut]] = 0
-    bi, f = bi[~cut], f[~cut]
+    keep = ~miss & (one | two)
+    bi, f, b = bi[keep], f[keep], b[keep]
+    v = np.full(len(f), 2, np.int8)
     if not len(f):
-        return out
-    b = bs[bi]
+        return bi, f, v
     box_a, box_b = cb.box[a], cb.box[b]                                             # (8, 3), (K, 8, 3)
     ca8 = (box_a @ occ.normal.T - occ.d)[:, f]                                      # (8, K)
     cb8 = (np.einsum("kec,kc->ek", box_b, occ.normal[f]) - occ.d[f])                # (8, K)
-    apart = ((ca8.min(axis=0) > 0) & (cb8.max(axis=0) < 0)) | ((ca8.max(axis=0) < 0) & (cb8.min(axis=0) > 0))
-    if not apart.any():
-        return out
-    bi, f, b, ca8, cb8, box_b = bi[apart], f[apart], b[apart], ca8[:, apart], cb8[:, apart], box_b[apart]
+    apart = np.flatnonzero(((ca8.min(axis=0) > 0) & (cb8.max(axis=0) < 0))
+                           | ((ca8.max(axis=0) < 0) & (cb8.min(axis=0) > 0)))
+    if not len(apart):
+        return bi, f, v
+    fa, ba, ca8, cb8, box_b = f[apart], b[apart], ca8[:, apart], cb8[:, apart], box_b[apart]
     u = ca8[:, None] / (ca8[:, None] - cb8[None, :])                               # (8, 8, K)
     x = box_a[:, None, None, :] + u[..., None] * (np.moveaxis(box_b, 1, 0)[None] - box_a[:, None, None, :])
-    g = np.einsum("abkc,kmc->abkm", x, occ.m[f]) - occ.h[f]                         # (8, 8, K, 4)
+    g = np.einsum("abkc,kmc->abkm", x, occ.m[fa]) - occ.h[fa]                       # (8, 8, K, 4)
     inside = (g >= 0).all(axis=(0, 1, 3))
-    far = np.minimum(np.minimum(cb.pos[a, f], cb.neg[a, f]), np.minimum(cb.pos[b, f], cb.neg[b, f])) > end
-    out[bi[inside & far], f[inside & far]] = 1
+    far = np.minimum(np.minimum(cb.pos[a, fa], cb.neg[a, fa]), np.minimum(cb.pos[ba, fa], cb.neg[ba, fa])) > end
+    v[apart[inside & far]] = 1
     outside = (g < 0).all(axis=(0, 1)).any(axis=-1)
-    out[bi[outside], f[outside]] = 0
-    return out
+    v[apart[outside]] = 0
+    keep = v > 0
+    return bi[keep], f[keep], v[keep]
 
 
 def _crossed(sa, sb, ga, gb, pa, pb, end, ia, ib):
@@ -413,53 +488,75 @@ def visibility_faces(patches, occ, offset=1e-4, progress=None, leaf=CLUSTER_LEAF
     """Centre-to-centre visibility (N, N) bool against :class:`Occluders` ``occ`` (:func:`occluders`): the
     pairs each in front of the other's plane (as :func:`candidate_pair_blocks`), each segment from centre to
     centre lifted ``offset`` along the normals, the ray from the smaller index to the larger, a crossing within
-    ``2 offset`` of its target not counted (as lab.radiosity.visibility_bvh casts it). Only the occluders with points on both sides of their plane count;
-    the points are grouped in :func:`clusters` and every pair of clusters is first classified against each
-    occluder (:func:`_classify`): rays are tested only against the occluders it leaves undecided.
+    ``2 offset`` of its target not counted (as lab.radiosity.visibility_bvh casts it). Only the occluders with
+    points on both sides of their plane count. The points are grouped in :func:`clusters`; every pair of
+    clusters with a candidate pair is first classified against the occluders (:func:`_classify`, a non-planar
+    face's triangles first as one slab, :func:`_candidates`), and its rays are tested only against the
+    occluders it leaves undecided, the cluster pairs with the same undecided occluders in one go.
     ``progress()`` is called between rows of clusters."""
     n = len(patches)
     pts = patches.center + offset * patches.normal
-    c, nrm = patches.center, patches.normal
-    occ = blocking(occ, pts)
-    V = np.zeros((n, n), bool)
     S = occ.side(pts)
+    keep = np.flatnonzero((S > 1e-12).any(axis=0) & (S < -1e-12).any(axis=0))      # as blocking()
+    if len(keep) < len(occ):
+        occ, S = occ.take(keep), S[:, keep]
     groups = clusters(pts, leaf, patches.owner * (int(patches.source.max()) + 1) * 2
-                      + patches.source * 2 + patches.back)
+                      + patches.source * 2 + patches.back) if n else []
     cb = _ClusterBounds(occ, pts, S, groups)
     m3 = occ.m.reshape(-1, 3)
     end = 2 * offset
-    for a, ia in enumerate(groups):
+    # W: rows in cluster order (a cluster's pairs with the clusters after it are one block), columns the
+    # patches'
+    order = np.concatenate(groups) if n else np.zeros(0, int)
+    start = np.concatenate([[0], np.cumsum([len(g) for g in groups])]).astype(int)
+    c, nrm = patches.center[order], patches.normal[order]
+    own = np.einsum("ik,ik->i", c, nrm)
+    W = np.zeros((n, n), bool)
+
+    def row(a):
+        """Row block a: its pairs with the clusters from a on (rows s0:s1 and their transposes, which no
+        other row block writes: rows run in two threads)."""
+        ia = groups[a]
+        s0, s1 = start[a], start[a + 1]
+        # j in front of i: (c_j − c_i)·n_i > 0; i in front of j: (c_j − c_i)·n_j < 0
+        ok = (c[s0:] @ nrm[s0:s1].T).T - own[s0:s1, None] > 1e-9
+        ok &= (c[s0:s1] @ nrm[s0:].T) - own[None, s0:] > 1e-9
+        ok[:, :s1 - s0] &= np.tri(s1 - s0, k=-1, dtype=bool).T
+        width = np.diff(start[a:])
+        live = np.flatnonzero(np.logical_or.reduceat(ok.any(axis=0), start[a:-1] - s0))
+        if len(occ) and len(live):
+            bi, fi, v = _classify(occ, cb, a, a + live, end)
+            bi = live[bi]
+            blocked = np.bincount(bi[v == 1], minlength=len(width)) > 0
+            und = v == 2
+            by = np.argsort(bi[und], kind="stable")
+            ub, uf = bi[und][by], fi[und][by]
+            cut = np.searchsorted(ub, np.arange(len(width) + 1))
+        else:
+            blocked, cut = np.zeros(len(width), bool), np.zeros(len(width) + 1, int)
+        ok[:, np.repeat(blocked, width)] = False
+        # the undecided cluster pairs by the occluders left to test: one call a set (their points side by side)
+        todo = {}
+        for k in np.flatnonzero(~blocked & (np.diff(cut) > 0)):
+            todo.setdefault(uf[cut[k]:cut[k + 1]].tobytes(), []).append(k)
+        ga = (pts[ia] @ m3.T).reshape(len(ia), len(occ), 4) - occ.h if todo else None
+        for ks in todo.values():
+            f = uf[cut[ks[0]]:cut[ks[0] + 1]]
+            cols = np.concatenate([np.arange(start[a + k], start[a + k + 1]) for k in ks]) - s0
+            cols = cols[ok[:, cols].any(axis=0)]
+            if not len(cols):
+                continue
+            jb = order[s0 + cols]
+            gb = (pts[jb] @ occ.m[f].reshape(-1, 3).T).reshape(len(jb), len(f), 4) - occ.h[f]
+            ok[:, cols] &= ~_crossed(S[ia[:, None], f], S[jb[:, None], f], ga[:, f], gb, pts[ia], pts[jb], end,
+                                     ia, jb)
+        W[s0:s1, order[s0:]] = ok
+        W[s1:, ia] = ok[:, s1 - s0:].T
+        W[s0:s1, ia] |= ok[:, :s1 - s0].T
+
+    for _ in ordered_map(row, range(len(groups))):
         if progress:
             progress()
-        rest = groups[a:]
-        ib = np.concatenate(rest)
-        start = np.cumsum([0] + [len(g) for g in rest])
-        d = c[ib][None, :, :] - c[ia][:, None, :]
-        ok = (np.einsum("abk,ak->ab", d, nrm[ia]) > 1e-9) & (np.einsum("abk,bk->ab", d, nrm[ib]) < -1e-9)
-        ok[:, :len(ia)] &= ia[None, :] > ia[:, None]
-        if len(occ):
-            row = _classify(occ, cb, a, np.arange(a, len(groups)), end)
-            blocked, open_ = (row == 1).any(axis=1), ~(row == 2).any(axis=1)
-        else:
-            blocked, open_ = np.zeros(len(rest), bool), np.ones(len(rest), bool)
-        ok[:, np.repeat(blocked, np.diff(start))] = False
-        free = ok & np.repeat(open_, np.diff(start))[None, :]
-        ra, rb = np.nonzero(free)
-        V[ia[ra], ib[rb]] = True
-        V[ib[rb], ia[ra]] = True
-        ga = None
-        for k in np.flatnonzero(~blocked & ~open_):
-            sub = ok[:, start[k]:start[k + 1]]
-            if not sub.any():
-                continue
-            jb = rest[k]
-            f = np.flatnonzero(row[k] == 2)
-            if ga is None:
-                ga = (pts[ia] @ m3.T).reshape(len(ia), len(occ), 4) - occ.h
-            gb = (pts[jb] @ occ.m[f].reshape(-1, 3).T).reshape(len(jb), len(f), 4) - occ.h[f]
-            sub = sub & ~_crossed(S[ia[:, None], f], S[jb[:, None], f], ga[:, f], gb, pts[ia], pts[jb], end,
-                                  ia, jb)
-            ra, rb = np.nonzero(sub)
-            V[ia[ra], jb[rb]] = True
-            V[jb[rb], ia[ra]] = True
-    return V
+    inv = np.empty(n, int)
+    inv[order] = np.arange(n)
+    return W[inv]
