@@ -358,18 +358,39 @@ def on_depsgraph_update(scene, depsgraph):
             specialize(update.id.original)
 
 
+def scene_il_materials(scene):
+    """The IL materials in the slots of ``scene``'s objects and of the objects its collection instances
+    place, each once."""
+    found, objects = {}, list(scene.objects)
+    for obj in scene.objects:
+        if obj.instance_type == "COLLECTION" and obj.instance_collection is not None:
+            objects += list(obj.instance_collection.all_objects)
+    for obj in objects:
+        for slot in obj.material_slots:
+            mat = slot.material
+            if mat is not None and mat.get("il_model") and mat.node_tree is not None:
+                found[mat.as_pointer()] = mat
+    return list(found.values())
+
+
 @bpy.app.handlers.persistent
-def on_render_or_load(*_):
-    """Before a render started from Python (``blender -b``: no depsgraph update ran since the last edit) and
-    after a file opens. Renders started from the UI run this in their own thread: there the depsgraph
+def on_render(scene, *_):
+    """Before a render started from Python (``blender -b``: no depsgraph update ran since the last edit): the
+    materials that render. Renders started from the UI run this in their own thread: there the depsgraph
     handler has already done it, and data must not change, so only the main thread acts."""
     if threading.current_thread() is threading.main_thread():
-        specialize_all()
+        for mat in scene_il_materials(scene):
+            specialize(mat)
+
+
+@bpy.app.handlers.persistent
+def on_load(*_):
+    """After a file opens (saved in a state the handlers did not see)."""
+    specialize_all()
 
 
 #: (handler list, function) pairs the add-on adds on register and removes on unregister.
-HANDLERS = (("depsgraph_update_post", on_depsgraph_update), ("render_pre", on_render_or_load),
-            ("load_post", on_render_or_load))
+HANDLERS = (("depsgraph_update_post", on_depsgraph_update), ("render_pre", on_render), ("load_post", on_load))
 
 
 def add_handlers():
