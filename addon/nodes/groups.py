@@ -177,7 +177,8 @@ def _finish(g, o, color):
 # group holds both; a material holds the surface half once (internal group ".IL <model> Surface") and the
 # light half per light (".IL <model> Light"), so Blender converts only the light half for every light at
 # every render (it converts every node reachable from the output, about 13 us each; Cycles folds the
-# switches' unused branches only after that).
+# switches' unused branches only after that, so materials link the variants built with the switches fixed,
+# :func:`variant`).
 #
 # Cost (Cycles SVM): a switch input left constant (Distribution, Geometry, Normalized, Physical, Type)
 # keeps one branch only, so switches are Mix nodes, never math that evaluates both branches; and the
