@@ -119,6 +119,16 @@ def test_script_cornell_without_bake(script, tmp_path):
     assert (tmp_path / "Floor_radiosity.exr").exists()
 
 
+def test_script_run_twice_into_the_same_folder_compares_both_times(script, tmp_path):
+    """The second run's Cycles bake finds the first's maps with the same inputs: it bakes them again (its seconds
+    are part of the report) instead of skipping them (it ended in an internal error, KeyError)."""
+    for run in range(2):
+        proc = script("radiosity.py", "--scene", "cornell", "--out", tmp_path, "--max-edge", "0.5", "--samples", 2)
+        assert proc.returncode == 0, (run, proc.stderr)
+        rep = json.loads((tmp_path / "radiosity_report.json").read_text())
+        assert rep["cycles_seconds"] > 0 and 0 < rep["relative_rms_vs_cycles"] < 1, run
+
+
 def test_operators(tmp_path):
     assert bpy.ops.illumination.build_cornell_box() == {"FINISHED"}
     sc = bpy.data.scenes["IL Cornell"]

@@ -244,7 +244,7 @@ def cycles_sphere_irradiance(scene, sphere, samples=64, out=None):
     with tempfile.TemporaryDirectory(prefix="il_env_bake_") as tmp:
         folder = out or tmp
         report = bake_lightmaps([sphere], ["irradiance"], folder,
-                                BakeOptions(target="vertex", samples=samples, bounces=0, overwrite=True),
+                                BakeOptions(target="vertex", samples=samples, bounces=0, force=True),
                                 scene=scene)
         ch, _ = exr.read_exr(report["objects"][sphere.name]["irradiance"]["file"])
         E = np.stack([ch["R"][0], ch["G"][0], ch["B"][0]], axis=-1)
