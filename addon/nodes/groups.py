@@ -24,7 +24,7 @@ from ..core import brdf
 from .builder import Graph, is_socket
 
 #: Bump whenever a group's contents or sockets change: older groups in a file are rebuilt.
-GROUP_VERSION = 9
+GROUP_VERSION = 10
 
 PHONG, BLINN_PHONG, OREN_NAYAR, COOK_TORRANCE, LIGHT = (
     "IL Phong", "IL Blinn-Phong", "IL Oren-Nayar", "IL Cook-Torrance", "IL Light")
@@ -190,6 +190,7 @@ def _phong_surface(g, i, blinn):
     R = g.reg
     s["n (exponent)"] = R(i["Shininess"], "n")
     if blinn:
+        s["2"], s[f"{brdf.TINY:g}"] = R(2.0), R(brdf.TINY)
         with g.block("Surface: (n+2)(n+4) / (8 (2^(-n/2) + n))"):
             n0 = g.max(i["Shininess"], 0.0, label="max(n, 0)")
             num = g.mul(g.add(n0, 2.0), g.add(n0, 4.0), label="(n+2)(n+4)")
@@ -216,8 +217,8 @@ def _phong_light(g, i, s, blinn):
         a = g.mul(n_l, lit, label="max(n.l, 0)")
     if blinn:
         with g.block("Lobe: (n.h)^n"):
-            h = g.normalize(g.vadd(l, s["v"]), label="h = (l+v)/|l+v|")
-            lobe = g.pow(g.max(g.dot(s["n"], h, label="n.h"), zero), shin, label="(n.h)^n")
+            n_h = _half_vector_cosines(g, s, l, n_l)[0]
+            lobe = g.pow(g.max(n_h, zero), shin, label="(n.h)^n")
     else:
         with g.block("Lobe: (r.v)^n, r.v = 2 (n.l)(n.v) - l.v"):
             r_v = g.madd(n_l, s["2 n.v"], g.dot(l, s["-v"], label="-l.v"), label="r.v")
@@ -265,7 +266,7 @@ def _cook_torrance_surface(g, i):
         s.update({"r^2": R(r2, "r^2"), "1/r": R(g.div(1.0, r), "1/r"),
                   "r^2/4": R(g.mul(r2, 0.25), "r^2/4"), "(1 - r^2)/4": R(g.mul(g.sub(1.0, r2), 0.25), "(1 - r^2)/4"),
                   "pi r^2": R(g.mul(r2, math.pi), "pi r^2"), "r^2 - 1": R(g.sub(r2, 1.0), "r^2 - 1")})
-        for value in (1.0, 5.0, brdf.EPS, brdf.TINY, 0.396, -1.259, 2.181, 3.535, 1.6):
+        for value in (1.0, 5.0, brdf.EPS, brdf.TINY, 0.396, -1.259, 2.181, 3.535, 1.6, 2.0, 0.5, -0.5):
             s[f"{value:g}"] = R(value)
     n_v = s["n.v"]
     with g.block("Surface: n.v terms, Lambda(v), pi k_s / (4 n.v) where n.v > 0, times F0 and 1 - F0"):
@@ -283,7 +284,6 @@ def _cook_torrance_surface(g, i):
         s["F0 k r^2/pi"] = g.mul(k, g.mul(i["F0"], g.div(r2, math.pi)), label="F0 k r^2/pi")
         s["(1 - F0) k r^2/pi"] = g.mul(k, g.mul(one_minus_f0, g.div(r2, math.pi)), label="(1 - F0) k r^2/pi")
         s["r^2/pi"] = R(g.div(r2, math.pi), "r^2/pi")
-        s["(1, 1, 1)"] = g.vreg((1.0, 1.0, 1.0), "(1, 1, 1)")
         s["k_d"] = g.vreg(i["Kd"], "k_d")
     return s
 
@@ -300,17 +300,29 @@ def _lambda_beckmann(g, s, cos_theta, which):
     return g.mul(fit, g.math("LESS_THAN", a, s["1.6"]), label=f"Lambda Beckmann ({which})")
 
 
+def _half_vector_cosines(g, s, l, n_l):
+    """n.h and |l + v| = 2 v.h without the h vector (an add and a normalize cost Cycles' SVM more than the
+    Math nodes that replace them): with l and v unit, |l + v|^2 = 2 (1 + v.l) and n.h = (n.l + n.v)/|l + v|
+    (h = (l + v)/|l + v|); |l + v|^2 is kept above 1e-12 so that l = -v gives 0, not NaN. Returns n.h,
+    |l + v|^2 and 1/|l + v|; reads the registers "2" and "1e-12"."""
+    with g.block("Half vector cosines: n.h = (n.l + n.v)/|l + v|, v.h = |l + v|/2, |l + v|^2 = 2 (1 + v.l)"):
+        lv2 = g.max(g.madd(g.dot(s["v"], l, label="v.l"), s["2"], s["2"]), s[f"{brdf.TINY:g}"],
+                    label="|l + v|^2")
+        inv_lv = g.math("INVERSE_SQRT", lv2, label="1/|l + v|")
+        n_h = g.mul(g.add(n_l, s["n.v"]), inv_lv, label="n.h")
+    return n_h, lv2, inv_lv
+
+
 def _cook_torrance_light(g, i, s):
     l, n_l = _light_common(g, i, s)
-    n, v, dist, geom = s["n"], s["v"], i["Distribution"], i["Geometry"]
+    n_h, lv2, inv_lv = _half_vector_cosines(g, s, l, n_l)
+    lv = g.mul(lv2, inv_lv, label="|l + v| = 2 v.h")
+    dist, geom = i["Distribution"], i["Geometry"]
     zero, one, eps = s["0"], s["1"], s[f"{brdf.EPS:g}"]
-    with g.block("Half vector"):
-        h = g.normalize(g.vadd(l, v), label="h")
-        n_h = g.dot(n, h, label="n.h")
-        v_h = g.dot(v, h, label="v.h")
-        a_l = g.max(n_l, zero, label="max(n.l, 0)")
+    a_l = g.max(n_l, zero, label="max(n.l, 0)")
     if (dist, geom) == (1.0, 1.0):
-        return _ggx_smith_factor(g, s, n_h, v_h, a_l)
+        return _ggx_smith_factor(g, s, n_h, lv, a_l)
+    v_h = g.mul(lv, s["0.5"], label="v.h")
     # n.h enters D and G unclamped at 0 where the twin clamps it: those points have n.l <= 0 or n.v <= 0
     # (n.h = (n.l + n.v)/|l + v|), where G or k makes the specular 0 (both stay finite there).
     with g.block("D: Beckmann"):
@@ -342,25 +354,25 @@ def _cook_torrance_light(g, i, s):
     # every G is 0 where n.l <= 0 (G Cook-Torrance through max(n.l, 0)), and k where n.v <= 0
     with g.block("L = I (k_d n.l + pi k_s F D G / (4 n.v)), specular 0 unless n.l, n.v > 0"):
         spec = g.mul(g.mul(Fk, D), G, label="specular")
-        return g.add_scaled(spec, s["k_d"], a_l, label="k_d n.l + specular")
+        return g.vmath("MULTIPLY_ADD", s["k_d"], a_l, spec, label="k_d n.l + specular")
 
 
-def _ggx_smith_factor(g, s, n_h, v_h, a_l):
+def _ggx_smith_factor(g, s, n_h, lv, a_l):
     """GGX with the height-correlated Smith G (both switches at 1, the default) in fewer nodes than the
     general form: with t = (n.h)^2 (a^2 - 1) + 1 and G = a_l / (a_l s(v)/2 + sqrt(a^2 + (1 - a^2) a_l^2)/2),
-    D G = (a^2/pi) a_l / (t^2 den), so k_d a_l + F k D G = a_l (k_d + F k (a^2/pi) / (t^2 den)) (REFERENCE.md
+    D G = (a^2/pi) a_l / (t^2 den), so k_d a_l + F k D G = k_d a_l + a_l F k (a^2/pi) / (t^2 den) (REFERENCE.md
     sec. 1, Walter et al. 2007 eq. 33 and 34; the same values as the general form)."""
     with g.block("D G / a_l: (a^2/pi) / (t^2 (a_l s(v)/2 + sqrt(a^2 + (1 - a^2) a_l^2)/2))"):
         t = g.madd(g.mul(n_h, n_h), s["r^2 - 1"], s["1"], label="t = (n.h)^2 (a^2 - 1) + 1")
         half_root = g.math("SQRT", g.madd(g.mul(a_l, a_l), s["(1 - r^2)/4"], s["r^2/4"]),
                            label="sqrt(a^2 + (1 - a^2) (n.l)^2)/2")
         den = g.mul(g.mul(t, t, label="t^2"), g.madd(a_l, s["s GGX(v)/2"], half_root), label="t^2 den")
-    with g.block("F k a^2/pi: Schlick, F0 + (1 - F0)(1 - v.h)^5 with v.h in [0, 1]"):
-        one_minus = g.math("SUBTRACT", s["1"], v_h, clamp=True, label="1 - v.h, clamped to [0, 1]")
+    with g.block("F k a^2/pi: Schlick, F0 + (1 - F0)(1 - v.h)^5 with v.h = |l + v|/2 in [0, 1]"):
+        one_minus = g.math("MULTIPLY_ADD", lv, s["-0.5"], s["1"], clamp=True, label="1 - v.h, clamped to [0, 1]")
         fk = g.madd(g.pow(one_minus, s["5"]), s["(1 - F0) k r^2/pi"], s["F0 k r^2/pi"], label="F k a^2/pi")
-    with g.block("a_l (k_d + F k D G / a_l)"):
-        per_nl = g.add_scaled(s["k_d"], s["(1, 1, 1)"], g.div(fk, den), label="k_d + F k D G / a_l")
-        return g.scale(per_nl, a_l, label="k_d n.l + specular")
+    with g.block("k_d a_l + a_l F k D G / a_l (one Vector Math node: the numbers enter as grey vectors)"):
+        spec = g.mul(a_l, g.div(fk, den), label="F k D G")
+        return g.vmath("MULTIPLY_ADD", s["k_d"], a_l, spec, label="k_d n.l + specular")
 
 
 #: model group: (surface half, light half, the switch inputs the light half reads, surface term added once).
