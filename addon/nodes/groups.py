@@ -190,7 +190,7 @@ def _phong_surface(g, i, blinn):
     R = g.reg
     s["n (exponent)"] = R(i["Shininess"], "n")
     if blinn:
-        s["2"], s[f"{brdf.TINY:g}"] = R(2.0), R(brdf.TINY)
+        s[f"{brdf.TINY:g}"] = R(brdf.TINY)
         with g.block("Surface: (n+2)(n+4) / (8 (2^(-n/2) + n))"):
             n0 = g.max(i["Shininess"], 0.0, label="max(n, 0)")
             num = g.mul(g.add(n0, 2.0), g.add(n0, 4.0), label="(n+2)(n+4)")
@@ -266,7 +266,7 @@ def _cook_torrance_surface(g, i):
         s.update({"r^2": R(r2, "r^2"), "1/r": R(g.div(1.0, r), "1/r"),
                   "r^2/4": R(g.mul(r2, 0.25), "r^2/4"), "(1 - r^2)/4": R(g.mul(g.sub(1.0, r2), 0.25), "(1 - r^2)/4"),
                   "pi r^2": R(g.mul(r2, math.pi), "pi r^2"), "r^2 - 1": R(g.sub(r2, 1.0), "r^2 - 1")})
-        for value in (1.0, 5.0, brdf.EPS, brdf.TINY, 0.396, -1.259, 2.181, 3.535, 1.6, 2.0, 0.5, -0.5):
+        for value in (1.0, 5.0, brdf.EPS, brdf.TINY, 0.396, -1.259, 2.181, 3.535, 1.6, 0.5, -0.5):
             s[f"{value:g}"] = R(value)
     n_v = s["n.v"]
     with g.block("Surface: n.v terms, Lambda(v), pi k_s / (4 n.v) where n.v > 0, times F0 and 1 - F0"):
@@ -301,13 +301,14 @@ def _lambda_beckmann(g, s, cos_theta, which):
 
 
 def _half_vector_cosines(g, s, l, n_l):
-    """n.h and |l + v| = 2 v.h without the h vector (an add and a normalize cost Cycles' SVM more than the
-    Math nodes that replace them): with l and v unit, |l + v|^2 = 2 (1 + v.l) and n.h = (n.l + n.v)/|l + v|
-    (h = (l + v)/|l + v|); |l + v|^2 is kept above 1e-12 so that l = -v gives 0, not NaN. Returns n.h,
-    |l + v|^2 and 1/|l + v|; reads the registers "2" and "1e-12"."""
-    with g.block("Half vector cosines: n.h = (n.l + n.v)/|l + v|, v.h = |l + v|/2, |l + v|^2 = 2 (1 + v.l)"):
-        lv2 = g.max(g.madd(g.dot(s["v"], l, label="v.l"), s["2"], s["2"]), s[f"{brdf.TINY:g}"],
-                    label="|l + v|^2")
+    """n.h and |l + v| = 2 v.h without normalizing h (Cycles' SVM spends more on a normalize and a dot
+    product than on the Math nodes that replace them): with l and v unit, n.h = (n.l + n.v)/|l + v|.
+    |l + v|^2 is the dot product of l + v with itself, not 2 (1 + v.l), which loses digits as l turns
+    toward -v (the Blinn-Phong lobe and a sharp GGX peak on a back-lit rim), and is kept above 1e-12
+    so that l = -v gives 0, not NaN. Returns n.h, |l + v|^2 and 1/|l + v|; reads the register "1e-12"."""
+    with g.block("Half vector cosines: n.h = (n.l + n.v)/|l + v|, v.h = |l + v|/2"):
+        l_v = g.vadd(l, s["v"], label="l + v")
+        lv2 = g.max(g.dot(l_v, l_v), s[f"{brdf.TINY:g}"], label="|l + v|^2")
         inv_lv = g.math("INVERSE_SQRT", lv2, label="1/|l + v|")
         n_h = g.mul(g.add(n_l, s["n.v"]), inv_lv, label="n.h")
     return n_h, lv2, inv_lv
