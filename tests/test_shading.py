@@ -314,13 +314,33 @@ def test_a_muted_switch_hub_gets_the_group_with_both_branches():
 
 
 #: Surface terms added since group version 7: a file from version 7 has materials and groups without them.
-NEW_IN_8 = ("F0 k r^2/pi", "(1 - F0) k r^2/pi", "(1, 1, 1)")
+NEW_IN_8 = ("F0 k r^2/pi", "(1 - F0) k r^2/pi")
+#: Surface terms version 10 added (Cook-Torrance, Blinn-Phong), and the one it dropped (Cook-Torrance).
+NEW_IN_10 = ("0.5", "-0.5", "1e-12")
+DROPPED_IN_10 = ("(1, 1, 1)", "NodeSocketVector")
+
+
+def _old_interface(tree, group, keep, extra=()):
+    """``group``'s sockets recreated in their own order without the names ``keep`` rejects, plus ``extra``
+    [(name, in_out, socket type)]; the material's links to and from its users restored by name."""
+    users = [n for n in tree.nodes if getattr(n, "node_tree", None) == group]
+    links = [(lk.from_node.name, lk.from_socket.name, lk.to_node.name, lk.to_socket.name) for lk in tree.links
+             if lk.from_node in users or lk.to_node in users]
+    items = [(i.name, i.in_out, i.socket_type) for i in group.interface.items_tree
+             if i.item_type == "SOCKET" and keep(i.name)] + list(extra)
+    group.interface.clear()
+    for name, in_out, socket_type in items:
+        group.interface.new_socket(name, in_out=in_out, socket_type=socket_type)
+    nodes = tree.nodes
+    for from_node, from_name, to_node, to_name in links:
+        if from_name in nodes[from_node].outputs and to_name in nodes[to_node].inputs:
+            tree.links.new(nodes[from_node].outputs[from_name], nodes[to_node].inputs[to_name])
 
 
 def _as_version_7(mat):
     """Make the file look like one saved by version 7: materials link the light halves with both branches,
-    the internal groups are version 7 (no variants, no il_base), lack the terms version 8 added, and number
-    their sockets in their own order (recreated here, the material's links restored by name)."""
+    the internal groups are version 7 (no variants, no il_base), lack the terms versions 8 and 10 added, and
+    number their sockets in their own order (recreated here, the material's links restored by name)."""
     tree = mat.node_tree
     mat["il_version"] = 7
     for node in tree.nodes:
@@ -334,20 +354,54 @@ def _as_version_7(mat):
             continue
         del group["il_base"]
         group["il_version"] = 7
-        users = [n for n in tree.nodes if getattr(n, "node_tree", None) == group]
-        ins = [(lk.from_socket, lk.to_node, lk.to_socket.name) for lk in tree.links if lk.to_node in users]
-        outs = [(lk.from_node, lk.from_socket.name, lk.to_socket) for lk in tree.links if lk.from_node in users]
-        items = [(i.name, i.in_out, i.socket_type) for i in group.interface.items_tree
-                 if i.item_type == "SOCKET" and i.name not in NEW_IN_8]
-        group.interface.clear()
-        for name, in_out, socket_type in items:
-            group.interface.new_socket(name, in_out=in_out, socket_type=socket_type)
-        for from_socket, node, name in ins:
-            if name in node.inputs:
-                tree.links.new(from_socket, node.inputs[name])
-        for node, name, to_socket in outs:
-            if name in node.outputs:
-                tree.links.new(node.outputs[name], to_socket)
+        _old_interface(tree, group, lambda name: name not in NEW_IN_8 + NEW_IN_10)
+
+
+def _as_version_9(mat):
+    """Make the file look like one saved by version 9: the material links variants, the internal groups
+    (variants too) are version 9, lack the terms version 10 added, and Cook-Torrance's surface half has the
+    "(1, 1, 1)" term that version 10 dropped, linked to every light half."""
+    tree = mat.node_tree
+    mat["il_version"] = 9
+    model = mat["il_model"]
+    for group in bpy.data.node_groups:
+        if not group.name.startswith(".IL"):
+            continue
+        group["il_version"] = 9
+        base = group.get("il_base", "")
+        extra = ()
+        if model == "COOK_TORRANCE" and base.endswith(" Surface"):
+            extra = [(DROPPED_IN_10[0], "OUTPUT", DROPPED_IN_10[1])]
+        elif model == "COOK_TORRANCE" and base.endswith(" Light"):
+            extra = [(DROPPED_IN_10[0], "INPUT", DROPPED_IN_10[1])]
+        _old_interface(tree, group, lambda name: name not in NEW_IN_10, extra)
+    if model == "COOK_TORRANCE":
+        surface = next(n for n in tree.nodes if n.name.endswith("surface (shared by every light)"))
+        for node in tree.nodes:
+            if getattr(node, "node_tree", None) is not None and node.node_tree.get("il_base", "").endswith(" Light"):
+                tree.links.new(surface.outputs[DROPPED_IN_10[0]], node.inputs[DROPPED_IN_10[0]])
+
+
+@pytest.mark.both_versions
+@pytest.mark.parametrize("model, params, twin, kw", [MATERIAL_CASES[1], MATERIAL_CASES[3]], ids=["BLINN_PHONG", "COOK_TORRANCE"])
+def test_materials_of_a_version_9_file_render_right_after_the_groups_are_rebuilt(model, params, twin, kw):
+    """Opening a file from version 9 rebuilds the internal groups in place, which drops a surface term the old
+    material links and adds terms it does not link: the material renders the model (the groups with both
+    branches, the new terms linked from its surface half), and Relink Lights gives it the variants again."""
+    scene, ball = _scene_with_ball(24)
+    key = sc.light(scene, "Key", "POINT", 120.0, location=(1.5, -2.5, 1.0), color=(1.0, 0.8, 0.6))
+    sun = sc.light(scene, "Sun", "SUN", 1.5, rotation=sc.deg(30, 10, 20))
+    mat, _ = material.assign_shading_model(scene, [ball], model, params=params)
+    variants = {n.name: n.node_tree.name for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeGroup"}
+    _as_version_9(mat)
+    once = kw.get("ka", 0.0) * np.array(kw.get("ambient_light", (0, 0, 0)))
+    for step in ("old material", "relinked"):
+        p, n, L = _pixels(scene)
+        ref = _twin_sum([key, sun], p, n, _camera_view(scene), twin, **kw) - once
+        linked = {n.name: n.node_tree.name for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeGroup"}
+        assert (linked == variants) == (step == "relinked"), (step, linked)
+        assert np.all(np.isfinite(L)) and np.max(np.abs(L - ref)) <= 2e-4 * np.max(ref), step
+        material.relink_lights(scene, [mat])
 
 
 @pytest.mark.both_versions

@@ -218,7 +218,7 @@ def _phong_light(g, i, s, blinn):
     if blinn:
         with g.block("Lobe: (n.h)^n"):
             n_h = _half_vector_cosines(g, s, l, n_l)[0]
-            lobe = g.pow(g.max(n_h, zero), shin, label="(n.h)^n")
+            lobe = g.pow(n_h, shin, label="(n.h)^n")
     else:
         with g.block("Lobe: (r.v)^n, r.v = 2 (n.l)(n.v) - l.v"):
             r_v = g.madd(n_l, s["2 n.v"], g.dot(l, s["-v"], label="-l.v"), label="r.v")
@@ -301,16 +301,13 @@ def _lambda_beckmann(g, s, cos_theta, which):
 
 
 def _half_vector_cosines(g, s, l, n_l):
-    """n.h and |l + v| = 2 v.h without normalizing h (Cycles' SVM spends more on a normalize and a dot
-    product than on the Math nodes that replace them): with l and v unit, n.h = (n.l + n.v)/|l + v|.
-    |l + v|^2 is the dot product of l + v with itself, not 2 (1 + v.l), which loses digits as l turns
-    toward -v (the Blinn-Phong lobe and a sharp GGX peak on a back-lit rim), and is kept above 1e-12
-    so that l = -v gives 0, not NaN. Returns n.h, |l + v|^2 and 1/|l + v|; reads the register "1e-12"."""
+    """n.h = (n.l + n.v)/|l + v| clamped to [0, 1], and |l + v|^2 = (l + v).(l + v) kept above 1e-12 (l = -v
+    gives 0), with 1/|l + v|: v.h = |l + v|/2 for unit l and v, without normalizing h."""
     with g.block("Half vector cosines: n.h = (n.l + n.v)/|l + v|, v.h = |l + v|/2"):
         l_v = g.vadd(l, s["v"], label="l + v")
         lv2 = g.max(g.dot(l_v, l_v), s[f"{brdf.TINY:g}"], label="|l + v|^2")
         inv_lv = g.math("INVERSE_SQRT", lv2, label="1/|l + v|")
-        n_h = g.mul(g.add(n_l, s["n.v"]), inv_lv, label="n.h")
+        n_h = g.math("MULTIPLY", g.add(n_l, s["n.v"]), inv_lv, clamp=True, label="n.h, clamped to [0, 1]")
     return n_h, lv2, inv_lv
 
 
@@ -371,7 +368,7 @@ def _ggx_smith_factor(g, s, n_h, lv, a_l):
     with g.block("F k a^2/pi: Schlick, F0 + (1 - F0)(1 - v.h)^5 with v.h = |l + v|/2 in [0, 1]"):
         one_minus = g.math("MULTIPLY_ADD", lv, s["-0.5"], s["1"], clamp=True, label="1 - v.h, clamped to [0, 1]")
         fk = g.madd(g.pow(one_minus, s["5"]), s["(1 - F0) k r^2/pi"], s["F0 k r^2/pi"], label="F k a^2/pi")
-    with g.block("k_d a_l + a_l F k D G / a_l (one Vector Math node: the numbers enter as grey vectors)"):
+    with g.block("k_d n.l + n.l (F k D G / n.l)"):
         spec = g.mul(a_l, g.div(fk, den), label="F k D G")
         return g.vmath("MULTIPLY_ADD", s["k_d"], a_l, spec, label="k_d n.l + specular")
 

@@ -325,6 +325,10 @@ def specialize(mat):
     if tree is None or not mat.get("il_model") or mat.library is not None:
         return 0
     current = mat.get("il_version") == groups.GROUP_VERSION
+    for node in tree.nodes:     # older groups rebuilt first: that frees the links to sockets they lose
+        base = getattr(node, "node_tree", None) and node.node_tree.get("il_base")
+        if base:
+            groups.ensure_group(base)
     changed, animated = 0, _animated_paths(tree)
     into = {lk.to_socket.as_pointer(): lk for lk in tree.links}   # NodeSocket.links reads every link of the tree
     for node in tree.nodes:
@@ -342,7 +346,20 @@ def specialize(mat):
         if want != group:
             _swap_group(tree, node, want, into)
             changed += 1
+    if not current:
+        _link_surface_terms(tree)
     return changed
+
+
+def _link_surface_terms(tree):
+    """Each light half's unlinked input linked from the surface half's output of that name (the terms a newer
+    group version reads, which a material built by an older one does not link)."""
+    bases = {n: n.node_tree.get("il_base") for n in tree.nodes if getattr(n, "node_tree", None) is not None}
+    surface = next((n for n, b in bases.items() if b and b.endswith(" Surface")), None)
+    for node in (n for n, b in bases.items() if b and b.endswith(" Light")) if surface is not None else ():
+        for socket in node.inputs:
+            if not socket.is_linked and socket.name in surface.outputs:
+                tree.links.new(surface.outputs[socket.name], socket)
 
 
 def specialize_all():
