@@ -217,8 +217,8 @@ def _phong_light(g, i, s, blinn):
         a = g.mul(n_l, lit, label="max(n.l, 0)")
     if blinn:
         with g.block("Lobe: (n.h)^n"):
-            n_h = _half_vector_cosines(g, s, l, n_l)[0]
-            lobe = g.pow(n_h, shin, label="(n.h)^n")
+            n_h = _half_vector_cosines(g, s, l)[0]
+            lobe = g.pow(g.max(n_h, zero), shin, label="(n.h)^n")
     else:
         with g.block("Lobe: (r.v)^n, r.v = 2 (n.l)(n.v) - l.v"):
             r_v = g.madd(n_l, s["2 n.v"], g.dot(l, s["-v"], label="-l.v"), label="r.v")
@@ -300,20 +300,20 @@ def _lambda_beckmann(g, s, cos_theta, which):
     return g.mul(fit, g.math("LESS_THAN", a, s["1.6"]), label=f"Lambda Beckmann ({which})")
 
 
-def _half_vector_cosines(g, s, l, n_l):
-    """n.h = (n.l + n.v)/|l + v| clamped to [0, 1], and |l + v|^2 = (l + v).(l + v) kept above 1e-12 (l = -v
-    gives 0), with 1/|l + v|: v.h = |l + v|/2 for unit l and v, without normalizing h."""
-    with g.block("Half vector cosines: n.h = (n.l + n.v)/|l + v|, v.h = |l + v|/2"):
+def _half_vector_cosines(g, s, l):
+    """n.h = n.(l + v)/|l + v| and |l + v|^2 = (l + v).(l + v), kept above 1e-12 (l = -v gives 0), with
+    1/|l + v|: v.h = |l + v|/2 in [0, 1] for unit l and v, without normalizing h."""
+    with g.block("Half vector cosines: n.h = n.(l + v)/|l + v|, v.h = |l + v|/2"):
         l_v = g.vadd(l, s["v"], label="l + v")
         lv2 = g.max(g.dot(l_v, l_v), s[f"{brdf.TINY:g}"], label="|l + v|^2")
         inv_lv = g.math("INVERSE_SQRT", lv2, label="1/|l + v|")
-        n_h = g.math("MULTIPLY", g.add(n_l, s["n.v"]), inv_lv, clamp=True, label="n.h, clamped to [0, 1]")
+        n_h = g.mul(g.dot(s["n"], l_v, label="n.(l + v)"), inv_lv, label="n.h")
     return n_h, lv2, inv_lv
 
 
 def _cook_torrance_light(g, i, s):
     l, n_l = _light_common(g, i, s)
-    n_h, lv2, inv_lv = _half_vector_cosines(g, s, l, n_l)
+    n_h, lv2, inv_lv = _half_vector_cosines(g, s, l)
     lv = g.mul(lv2, inv_lv, label="|l + v| = 2 v.h")
     dist, geom = i["Distribution"], i["Geometry"]
     zero, one, eps = s["0"], s["1"], s[f"{brdf.EPS:g}"]
@@ -346,8 +346,8 @@ def _cook_torrance_light(g, i, s):
         g_smith = g.lerp(g_beck, g_ggx, dist, label="G Smith")
     with g.block("G: select (0 Cook-Torrance, 1 Smith)"):
         G = g.lerp(g_ct, g_smith, geom, label="G")
-    with g.block("F k: Schlick, F0 + (1 - F0)(1 - v.h)^5 with v.h in [0, 1], times k"):
-        one_minus = g.math("SUBTRACT", one, v_h, clamp=True, label="1 - v.h, clamped to [0, 1]")
+    with g.block("F k: Schlick, F0 + (1 - F0)(1 - v.h)^5, times k"):
+        one_minus = g.sub(one, v_h, label="1 - v.h")
         Fk = g.madd(g.pow(one_minus, s["5"]), s["(1 - F0) k"], s["F0 k"], label="F k")
     # every G is 0 where n.l <= 0 (G Cook-Torrance through max(n.l, 0)), and k where n.v <= 0
     with g.block("L = I (k_d n.l + pi k_s F D G / (4 n.v)), specular 0 unless n.l, n.v > 0"):
@@ -365,8 +365,8 @@ def _ggx_smith_factor(g, s, n_h, lv, a_l):
         half_root = g.math("SQRT", g.madd(g.mul(a_l, a_l), s["(1 - r^2)/4"], s["r^2/4"]),
                            label="sqrt(a^2 + (1 - a^2) (n.l)^2)/2")
         den = g.mul(g.mul(t, t, label="t^2"), g.madd(a_l, s["s GGX(v)/2"], half_root), label="t^2 den")
-    with g.block("F k a^2/pi: Schlick, F0 + (1 - F0)(1 - v.h)^5 with v.h = |l + v|/2 in [0, 1]"):
-        one_minus = g.math("MULTIPLY_ADD", lv, s["-0.5"], s["1"], clamp=True, label="1 - v.h, clamped to [0, 1]")
+    with g.block("F k a^2/pi: Schlick, F0 + (1 - F0)(1 - v.h)^5, v.h = |l + v|/2"):
+        one_minus = g.madd(lv, s["-0.5"], s["1"], label="1 - v.h")
         fk = g.madd(g.pow(one_minus, s["5"]), s["(1 - F0) k r^2/pi"], s["F0 k r^2/pi"], label="F k a^2/pi")
     with g.block("k_d n.l + n.l (F k D G / n.l)"):
         spec = g.mul(a_l, g.div(fk, den), label="F k D G")
