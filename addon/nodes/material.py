@@ -325,10 +325,9 @@ def specialize(mat):
     if tree is None or not mat.get("il_model") or mat.library is not None:
         return 0
     current = mat.get("il_version") == groups.GROUP_VERSION
-    for node in tree.nodes:     # older groups rebuilt first: that frees the links to sockets they lose
-        base = getattr(node, "node_tree", None) and node.node_tree.get("il_base")
-        if base:
-            groups.ensure_group(base)
+    bases = {node.node_tree.get("il_base") for node in tree.nodes if getattr(node, "node_tree", None) is not None}
+    for base in bases - {None}:     # older groups rebuilt first: that frees the links to sockets they lose
+        groups.ensure_group(base)
     changed, animated = 0, _animated_paths(tree)
     into = {lk.to_socket.as_pointer(): lk for lk in tree.links}   # NodeSocket.links reads every link of the tree
     for node in tree.nodes:
