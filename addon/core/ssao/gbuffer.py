@@ -123,9 +123,10 @@ def project(px, py, pz, proj, width, height):
 def pixels_per_metre(gb, depth):
     """Screen-space scale at view depth z: f/z pixels per metre (perspective), f (orthographic).
 
-    f = (P00 W/2 + P11 H/2)/2, the mean focal length in pixels.
+    f = (P00 W/2 + P11 H/2)/2, the mean focal length in pixels, in float32 like the depth (the dtype
+    NumPy 1's value-based casting gave f/z; NEP 50 would make it float64).
     """
-    f = 0.25 * (gb.proj[0, 0] * gb.width + gb.proj[1, 1] * gb.height)
+    f = np.float32(0.25 * (gb.proj[0, 0] * gb.width + gb.proj[1, 1] * gb.height))
     return f / depth if gb.perspective else np.full_like(depth, f)
 
 
@@ -223,7 +224,7 @@ def positions_at(gb, x, y):
     v, on = lookup_at(gb, x, y)
     d = depth_from_lookup(gb, v)
     on &= d < 0.5 * SKY_DEPTH
-    p = gb.proj
+    p = gb.proj.astype(np.float32)     # P's scalars in float32 with the coordinates (NumPy 1 and NEP 50 alike)
     ndc_x, ndc_y = pixels_to_ndc(x, y, gb.width, gb.height)
     if gb.perspective:
         ndc_x += p[0, 2]

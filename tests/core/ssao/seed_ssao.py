@@ -39,9 +39,10 @@ def view_to_pixels(points, proj, width, height):
 def pixels_per_metre(gb, depth):
     """Screen-space scale at view depth z: f/z pixels per metre (perspective), f (orthographic).
 
-    f = (P00 W/2 + P11 H/2)/2, the mean focal length in pixels.
+    f = (P00 W/2 + P11 H/2)/2, the mean focal length in pixels, in float32 like the depth (the dtype
+    NumPy 1's value-based casting gave f/z; NEP 50 would make it float64).
     """
-    f = 0.25 * (gb.proj[0, 0] * gb.width + gb.proj[1, 1] * gb.height)
+    f = np.float32(0.25 * (gb.proj[0, 0] * gb.width + gb.proj[1, 1] * gb.height))
     return f / depth if _perspective(gb) else np.full_like(depth, f)
 
 
@@ -90,7 +91,7 @@ def position_at(gb, x, y):
     on screen and not sky.
     """
     d, on = depth_at(gb, x, y)
-    p = gb.proj
+    p = gb.proj.astype(np.float32)     # float32 as NumPy 1's value-based casting read P's scalars here
     ndc_x, ndc_y = pixels_to_ndc(x, y, gb.width, gb.height)
     if _perspective(gb):
         px = d * ((ndc_x + p[0, 2]) / p[0, 0])
@@ -300,7 +301,7 @@ def _horizon_search(gb, radius, samples, seed, slices=None, steps=None):
             dist = np.linalg.norm(hv, axis=-1)
             valid &= (dist > 1e-6 * radius) & (dist <= radius)
             cos_h = np.sum(hv * vv[:, :, None, :], -1) / np.maximum(dist, 1e-12)
-            sides.append((np.where(valid, cos_h, np.nan), dist))
+            sides.append((np.where(valid, cos_h, np.float32(np.nan)), dist))
         yield sl, n_len, gamma, sides
 
 
