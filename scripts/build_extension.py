@@ -2,8 +2,8 @@
 
     python scripts/build_extension.py --out dist
 
-Downloads the OpenEXR wheels the manifest bundles into ./wheels first (pip's cache
-makes that a no-op after the first time).
+Downloads the OpenEXR wheels the manifest bundles (cp311 for Blender 4.5, cp313 for 5.1-5.3) into
+./wheels first (pip's cache makes that a no-op after the first time).
 """
 import glob
 import importlib.util
@@ -42,10 +42,11 @@ def download_wheels():
         path = os.path.join(_cli.ROOT, rel)
         if os.path.exists(path):
             continue
-        name, version = os.path.basename(rel).split("-")[:2]
+        name, version, python_tag = os.path.basename(rel).split("-")[:3]
         tag = next(t for t in PLATFORM_TAGS if t in rel)
+        python_version = f"{python_tag[2]}.{python_tag[3:]}"      # cp313 -> 3.13
         cmd = [sys.executable, "-m", "pip", "download", "-q", "--disable-pip-version-check", "--no-deps",
-               "--only-binary=:all:", "--python-version", "3.11", "--platform", tag,
+               "--only-binary=:all:", "--python-version", python_version, "--platform", tag,
                "-d", os.path.dirname(path), f"{name}=={version}"]
         if subprocess.run(cmd).returncode != 0 or not os.path.exists(path):
             raise ILError(f"could not download {rel}")
