@@ -150,7 +150,7 @@ def test_triangle_patches_compare_on_the_texels_cycles_bakes(tmp_path):
     bpy.ops.mesh.primitive_plane_add(size=1.0, location=(0, 0, 0.5))
     lamp = bpy.context.object
     mat = bpy.data.materials.new("L")
-    mat.use_nodes = True
+    compat.ensure_use_nodes(mat)
     nt = mat.node_tree
     nt.nodes.clear()
     em = nt.nodes.new("ShaderNodeEmission")

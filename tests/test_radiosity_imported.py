@@ -11,6 +11,7 @@ import bpy
 import numpy as np
 import pytest
 
+from addon.blender import compat
 from addon.core import analytic
 from addon.core.radiosity import cost as rad_cost
 from addon.core.radiosity import patches as rad_patches
@@ -177,7 +178,7 @@ def _emissive_plane(name, z, shader):
     o.name = name
     mat = bpy.data.materials.new(name)
     if mat.node_tree is None:
-        mat.use_nodes = True
+        compat.ensure_use_nodes(mat)
     nt = mat.node_tree
     nt.nodes.clear()
     out = nt.nodes.new("ShaderNodeOutputMaterial")

@@ -18,6 +18,7 @@ from addon.core.io import png
 from addon.core.io import exr
 from addon.lab import ssao as ssao_lab
 from addon.lab.ssao import scenes as ssao_scenes
+from addon.blender import compat
 from addon.blender.scene import remove_scene
 
 from conftest import ROOT
@@ -136,8 +137,7 @@ def test_envmap_of_a_world_with_an_environment_texture(script, tmp_path):
     io_hdr.write_hdr(hdr, np.broadcast_to(radiance, (16, 32, 3)))
     world = bpy.data.worlds.new("Sky")
     bpy.context.scene.world = world
-    if hasattr(world, "use_nodes"):
-        world.use_nodes = True
+    compat.ensure_use_nodes(world)
     nt = world.node_tree
     bg = nt.nodes.get("Background") or nt.nodes.new("ShaderNodeBackground")
     bg.inputs["Strength"].default_value = 2.0

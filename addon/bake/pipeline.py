@@ -245,7 +245,7 @@ def lighting_digest(scene):
             h.update(f"{o.name}:{d.type}:{tuple(d.color)}:{d.energy}:{getattr(d, 'shadow_soft_size', 0)}:"
                      f"{getattr(d, 'angle', 0)}:{getattr(d, 'spot_size', 0)}:{getattr(d, 'size', 0)}".encode())
             h.update(np.array(o.matrix_world, np.float64).tobytes())
-            _node_tree_digest(h, d.node_tree if getattr(d, "use_nodes", False) else None)
+            _node_tree_digest(h, d.node_tree if compat.uses_nodes(d) else None)
     world = scene.world
     h.update(b"world" if world is not None else b"no world")
     if world is not None:
@@ -760,7 +760,7 @@ class TemporaryMaterials:
     def _irradiance(self, orig, key=None):
         if (orig, key) in self.copies:
             return self.copies[(orig, key)]
-        if orig is None or (not compat.IS_5 and not orig.use_nodes) or orig.node_tree is None:
+        if orig is None or not compat.uses_nodes(orig) or orig.node_tree is None:
             # Cycles shades such a slot with a plain diffuse of the viewport colour (grey without material)
             mat = self._new(f"IL bake {orig.name if orig else 'default'}")
             nt = mat.node_tree

@@ -1,4 +1,4 @@
-"""Every difference between Blender 5.0 and 4.5 LTS that the project meets, in one place.
+"""Every difference between the Blender versions the project supports (5.3, 5.2 LTS, 4.5 LTS), in one place.
 
 Callers never test ``bpy.app.version`` themselves; they call these helpers.
 """
@@ -48,22 +48,39 @@ def set_png(image_settings, color_mode="RGB", depth="8"):
     image_settings.color_depth = depth
 
 
+def uses_nodes(idblock):
+    """Whether a material, world or light renders through its node tree. ``use_nodes`` is deprecated and
+    always True for materials and worlds from 5.0 and for lights from 5.1 (reading it warns there)."""
+    prop = idblock.bl_rna.properties.get("use_nodes")
+    if prop is None or getattr(prop, "is_deprecated", IS_5 and not isinstance(idblock, bpy.types.Light)):
+        return True
+    return idblock.use_nodes
+
+
 def ensure_use_nodes(idblock):
-    """Materials and worlds always use nodes in 5.0 (the flag is deprecated there)."""
-    if not IS_5 and not idblock.use_nodes:
+    """Make a material or world (4.5) render through its node tree; a no-op where it always does."""
+    if not uses_nodes(idblock):
         idblock.use_nodes = True
+
+
+#: 5.3 composites through the scene's compositor effects (``scene.compositing_node_group`` is deprecated).
+COMPOSITOR_EFFECTS = "compositor_effects" in bpy.types.Scene.bl_rna.properties
 
 
 def new_compositor(scene, name="IL Compositor"):
     """An empty compositor node tree for ``scene`` and the node its result must be linked to.
 
-    5.0: a compositor node group with a color output, set as scene.compositing_node_group;
-    4.5: the scene's own node tree with a Composite node. Returns ``(tree, output_socket)``.
+    5.x: a compositor node group with a color output, made the scene's compositor (5.3: as a compositor
+    effect; 5.0-5.2: scene.compositing_node_group); 4.5: the scene's own node tree with a Composite node.
+    Returns ``(tree, output_socket)``.
     """
     if IS_5:
         tree = bpy.data.node_groups.new(name, "CompositorNodeTree")
         tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
-        scene.compositing_node_group = tree
+        if COMPOSITOR_EFFECTS:
+            scene.compositor_effects.new(name=name).node_group = tree
+        else:
+            scene.compositing_node_group = tree
         out = tree.nodes.new("NodeGroupOutput")
     else:
         scene.use_nodes = True
@@ -77,7 +94,11 @@ def new_compositor(scene, name="IL Compositor"):
 def remove_compositor(scene, tree):
     """Undo :func:`new_compositor` (the scene itself is usually removed right after)."""
     if IS_5:
-        scene.compositing_node_group = None
+        if COMPOSITOR_EFFECTS:
+            for effect in [e for e in scene.compositor_effects if e.node_group == tree]:
+                scene.compositor_effects.remove(effect)
+        else:
+            scene.compositing_node_group = None
         bpy.data.node_groups.remove(tree)
 
 

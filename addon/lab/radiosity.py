@@ -28,7 +28,7 @@ from ..core.errors import ILError, InputError, warn
 from ..core.io.files import check_output_dir, write_json
 from ..blender import interrupt
 from ..blender.progress import Progress
-from ..blender import materials, scene as scn
+from ..blender import compat, materials, scene as scn
 from ..blender.state import SavedState, world_settings
 from .options import RadiosityOptions
 from ..core.result import JobResult
@@ -102,7 +102,7 @@ def material_rho_emission(mat, notes=None):
     notes = {} if notes is None else notes
     if mat is None:
         return np.full(3, 0.8), np.zeros(3)          # Cycles' default surface: diffuse grey 0.8
-    tree = mat.node_tree if getattr(mat, "use_nodes", True) else None
+    tree = mat.node_tree if compat.uses_nodes(mat) else None
     if tree is None:
         return np.clip(np.array(mat.diffuse_color[:3], np.float64), 0.0, 0.999), np.zeros(3)
     out = tree.get_output_node("CYCLES")
@@ -236,7 +236,7 @@ def approximation_warning(notes):
 def _world_is_black(world):
     if world is None:
         return True
-    if world.node_tree is not None and getattr(world, "use_nodes", True):
+    if world.node_tree is not None and compat.uses_nodes(world):
         out = world.node_tree.get_output_node("CYCLES")
         src = _source(out.inputs["Surface"]) if out is not None else None
         if src is None:

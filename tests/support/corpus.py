@@ -93,6 +93,13 @@ def build(outdir, timeout=600):
 # Everything below runs inside the builder subprocess (imports bpy).
 
 
+def _use_nodes(idblock):
+    """use_nodes = True where it still means something (4.5; deprecated and always True in 5.x)."""
+    prop = idblock.bl_rna.properties.get("use_nodes")
+    if prop is not None and not getattr(prop, "is_deprecated", False) and not idblock.use_nodes:
+        idblock.use_nodes = True
+
+
 def _builder():
     import bmesh
     import bpy
@@ -109,8 +116,7 @@ def _builder():
         if scene.world is None:
             scene.world = bpy.data.worlds.new("World")
         world = scene.world
-        if hasattr(world, "use_nodes") and not world.use_nodes:
-            world.use_nodes = True
+        _use_nodes(world)
         bg = world.node_tree.nodes.get("Background")
         if bg is not None:
             bg.inputs["Color"].default_value = (0.05, 0.05, 0.06, 1.0)
@@ -135,8 +141,7 @@ def _builder():
 
     def principled(name, color, emission=None, strength=0.0):
         mat = bpy.data.materials.new(name)
-        if hasattr(mat, "use_nodes") and not mat.use_nodes:
-            mat.use_nodes = True
+        _use_nodes(mat)
         bsdf = mat.node_tree.nodes["Principled BSDF"]
         bsdf.inputs["Base Color"].default_value = (*color, 1.0)
         if emission is not None:
@@ -540,8 +545,7 @@ def _builder():
         bulb = added()
         bulb.name = "Bulb"
         mat = bpy.data.materials.new("Bulb Emission")
-        if hasattr(mat, "use_nodes") and not mat.use_nodes:
-            mat.use_nodes = True
+        _use_nodes(mat)
         nt = mat.node_tree
         nt.nodes.remove(nt.nodes["Principled BSDF"])
         em = nt.nodes.new("ShaderNodeEmission")

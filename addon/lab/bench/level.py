@@ -16,7 +16,7 @@ import numpy as np
 from ...bake import uv as uvmod
 from ...bake.options import BakeOptions
 from ...bake.pipeline import bake_lightmaps
-from ...blender import render
+from ...blender import compat, render
 from ...blender.scene import remove_scene
 from ...core import lightmap
 from .result import BenchResult
@@ -121,8 +121,7 @@ def build_level(scene, props=200, subdivision=2, floor_levels=3):
         light.rotation_euler = (0.6, 0.2, 0.4)
         scene.collection.objects.link(light)
     world = bpy.data.worlds.new("IL level sky")
-    if hasattr(world, "use_nodes") and not world.node_tree:
-        world.use_nodes = True
+    compat.ensure_use_nodes(world)
     world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.2, 0.25, 0.3, 1)
     scene.world = world
     return objects
@@ -152,7 +151,7 @@ def bare_bakes(scene, objects, report, options):
             w, h = report["objects"][o.name][kind]["resolution"]
             img = bpy.data.images.new(f"bare {o.name}", w, h, float_buffer=True, alpha=True)
             mat = bpy.data.materials.new(f"bare {o.name}")
-            mat.use_nodes = True
+            compat.ensure_use_nodes(mat)
             node = mat.node_tree.nodes.new("ShaderNodeTexImage")
             node.image = img
             mat.node_tree.nodes.active = node
