@@ -24,6 +24,7 @@ if ROOT not in sys.path:
 
 from addon.blender import interrupt  # noqa: E402  (no bpy)
 from addon.core.errors import ILError, ILWarning, InputError  # noqa: E402
+from addon.core.io import blend  # noqa: E402
 from addon.core.io.files import check_output_dir  # noqa: E402
 from addon.core import options as core_options  # noqa: E402
 from addon.core.choices import parse_choices  # noqa: E402
@@ -170,6 +171,7 @@ def open_blend(path):
         raise InputError(f"no such .blend file: {path}")
     if not path.lower().endswith(".blend"):
         raise InputError(f"not a .blend file: {path}")
+    blend.blend_version(path)              # a damaged header crashes Blender's loader: refuse it first
     try:
         with interrupt.blender_call():
             bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path), load_ui=False)

@@ -206,19 +206,27 @@ def test_environment_negative_or_too_bright_is_refused(script, tmp_path):
 
 
 def test_every_script_refuses_an_out_that_is_a_file_and_a_corrupt_blend(tmp_path):
-    """16.8: exit 2 with one line, for every script, at once (the processes run side by side)."""
+    """16.8: exit 2 with one line, for every script, at once (the processes run side by side); 24.7: also a
+    .blend whose header version was damaged to 1.00 (Blender's loader crashed on it)."""
     a_file = tmp_path / "taken"
     a_file.write_text("x")
     whole = tmp_path / "whole.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(whole), copy=True)
     corrupt = tmp_path / "corrupt.blend"
     corrupt.write_bytes(whole.read_bytes()[:4096])                   # truncated by a full disk or a copy
+    plain = tmp_path / "plain.blend"                                 # issue 24.7: Blender's loader segfaults
+    bpy.ops.wm.save_as_mainfile(filepath=str(plain), copy=True, compress=False)
+    data = plain.read_bytes()
+    digits = 4 if data[7:9] == b"17" else 3                          # 'BLENDER17-01v0503' or 'BLENDER-v405'
+    damaged = tmp_path / "damaged_version.blend"
+    damaged.write_bytes(data[:17 - 4] + b"0100" + data[17:] if digits == 4 else data[:9] + b"100" + data[12:])
     runs = {}
     for name in SCRIPTS:
         if name not in NO_OUT:
             runs[(name, "out")] = [name, *REQUIRED.get(name, ()), "--out", a_file]
         if name in BLEND_SCRIPTS:
             runs[(name, "blend")] = [name, corrupt, *REQUIRED.get(name, ()), "--out", tmp_path / f"o_{name}"]
+            runs[(name, "header")] = [name, damaged, *REQUIRED.get(name, ()), "--out", tmp_path / f"o_{name}"]
     procs = {k: subprocess.Popen([sys.executable, os.path.join(ROOT, "scripts", a[0]), *map(str, a[1:])],
                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
              for k, a in runs.items()}
@@ -227,8 +235,9 @@ def test_every_script_refuses_an_out_that_is_a_file_and_a_corrupt_blend(tmp_path
         lines = _errors(err)
         assert p.returncode == 2 and len(lines) == 1, (name, kind, err)
         assert ("output folder is a file" if kind == "out" else "damaged or not a Blender file") in lines[0]
+        assert kind != "header" or "older than the" in lines[0], lines
         assert not (tmp_path / f"o_{name}").exists()
-    assert set(BLEND_SCRIPTS) <= set(SCRIPTS) and len(runs) >= 15
+    assert set(BLEND_SCRIPTS) <= set(SCRIPTS) and len(runs) >= 20
 
 
 # ------------------------------------------------------------------------------- Ctrl-C (16.2)
