@@ -190,7 +190,7 @@ def run(p, main, argv=None):
         f"{p.prog}: {'warning: ' if issubclass(category, ILWarning) else ''}{message}", file=sys.stderr)
     code = 0
     try:
-        if getattr(args, "out", None):
+        if getattr(args, "out", None) is not None:
             check_output_dir(args.out)
         if getattr(args, "blend", None):
             open_blend(args.blend)

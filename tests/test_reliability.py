@@ -319,3 +319,32 @@ def test_ctrl_c_during_the_demo_stops_with_130_and_no_report(tmp_path):
                                              "they were"], "".join(seen) + err
     files = [f for _, _, fs in os.walk(out) for f in fs]
     assert "demo_report.json" not in files and not [f for f in files if ".tmp" in f] and os.listdir(tmp) == []
+
+
+def test_an_empty_out_is_refused_by_every_script_and_button(tmp_path, addon_registered):
+    """24.8: an empty output folder wrote into the current folder; now exit 2 with one line, nothing written."""
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    procs = {name: subprocess.Popen([sys.executable, os.path.join(ROOT, "scripts", name), *REQUIRED.get(name, ()),
+                                     "--out", ""], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                    cwd=str(cwd))
+             for name in SCRIPTS if name not in NO_OUT}
+    for name, p in procs.items():
+        _, err = p.communicate(timeout=300)
+        lines = _errors(err)
+        assert p.returncode == 2 and len(lines) == 1 and "no output folder given" in lines[0], (name, err)
+    assert not list(cwd.iterdir())
+    bpy.ops.mesh.primitive_plane_add()
+    settings = bpy.context.scene.illumination
+    ready = []
+    for group, op in ((settings.lightmaps, bpy.ops.illumination.bake_lightmaps),
+                      (settings.ssao, bpy.ops.illumination.ssao_compare),
+                      (settings.shadows, bpy.ops.illumination.run_shadow_comparison)):
+        group.output_dir = str(tmp_path / "maps")
+        if op.poll():
+            ready.append(op.idname())
+            group.output_dir = ""
+            assert not op.poll(), op.idname()
+    assert "ILLUMINATION_OT_bake_lightmaps" in ready
+    with pytest.raises(RuntimeError, match="Choose an output folder"):
+        bpy.ops.illumination.radiosity(output_dir="")

@@ -12,7 +12,9 @@ from .operator import BuildSceneOperator, JobOperator
 
 
 def _output_folder_ok(path):
-    """InputError when ``path`` is relative to a file never saved."""
+    """InputError when ``path`` is empty or relative to a file never saved."""
+    if not path.strip():
+        raise InputError("Choose an output folder")
     if path.startswith("//") and not bpy.data.filepath:
         raise InputError("Save the file first, or choose an absolute output folder")
 

@@ -25,7 +25,9 @@ def has_scene(cls, context):
 
 
 def saved_or_absolute(cls, path):
-    """True when ``path`` can be resolved to a folder (relative paths need a saved file)."""
+    """True when ``path`` can be resolved to a folder (named; relative paths need a saved file)."""
+    if not path.strip():
+        return _fail(cls, "Choose an output folder")
     if path.startswith("//") and not bpy.data.filepath:
         return _fail(cls, "Save the file first, or choose an absolute output folder")
     return True

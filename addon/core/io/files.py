@@ -9,9 +9,11 @@ from ..errors import ILError, InputError
 
 
 def check_output_dir(out):
-    """Return ``out`` as an absolute path if it is a folder or can be created as one, and is writable;
-    raise InputError otherwise. Nothing is created: a probe file is made and removed in the folder or
+    """Return ``out`` as an absolute path if it is named (not empty), is a folder or can be created as one,
+    and is writable; raise InputError otherwise. Nothing is created: a probe file is made and removed in the folder or
     its nearest existing parent (permission bits alone say nothing for root or read-only mounts)."""
+    if not os.fspath(out).strip():
+        raise InputError("no output folder given (an empty one would write into the current folder)")
     out = os.path.abspath(os.fspath(out))
     if os.path.exists(out) and not os.path.isdir(out):
         raise InputError(f"output folder is a file: {out}")
