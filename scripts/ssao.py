@@ -19,6 +19,7 @@ import _cli  # noqa: E402
 from addon.core.ssao import limits  # noqa: E402
 from addon.core.ssao import methods as ssao_methods  # noqa: E402
 from addon.core.errors import InputError  # noqa: E402
+from addon.core.io.files import check_output_dir  # noqa: E402
 from addon.lab.options import SSAOOptions  # noqa: E402  (no bpy)
 
 
@@ -39,7 +40,7 @@ def _validate(args):
 def main(args):
     o = _validate(args)
     out = os.path.abspath(args.out)
-    cache = os.path.abspath(args.cache) if args.cache else os.path.join(out, "cache")
+    cache = check_output_dir(os.path.join(out, "cache") if args.cache is None else args.cache)
     if args.sweeps:
         from addon.lab.bench import ssao as bench_ssao
         result = bench_ssao.run(out, quick=args.quick)

@@ -348,3 +348,26 @@ def test_an_empty_out_is_refused_by_every_script_and_button(tmp_path, addon_regi
     assert "ILLUMINATION_OT_bake_lightmaps" in ready
     with pytest.raises(RuntimeError, match="Choose an output folder"):
         bpy.ops.illumination.radiosity(output_dir="")
+
+
+def test_late_failures_are_refused_before_any_work(tmp_path):
+    """24.12: an SSAO radius whose float32 square overflows, a cache that is a file, and an output folder whose
+    name the file system cannot take were found only after the work (NaN images, exit 1); now exit 2 at once."""
+    a_file = tmp_path / "taken"
+    a_file.write_text("x")
+    long_name = tmp_path / ("x" * 300)
+    base = ["--scene", "plane", "--resolution", "8", "--samples", "1", "--reference-samples", "1"]
+    runs = {"radius": ["ssao.py", *base, "--radius", "1e300", "--out", tmp_path / "o1"],
+            "cache": ["ssao.py", *base, "--cache", a_file, "--out", tmp_path / "o2"],
+            "long ssao": ["ssao.py", *base, "--out", long_name],
+            "long bake": ["bake.py", "--objects", "Cube", "--maps", "ao", "--out", long_name / "maps"]}
+    procs = {k: subprocess.Popen([sys.executable, os.path.join(ROOT, "scripts", a[0]), *map(str, a[1:])],
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+             for k, a in runs.items()}
+    expected = {"radius": "must be value <=", "cache": "output folder is a file",
+                "long ssao": "name too long", "long bake": "name too long"}
+    for k, p in procs.items():
+        _, err = p.communicate(timeout=300)
+        lines = _errors(err)
+        assert p.returncode == 2 and len(lines) == 1 and expected[k] in lines[0], (k, err)
+    assert sorted(os.listdir(tmp_path)) == ["taken"]

@@ -25,6 +25,7 @@ def check_output_dir(out):
         probe = parent
     if not os.path.isdir(probe):
         raise InputError(f"output folder cannot be created: {out} ({probe} is a file)")
+    _check_name_lengths(out, probe)
     try:
         fd, tmp = tempfile.mkstemp(prefix=".il_probe_", dir=probe)
     except OSError as e:
@@ -32,6 +33,27 @@ def check_output_dir(out):
     os.close(fd)
     os.remove(tmp)
     return out
+
+
+#: Room kept in a path for the names written inside the output folder (<object>_<map>.exr and the like).
+FILE_NAME_ROOM = 128
+
+
+def _check_name_lengths(out, existing):
+    """InputError when a folder still to be made under ``existing`` has a name longer than the file system
+    takes, or ``out`` leaves less than FILE_NAME_ROOM bytes of the longest path for the files in it."""
+    try:
+        name_max = os.pathconf(existing, "PC_NAME_MAX")
+        path_max = os.pathconf(existing, "PC_PATH_MAX")
+    except (AttributeError, ValueError, OSError):
+        name_max, path_max = 255, 4096
+    for part in os.path.relpath(out, existing).split(os.sep):
+        if part != os.curdir and len(os.fsencode(part)) > name_max:
+            raise InputError(f"output folder name too long for the file system ({len(os.fsencode(part))} bytes, "
+                             f"at most {name_max}): {part[:40]}...")
+    if len(os.fsencode(out)) + FILE_NAME_ROOM > path_max:
+        raise InputError(f"output folder path too long: {len(os.fsencode(out))} bytes leave no room for its "
+                         f"files (at most {path_max - FILE_NAME_ROOM})")
 
 
 @contextlib.contextmanager

@@ -117,3 +117,12 @@ def test_lookups_reproduce_the_seed_lookups(frames):
         for a, b in zip(gbuffer.view_to_pixels(pts, gb.proj, gb.width, gb.height),
                         seed_ssao.view_to_pixels(pts, gb.proj, gb.width, gb.height)):
             np.testing.assert_array_equal(a, b)
+
+
+def test_the_largest_radius_the_options_take_gives_finite_ao(frames):
+    """24.12: radius 1e300 wrote NaN images; at the options' maximum every method stays finite and in [0, 1]."""
+    from addon.lab.options import MAX_SSAO_RADIUS
+    for name, gb in frames.items():
+        for method in ssao_methods.METHODS:
+            k = ssao_methods.check_method(method)(gb, MAX_SSAO_RADIUS, 4, seed=0)
+            assert np.isfinite(k).all() and k.min() >= 0.0 and k.max() <= 1.0, (method, name)
