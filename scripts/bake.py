@@ -7,8 +7,10 @@
     python scripts/bake.py scene.blend --objects ... --out out/maps --jobs 2       (2 shard processes here)
 """
 import os
+import signal
 import subprocess
 import sys
+import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import _cli  # noqa: E402
@@ -81,13 +83,43 @@ def run_jobs(args):
         cmd = ([bpy.app.binary_path, "-b", blend, "-P", script, "--"] + rest + shard if inside
                else [sys.executable, script, blend] + rest + shard)
         procs.append(subprocess.Popen(cmd))
-    codes = [p.wait() for p in procs]
+    codes = wait_for_shards(procs)
     result = merge_reports(os.path.abspath(args.out))
     print(result.summary)
     print(f"report: {result.path}")
     failed = [f"{k + 1}/{args.jobs} (exit {c})" for k, c in enumerate(codes) if c]
     if failed:
         raise ILError("shard(s) failed: " + ", ".join(failed))
+
+
+#: Seconds the shard processes get to stop after Ctrl-C or SIGTERM before they are killed (their maps are
+#: written atomically, so a killed shard leaves finished maps and no partial file).
+SHARD_GRACE = 15
+
+
+def wait_for_shards(procs):
+    """Wait for the shard processes; on Ctrl-C or SIGTERM pass SIGINT on to them, wait for them to stop
+    (killing those still running after SHARD_GRACE seconds) and raise KeyboardInterrupt."""
+    def stop(signum, frame):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        return [p.wait() for p in procs]
+    except KeyboardInterrupt:
+        for p in procs:
+            if p.poll() is None:
+                p.send_signal(signal.SIGINT)
+        deadline = time.monotonic() + SHARD_GRACE
+        for p in procs:
+            try:
+                p.wait(timeout=max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+        raise
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def build_parser():

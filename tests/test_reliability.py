@@ -371,3 +371,47 @@ def test_late_failures_are_refused_before_any_work(tmp_path):
         lines = _errors(err)
         assert p.returncode == 2 and len(lines) == 1 and expected[k] in lines[0], (k, err)
     assert sorted(os.listdir(tmp_path)) == ["taken"]
+
+
+def _processes_naming(text):
+    """PIDs of the running processes whose command line contains ``text``."""
+    pids = []
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{pid}/cmdline", "rb") as f:
+                if text.encode() in f.read():
+                    pids.append(int(pid))
+        except OSError:
+            continue
+    return pids
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_stopping_a_jobs_run_stops_its_shards(tmp_path, sig):
+    """24.6: SIGTERM or Ctrl-C to a --jobs run reaches its shard processes and the parent waits for them:
+    exit 130, no shard left running, nothing written after the parent has gone."""
+    for i in range(4):
+        bpy.ops.mesh.primitive_uv_sphere_add(location=(3 * i, 0, 1))
+    bpy.ops.mesh.primitive_plane_add(size=20)
+    blend = tmp_path / "scene.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    out = tmp_path / "maps"
+    names = [o.name for o in bpy.context.scene.objects if o.type == "MESH"]
+    p = subprocess.Popen([sys.executable, os.path.join(ROOT, "scripts", "bake.py"), str(blend), "--objects", *names,
+                          "--maps", "irradiance", "--resolution", "256", "--samples", "4096", "--out", str(out),
+                          "--jobs", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    deadline = time.monotonic() + 120
+    while len(_processes_naming(str(out))) < 3 and time.monotonic() < deadline:      # the parent and 2 shards
+        time.sleep(0.2)
+    time.sleep(4)                                                                    # the shards are baking
+    assert p.poll() is None and len(_processes_naming(str(out))) == 3
+    t0 = time.monotonic()
+    p.send_signal(sig)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 130, err
+    assert time.monotonic() - t0 < 30, err
+    assert _processes_naming(str(out)) == []
+    files = {f: os.path.getmtime(os.path.join(out, f)) for f in os.listdir(out)} if out.exists() else {}
+    time.sleep(3)
+    after = {f: os.path.getmtime(os.path.join(out, f)) for f in os.listdir(out)} if out.exists() else {}
+    assert after == files
