@@ -507,3 +507,20 @@ def test_surfaces_are_what_the_render_draws_not_the_viewport():
         with ShadowFrame(scene, lamp.name, 32):
             pass
     assert list(bpy.data.scenes) == [scene]
+
+
+def test_a_receiver_that_is_not_a_plane_is_named_in_a_warning():
+    """24.14: a sphere was accepted as the planar receiver with no word; the plane's own floor gives none."""
+    import warnings
+    from addon.core.errors import ILWarning
+    scene, s = _session("sphere", res=32)
+    with s:
+        s.render_reference()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            _, _, floor = shadows.run_method(s, "planar", shadows.check_params({}))
+            assert not [w for w in caught if issubclass(w.category, ILWarning)]
+            _, _, sphere = shadows.run_method(s, "planar", shadows.check_params({"receiver": "Sphere"}))
+    said = [str(w.message) for w in caught if issubclass(w.category, ILWarning)]
+    assert len(said) == 1 and "'Sphere' is not planar" in said[0], said
+    assert floor["off_plane"] == 0.0 and 0.9 < sphere["off_plane"] / 0.7 <= 2.0     # radius 0.7: up to 2 r off

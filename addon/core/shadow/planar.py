@@ -22,6 +22,19 @@ def plane_from_point_normal(point, normal):
     return np.append(n, -n @ np.asarray(point, np.float64))
 
 
+#: A receiver is planar when no vertex lies farther than this fraction of its extent off the plane.
+PLANAR_TOLERANCE = 1e-4
+
+
+def off_plane(verts, plane):
+    """(max |P·(v, 1)| over the vertices, the vertices' bounding-box diagonal): how far a receiver leaves the
+    plane its shadows are drawn on, and its size."""
+    v = np.asarray(verts, np.float64).reshape(-1, 3)
+    distance = float(np.abs(v @ plane[:3] + plane[3]).max()) if len(v) else 0.0
+    extent = float(np.linalg.norm(v.max(0) - v.min(0))) if len(v) else 0.0
+    return distance, extent
+
+
 def oriented_toward_light(plane, light_h):
     """The same plane with its normal flipped, if needed, so that P·L > 0 (light on the + side)."""
     plane = np.asarray(plane, np.float64)

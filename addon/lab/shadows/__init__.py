@@ -66,10 +66,15 @@ def _planar(s, p):
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     big = int(np.argmax(np.linalg.norm(n, axis=1)))
     plane = shadow_planar.plane_from_point_normal(tri[big, 0], n[big])
+    distance, extent = shadow_planar.off_plane(surface.verts, plane)
+    if distance > shadow_planar.PLANAR_TOLERANCE * extent:
+        warn(f"the receiver '{name}' is not planar: its vertices lie up to {distance:.3g} m off the plane of its "
+             f"largest face (size {extent:.3g} m); planar shadows are drawn on that plane only")
     tris = s.caster_triangles(exclude=receiver)
     cover = shadow_planar.planar_shadow_mask(tris, plane, s.light.h, s.world_to_view, s.proj,
                                              s.width, s.height, s.depth, offset=p["offset"])
-    return s.reach & ~cover, {"receiver": name, "offset": p["offset"], "plane": [round(float(x), 6) for x in plane]}
+    return s.reach & ~cover, {"receiver": name, "offset": p["offset"], "plane": [round(float(x), 6) for x in plane],
+                              "off_plane": round(distance, 6)}
 
 
 def shadowmap_mask(s, maps, p):

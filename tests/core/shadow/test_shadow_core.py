@@ -355,3 +355,13 @@ def test_shadow_map_budget_follows_the_depth_source(monkeypatch):
         depth_map.check_cost(128, 128, best + 1, 6, "raster")
     with pytest.raises(InputError, match="unknown depth source 'gpu'"):
         depth_map.check_cost(128, 128, 64, 1, "gpu")
+
+
+def test_off_plane_measures_how_far_a_receiver_leaves_its_plane():
+    from addon.core.shadow.planar import off_plane, plane_from_point_normal
+    plane = plane_from_point_normal((0, 0, 1), (0, 0, 2))
+    quad = [(0, 0, 1), (3, 0, 1), (3, 4, 1), (0, 4, 1)]
+    assert off_plane(quad, plane) == (0.0, 5.0)
+    dome = quad + [(1.5, 2.0, 1.25)]
+    distance, extent = off_plane(dome, plane)
+    assert distance == 0.25 and abs(extent - np.sqrt(25 + 0.25 ** 2)) < 1e-12
