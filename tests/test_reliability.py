@@ -415,3 +415,39 @@ def test_stopping_a_jobs_run_stops_its_shards(tmp_path, sig):
     time.sleep(3)
     after = {f: os.path.getmtime(os.path.join(out, f)) for f in os.listdir(out)} if out.exists() else {}
     assert after == files
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 64 KiB tmpfs (root only; skipped where it cannot be mounted)."""
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(disk)], capture_output=True).returncode:
+        pytest.skip("cannot mount a small tmpfs here")
+    try:
+        yield disk
+    finally:
+        subprocess.run(["umount", str(disk)], capture_output=True)
+
+
+def test_a_full_disk_is_one_line_and_keeps_what_was_finished(tmp_path, small_disk):
+    """24.9: a full disk while OpenEXR writes was an internal error; now exit 1 with the disk-full line, the
+    maps finished before and the report that lists them intact, no temporary file left."""
+    bpy.ops.mesh.primitive_plane_add(size=1, location=(30, 0, 0))
+    bpy.context.object.name = "Small"
+    bpy.ops.mesh.primitive_plane_add(size=20)
+    bpy.context.object.name = "Big"
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=8, location=(0, 0, 8.3))       # noisy AO over most of Big
+    blend = tmp_path / "two.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    out = small_disk / "maps"
+    r = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "bake.py"), str(blend), "--objects", "Small",
+                        "Big", "--maps", "ao", "--texel-density", "16", "--samples", "4", "--out", str(out)],
+                       capture_output=True, text=True, cwd=ROOT, timeout=300)
+    lines = _errors(r.stderr)
+    assert r.returncode == 1 and len(lines) == 1, r.stderr
+    assert lines[0] == f"bake.py: error: No space left on device: {out / 'Big_ao.exr'}"
+    assert sorted(os.listdir(out)) == ["Small_ao.exr", "Small_ao.png", "bake_report.json"]
+    report = json.loads((out / "bake_report.json").read_text())
+    assert list(report["objects"]) == ["Small"]
+    assert exr.read_exr(out / "Small_ao.exr")[0]["Y"].shape == tuple(report["objects"]["Small"]["ao"]["resolution"])

@@ -4,6 +4,9 @@ Arrays are (height, width) with row 0 at the TOP of the image, as every image
 viewer shows them. Blender's pixel buffers start at the bottom row: flip them
 with ``np.flipud`` before writing.
 """
+import errno
+import os
+
 import numpy as np
 
 from ..errors import ILError
@@ -40,7 +43,20 @@ def write_exr(path, channels, attributes=None):
     check_finite(path, data)
     with atomic_path(path) as tmp:
         with OpenEXR.File(header, data) as f:
-            f.write(tmp)
+            try:
+                f.write(tmp)
+            except RuntimeError as e:
+                raise _write_error(path, e) from None
+
+
+def _write_error(path, error):
+    """OpenEXR reports a failed write as RuntimeError with the C library's message: a full disk becomes the
+    OSError (ENOSPC) every other file write raises, anything else an ILError naming the file."""
+    text = str(error)
+    for code in (errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EIO):
+        if os.strerror(code) in text:
+            return OSError(code, os.strerror(code), os.fspath(path))
+    return ILError(f"cannot write {path}: {text}")
 
 
 def check_finite(path, channels):
