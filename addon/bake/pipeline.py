@@ -828,10 +828,11 @@ def bake_map(scene, group, kind, options, layers, size, image_nodes, state):
                 state.created_attribute(me, name)
             me.color_attributes.active_color_name = name
     uv_name = layers.get(group[0].name) if image_target else None
+    inside = _centre_texels(group, layers, size) if image_target else None
     timer = {"cycles": 0.0}
 
     def once(samples, seed):
-        values, mask, seconds = _bake_once(scene, group, kind, samples, seed, image, uv_name, options)
+        values, mask, seconds = _bake_once(scene, group, kind, samples, seed, image, uv_name, options, inside)
         timer["cycles"] += seconds
         return values, mask
 
@@ -946,13 +947,14 @@ def _set_bounces(cy, kind, options):
         cy.max_bounces = total
 
 
-def _bake_once(scene, group, kind, samples, seed, image, uv_name, options):
-    """One Cycles bake call; returns (values, mask, seconds inside the call) with E already multiplied by π."""
+def _bake_once(scene, group, kind, samples, seed, image, uv_name, options, inside=None):
+    """One Cycles bake call; returns (values, mask, seconds inside the call) with E already multiplied by π
+    (an image's mask within ``inside``, see :func:`_read_image`)."""
     if image is not None:
         image.pixels.foreach_set(np.zeros(image.size[0] * image.size[1] * 4, np.float32))
     seconds = _call_bake(scene, group, kind, samples, seed, uv_name if image is not None else None, options)
     if image is not None:
-        values, mask = _read_image(image, kind)
+        values, mask = _read_image(image, kind, inside)
         return values, mask, seconds
     scale = np.pi if kind == "irradiance" else 1.0
     values = {}
@@ -1002,15 +1004,33 @@ def _call_bake(scene, group, kind, samples, seed, uv_name, options):
     return seconds
 
 
-def _read_image(image, kind):
-    """(values, covered mask) of a baked image (E multiplied by π)."""
+def _read_image(image, kind, inside=None):
+    """(values, covered mask) of a baked image (E multiplied by π): the texels Cycles baked, within the mask
+    ``inside`` when given (:func:`_centre_texels`); values 0 elsewhere."""
     w, h = image.size
     px = np.zeros(w * h * 4, np.float32)
     image.pixels.foreach_get(px)
     px = px.reshape(h, w, 4)
     mask = px[..., 3] > 0.5
     values = px[..., 0].copy() if kind == "ao" else px[..., :3] * (np.pi if kind == "irradiance" else 1.0)
+    if inside is not None:
+        mask &= inside
+        values[~mask] = 0.0
     return values.astype(np.float32), mask
+
+
+def _centre_texels(group, layers, size):
+    """Where Cycles also bakes texels a UV triangle only touches (``compat.BAKE_TOUCHED_TEXELS``): the (H, W)
+    mask of texels whose centre lies inside one of the group's UV triangles, the texels a map holds everywhere
+    (coverage, margins and dilation are measured on them; a touched texel between two charts holds whichever
+    chart Cycles rasterised last). None where Cycles bakes those texels only."""
+    if not compat.BAKE_TOUCHED_TEXELS:
+        return None
+    w, h = size
+    inside = np.zeros((h, w), bool)
+    for o in group:
+        inside |= lightmap.coverage_mask(uvmod.triangles_uv(o, layers[o.name]), w, h)
+    return inside
 
 
 # ------------------------------------------------------------------ batched bakes (one scene sync per call)
@@ -1209,6 +1229,7 @@ def bake_batch(scene, batch, kind, options, layers, temporary, state):
                                                                      float_buffer=True, alpha=True))
               for name, _, size, *_ in batch}
     parts = {name: [] for name in images}
+    inside = {name: _centre_texels(group, layers, size) for name, group, size, *_ in batch}
     cycles = 0.0
     try:
         with _Proxy(scene, batch, kind, layers, temporary, images, state) as proxy:
@@ -1217,7 +1238,7 @@ def bake_batch(scene, batch, kind, options, layers, temporary, state):
                     image.pixels.foreach_set(np.zeros(image.size[0] * image.size[1] * 4, np.float32))
                 cycles += _call_bake(scene, [proxy.obj], kind, samples, seed, PROXY_UV, options)
                 for name, image in images.items():
-                    parts[name].append(_read_image(image, kind))
+                    parts[name].append(_read_image(image, kind, inside[name]))
     finally:
         for image in images.values():
             bpy.data.images.remove(image)

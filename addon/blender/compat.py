@@ -134,3 +134,10 @@ def fcurves(anim_data):
         return []
     bag = anim_utils.action_get_channelbag_for_slot(action, anim_data.action_slot)
     return list(bag.fcurves) if bag is not None else []
+
+
+#: Whether Cycles' image bake writes every texel whose square a UV triangle touches (conservative
+#: rasterisation, 5.3), not only the texels whose centre lies inside a triangle (5.2, 4.5). Measured: random
+#: UV triangles in a 24² map give exactly the square-overlap texels in 5.3.0, the centre texels in 5.2.3.
+BAKE_TOUCHED_TEXELS = VERSION >= (5, 3, 0)
+

@@ -9,7 +9,8 @@ from .patches import bilinear, polygon_area_normal, vertex_keys
 
 def texel_points(patches, cell):
     """The surface points a ``cell``×``cell`` atlas cell bakes (texel centres, see :func:`atlas_uvs`):
-    (N, cell², 3) and a mask (N, cell²) of the texels Cycles bakes (a triangle's: strictly inside its half), row-major from the cell's top row.
+    (N, cell², 3) and a mask (N, cell²) of the texels a comparison with a Cycles bake reads (a triangle's: strictly
+    inside its half, which every Blender version bakes at the texel centre), row-major from the cell's top row.
     Quads: the bilinear map of the cell; triangles: u, v barycentric over corners (0,0), (1,0), (1,1)."""
     yy, xx = np.mgrid[0:cell, 0:cell]
     u, v = ((xx + 0.5) / cell).ravel(), (1 - (yy + 0.5) / cell).ravel()
@@ -36,8 +37,8 @@ def texel_elements(patches, cell):
     (N, cell², 4, 3) wound as the patch (a triangle repeats its last corner), collocation points (N, cell², 3),
     areas (N, cell²) and a mask (N, cell²) of the elements that exist. Quads: the bilinear images of the cell²
     texel squares, points = the texel centres. Triangles (u, v barycentric, the half v <= u): the squares below the
-    diagonal (points = texel centres, where Cycles bakes) and the half squares on it (points = their centroids,
-    texels Cycles leaves unbaked). The elements tile the patch exactly."""
+    diagonal (points = texel centres, where Cycles bakes) and the half squares on it (points = their centroids;
+    texels a comparison does not read, see :func:`_cell_masks`). The elements tile the patch exactly."""
     yy, xx = (a.ravel() for a in np.mgrid[0:cell, 0:cell])
     u0, u1 = xx / cell, (xx + 1) / cell
     v0, v1 = 1 - (yy + 1) / cell, 1 - yy / cell
@@ -137,9 +138,10 @@ def atlas_uvs(atlas, is_tri):
 
 def _cell_masks(atlas, diagonal=True):
     """Texel masks inside a cell (cell, cell): whole cell for quads, lower-right half for triangles, with the
-    texels centred on the diagonal when ``diagonal`` (painting) or without them (reading a bake: Cycles does
-    not bake a texel whose centre lies on a triangle's edge, it stays 0 with alpha 0); texel centres only, so a
-    bake's edge bleeding does not count."""
+    texels centred on the diagonal when ``diagonal`` (painting) or without them (reading a bake: Blender 4.5-5.2
+    leave a texel whose centre lies on a triangle's edge unbaked, 0 with alpha 0; 5.3 bakes every texel a
+    triangle overlaps, that one too, but a centre on the edge is a tie for the light-map pipeline's coverage,
+    so it is read in no version); texel centres only, so a bake's edge bleeding does not count."""
     c = atlas.cell
     yy, xx = np.mgrid[0:c, 0:c]
     u, v = (xx + 0.5) / c, 1 - (yy + 0.5) / c
