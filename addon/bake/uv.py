@@ -4,10 +4,10 @@ The generated layer comes from Blender's Smart UV Project run on temporary copie
 (built with bmesh, every face revealed and selected, one UV layer): the user's meshes never enter
 edit mode and their select / hide flags are never written, only the finished UVs are copied into
 their "Lightmap" layer (the other layers, the active layer and the layer that renders stay as they
-were). Writing those flags through RNA is unsafe: in bpy 5.0.1 a mesh made by ``Mesh.from_pydata``
-(``Mesh.update(calc_edges=True)``; the torus primitive is one) carries a ``.select_edge`` attribute
-typed INT32_2D instead of BOOLEAN, and ``edges.foreach_set("select", ...)`` (or ``edge.select = ...``)
-on it kills Blender with signal 11.
+were). Writing those flags through RNA is unsafe: in bpy 5.0 (``compat.MISTYPED_SELECT_EDGE``) a mesh
+made by ``Mesh.from_pydata`` (``Mesh.update(calc_edges=True)``; the torus primitive is one) carries a
+``.select_edge`` attribute typed INT32_2D instead of BOOLEAN, and ``edges.foreach_set("select", ...)``
+(or ``edge.select = ...``) on it kills Blender with signal 11.
 
 Islands are packed with a margin given as a fraction of the map ("FRACTION"): ``margin`` texels of
 empty space around every chart at the side the map gets, so charts lie 2 × margin texels apart and
