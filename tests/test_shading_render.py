@@ -163,7 +163,8 @@ def test_node_groups_directional_albedo_rendered():
     assert len(results) == len(sb.ALBEDO_CASES)
     for r in results:
         assert r["pixels"] == 64 * 64, r
-        # node group and numpy twin, same directions: float32 only (the two cannot drift apart)
+        # node group and numpy twin, same directions and shading normal (the Normal pass: Cycles rounds normals,
+        # compat.CYCLES_NORMAL_ERROR): float32 only (the two cannot drift apart)
         assert r["albedo"] == pytest.approx(r["twin"], abs=1e-4), r
         t = np.radians(r["theta_v"])
         # the 64^2 midpoint rule over-estimates by <= 1.1e-3 here (measured against the exact integrals)

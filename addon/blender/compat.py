@@ -148,3 +148,11 @@ BAKE_TOUCHED_TEXELS = VERSION >= (5, 3, 0)
 #: (``bake.uv``); tests use this to know whether the trigger is there.
 MISTYPED_SELECT_EDGE = VERSION[:2] == (5, 0)
 
+
+#: Rounding of Cycles' mesh normals: Cycles (after 5.0) stores them octahedral-encoded in 2 x 16 bits
+#: (intern/cycles ``packed_normal``: 65535 steps over [-1, 1], rounded to the nearest), so each octahedral
+#: coordinate is off by up to this and the shading normal (= the Normal pass) by about as much: an exact
+#: (0, -1, 0) renders as (0, -1, -1/65535). 0 where Cycles keeps float normals (4.5, 5.0.1). Measured: that
+#: Normal pass in 5.2.3 and 5.3.0 (5.1, unsupported, not checked). Compare shading against the Normal pass,
+#: not against the normal the mesh was given.
+CYCLES_NORMAL_ERROR = 1.0 / 65535.0 if VERSION >= (5, 1, 0) else 0.0

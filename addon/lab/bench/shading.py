@@ -251,9 +251,10 @@ def _custom_normal_plane(scene, name, location, normal):
     return sc.link(scene, obj)
 
 
-def _albedo_twin(group_name, inputs, l, v):
-    """The twin of an ALBEDO_BASE case for arrays of light directions l (n = +z, I = 1)."""
-    n = np.array([0.0, 0.0, 1.0])
+def _albedo_twin(group_name, inputs, l, v, n=(0.0, 0.0, 1.0)):
+    """The twin of an ALBEDO_BASE case for arrays of light directions l (I = 1), in the plane's frame
+    (e1, e2, n) of :func:`_albedo_frame`: n = +z, or per-pixel shading normals (N, 3) in that frame."""
+    n = np.asarray(n, float)
     if group_name == groups.OREN_NAYAR:
         return brdf.oren_nayar(n, l, v, 1.0, albedo=(1.0, 1.0, 1.0), sigma=inputs["Sigma"])
     fn = brdf.phong if group_name == groups.PHONG else brdf.blinn_phong
@@ -265,7 +266,8 @@ def render_group_albedo(cases=None, size=64):
     size x size pixels each, every pixel one light direction of brdf.half_vector_map.
 
     Returns [{"group", "inputs", "theta_v", "albedo" (render), "twin" (the numpy twin on the same
-    directions), "pixels"}]: albedo = (1/pi) sum of L J / size^2 (white light, I = 1).
+    directions and the same shading normal: the Normal pass, which is the plane's normal only to within
+    compat.CYCLES_NORMAL_ERROR), "pixels"}]: albedo = (1/pi) sum of L J / size^2 (white light, I = 1).
     """
     cases = list(ALBEDO_CASES if cases is None else cases)
     cols = int(np.ceil(np.sqrt(len(cases))))
@@ -289,12 +291,13 @@ def render_group_albedo(cases=None, size=64):
         sc.remove_scene(scene, mats)
     out = []
     for k, (group_name, inputs, theta_v) in enumerate(cases):
-        p = pix.get(k + 1, {"p": np.zeros((0, 3)), "L": np.zeros((0, 3))})
+        p = pix.get(k + 1, {"n": np.zeros((0, 3)), "p": np.zeros((0, 3)), "L": np.zeros((0, 3))})
         r, c = divmod(k, cols)
         x = (p["p"][:, 0] - 2.0 * c + 1.0) / 2.0
         y = (p["p"][:, 2] + 2.0 * r + 1.0) / 2.0
         _, l, v, J = brdf.half_vector_map(x, y, np.radians(theta_v), _albedo_width(inputs))
-        ref = _albedo_twin(group_name, inputs, l, v)
+        n = p["n"] @ np.stack(_albedo_frame(theta_v), axis=1)     # the normal Cycles shaded with, plane frame
+        ref = _albedo_twin(group_name, inputs, l, v, n)
         w = J / (np.pi * size * size)
         out.append({"group": group_name, "inputs": dict(inputs), "theta_v": theta_v, "pixels": int(len(x)),
                     "albedo": float(np.sum(p["L"][:, 0] * w)), "twin": float(np.sum(ref[:, 0] * w))})
