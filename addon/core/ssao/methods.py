@@ -220,6 +220,8 @@ def _horizon_search(gb, radius, samples, seed, slices=None, steps=None):
     if slices is None or steps is None:
         s0, n0 = split_samples(samples)
         slices, steps = slices or s0, steps or n0
+    # Python scalars: a NumPy float64/int64 here would turn the float32 planes float64 under NEP 50 (NumPy 2)
+    radius, slices, steps = float(radius), int(slices), int(steps)
     rng = np.random.default_rng(seed)
     ys, xs = (a.astype(np.float32) for a in np.nonzero(gb.mask))
     pos, nrm = gb.position[gb.mask].T.copy(), gb.normal[gb.mask].T.copy()           # (3, pixels)
@@ -328,6 +330,7 @@ def hbao(gb, radius, samples, seed=0, slices=None, steps=None, attenuation=True)
     running horizon, each step that raises it adds W times the rise in sin h.
     This is the uniform (not cosine-weighted) measure of the paper.
     """
+    radius = float(radius)                          # weak Python scalar with float32 distances (NEP 50)
     out = np.empty(int(gb.mask.sum()), np.float32)
     for sl, n_len, gamma, sides in _horizon_search(gb, radius, samples, seed, slices, steps):
         occ = np.zeros(gamma.shape, np.float32)

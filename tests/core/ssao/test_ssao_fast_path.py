@@ -126,3 +126,14 @@ def test_the_largest_radius_the_options_take_gives_finite_ao(frames):
         for method in ssao_methods.METHODS:
             k = ssao_methods.check_method(method)(gb, MAX_SSAO_RADIUS, 4, seed=0)
             assert np.isfinite(k).all() and k.min() >= 0.0 and k.max() <= 1.0, (method, name)
+
+
+@pytest.mark.parametrize("method", ["hbao", "gtao"])
+def test_numpy_scalar_parameters_give_the_python_scalar_image(frames, method):
+    """A radius, slice or step count that is a NumPy scalar (a sweep's np.float64, np.int64) gives the same
+    image as the Python number: under NEP 50 (NumPy 2) it would otherwise turn the float32 planes float64."""
+    fast = ssao_methods.check_method(method)
+    for gb in frames.values():
+        plain = fast(gb, 0.7, 16, seed=2, slices=3, steps=2)
+        typed = fast(gb, np.float64(0.7), 16, seed=2, slices=np.int64(3), steps=np.int64(2))
+        assert np.array_equal(plain, typed)
