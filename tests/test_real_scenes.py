@@ -215,16 +215,22 @@ def test_bake_atlas_covers_its_faces(corpus, stem, tmp_path, script):
 def test_bake_to_vertices(corpus, stem, tmp_path, script):
     entry = corpus["files"][stem]
     names = [m["name"] for m in entry["meshes"] if not m["hidden_render"]]
+    unsafe = {m["name"] for m in entry["meshes"] if m["kind"] in ("modifier:boolean", "modifier:remesh")}
     out = tmp_path / "vertex"
     proc = bake(script, entry, names, out, "--target", "vertex")
-    if proc.returncode != 0:
+    if proc.returncode not in ((1,) if unsafe & set(names) else (0,)):
         pytest.fail(failure("bake.py --target vertex", stem, proc, f"({len(names)} objects)") + "\n"
                     + isolate(proc, script, entry, names, str(tmp_path), "--target", "vertex"))
-    report = json.loads((out / "bake_report.json").read_text())["objects"]
+    full = json.loads((out / "bake_report.json").read_text())
+    report = full["objects"]
     problems = []
+    for name in unsafe & set(names):        # Blender's vertex bake corrupts its heap through these modifiers
+        why = full.get("failed", {}).get(name, "")
+        if name in report or "vertex colours cannot be baked through its" not in why or name not in proc.stderr:
+            problems.append(f"{name}: not refused by name ({why or 'no failure recorded'})")
     for m in entry["meshes"]:
         name = m["name"]
-        if name not in names:
+        if name not in names or name in unsafe:
             continue
         for kind in ("ao", "irradiance"):
             rep = report.get(name, {}).get(kind)

@@ -133,6 +133,8 @@ def validate(scene, objects, maps, out, options):
             uvmod.check_valid(o)
             if uvmod.world_area(o) <= 0:
                 raise InputError(f"mesh '{o.name}' has no surface area: all its faces are degenerate")
+            if options.target == "vertex":
+                _check_vertex_bakeable(o)
         except InputError as e:               # a bad mesh fails alone; the others are baked
             failed[o.name] = str(e)
             first = first or e
@@ -165,6 +167,20 @@ def validate(scene, objects, maps, out, options):
             if os.path.exists(path):
                 raise InputError(f"{path} exists: turn on Overwrite (--overwrite) to replace it")
     return objects, maps, out, skipped, flips, failed
+
+
+#: Modifiers whose new vertices have no original vertex: Blender's vertex-colour bake writes past its buffers
+#: through them (heap corruption: crashes measured in 4.5.15, 5.2.3 and 5.3.0, from a plain bpy script).
+VERTEX_BAKE_UNSAFE_MODIFIERS = {"BOOLEAN": "Boolean", "REMESH": "Remesh"}
+
+
+def _check_vertex_bakeable(obj):
+    """InputError naming a render-enabled Boolean or Remesh modifier of ``obj`` (vertex target only)."""
+    for m in obj.modifiers:
+        if m.type in VERTEX_BAKE_UNSAFE_MODIFIERS and m.show_render:
+            raise InputError(f"'{obj.name}': vertex colours cannot be baked through its "
+                             f"{VERTEX_BAKE_UNSAFE_MODIFIERS[m.type]} modifier '{m.name}' (Blender's vertex bake "
+                             f"crashes on the vertices it makes): apply the modifier, or bake an image map")
 
 
 def _fixed_sizes(objects, options):
