@@ -43,18 +43,23 @@ def maps(folder, objects, kinds):
 
 def test_batched_bake_gives_the_per_object_images(tmp_path, monkeypatch):
     """One Cycles call per map kind (the mirrored cylinder alone: a joined copy would flip its winding) gives
-    the images of one call per object: AO bit for bit (Cycles seeds a sample by its pixel), irradiance within the
-    float rounding of world-space vertices (relative 1e-2 per texel, 1e-4 on the mean), same covered texels."""
+    the images of one call per object: AO bit for bit (Cycles seeds a sample by its pixel), same covered texels,
+    irradiance the same estimate: its mean within 1e-4, and texel by texel no farther apart than two independent
+    bakes would be. The joined copy's world-space vertices round differently from Cycles' own transforms (4.5:
+    bit for bit with direct light; 5.2 and 5.3: 3e-5 apart), and through two bounces a path grazing an edge can
+    take another branch (one Floor texel 4 % apart): the RMS of the difference stays within that of two
+    independent bakes, sqrt(e1² + e2²) from each map's measured error, with 3 standard errors of that estimate
+    (1/sqrt(2 M) relative over M texel channels) on top."""
     objects = small_level()
     calls = []
     real = pipeline._call_bake
     monkeypatch.setattr(pipeline, "_call_bake", lambda *a, **k: calls.append([o.name for o in a[1]]) or real(*a, **k))
     kinds = ["ao", "irradiance"]
     opts = dict(texel_density=12, samples=8, bounces=2, keep_products=False)
-    bake_lightmaps(objects, kinds, str(tmp_path / "one"), BakeOptions(batch=False, **opts))
+    reports = [bake_lightmaps(objects, kinds, str(tmp_path / "one"), BakeOptions(batch=False, **opts))]
     assert len(calls) == 6 * 3                           # AO once, irradiance two halves, per object
     calls.clear()
-    bake_lightmaps(objects, kinds, str(tmp_path / "batch"), BakeOptions(**opts))
+    reports.append(bake_lightmaps(objects, kinds, str(tmp_path / "batch"), BakeOptions(**opts)))
     proxies = [c for c in calls if c[0] == pipeline.PROXY]
     assert len(proxies) == 3 and len(calls) == 6         # batch: AO once, irradiance twice; the cylinder alone
     assert [c[0] for c in calls if c[0] != pipeline.PROXY] == ["Cylinder"] * 3
@@ -70,7 +75,10 @@ def test_batched_bake_gives_the_per_object_images(tmp_path, monkeypatch):
             for c in "RGB":
                 x, y = a[c][mask], b[c][mask]
                 assert abs(x.mean() - y.mean()) <= 1e-4 * x.mean(), (name, c)
-                assert np.all(np.abs(x - y) <= 1e-2 * np.maximum(x, 1e-3)), (name, c)
+            x, y = (np.stack([m[c][mask] for c in "RGB"]) for m in (a, b))
+            e1, e2 = (r["objects"][name][kind]["estimated_error"] for r in reports)
+            bound = np.hypot(e1, e2) * (1 + 3 / np.sqrt(2 * x.size))
+            assert np.sqrt(np.mean((x - y) ** 2)) <= bound, (name, np.sqrt(np.mean((x - y) ** 2)), bound)
     assert bpy.data.objects.get(pipeline.PROXY) is None and bpy.data.meshes.get(pipeline.PROXY) is None
     assert all(not o.hide_render for o in objects)
 
