@@ -422,3 +422,50 @@ def test_bake_cost_reads_the_machines_memory_from_core_budget(monkeypatch):
     assert refusal == ("a 4096x4096 map needs about 3.8 GiB of memory and 1.0 GiB is available: the largest "
                        "resolution that fits is 1891")
     assert cost.check(8, 8, ["ao"], memory=1000).startswith("an 8x8 map needs")
+
+
+HOSTILE_NAMES = ["../../evil", "a/b", "Floor", "floor", "a b", "a_b", "..", "CON"]
+
+
+def _hostile_scene(tmp_path):
+    """Planes named like path tricks, case twins and names that sanitise alike; saved for the scripts."""
+    for i, name in enumerate(HOSTILE_NAMES):
+        bpy.ops.mesh.primitive_plane_add(size=1.0, location=(2.0 * i, 0.0, 0.0))
+        bpy.context.object.name = name
+        assert bpy.context.object.name == name
+    blend = tmp_path / "hostile.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    return blend
+
+
+def _assert_inside_and_mapped(tmp_path, out, report, kinds=("ao",)):
+    written = [os.path.join(d, f) for d, _, fs in os.walk(tmp_path) for f in fs if f.endswith((".exr", ".png"))]
+    assert written and all(os.path.dirname(p) == str(out) for p in written), written
+    files = [report["objects"][n][k]["file"] for n in HOSTILE_NAMES for k in kinds]
+    assert sorted(files) == sorted(p for p in written if p.endswith(".exr"))          # one file each, none shared
+    assert len({f.casefold() for f in files}) == len(files)
+    for name in HOSTILE_NAMES:
+        ch, _ = exr.read_exr(report["objects"][name]["ao"]["file"])
+        assert ch["Y"].shape == (8, 8) and (ch["A"] > 0.5).sum() > 10, name
+
+
+def test_object_names_never_write_outside_the_output_folder(tmp_path, script):
+    """24.1: an object named '../../evil' wrote two levels above --out; '/' made subfolders; names that
+    sanitise alike would overwrite each other. Through the script, --jobs and the Bake button."""
+    blend = _hostile_scene(tmp_path)
+    base = ["--maps", "ao", "--resolution", "8", "--samples", "2", "--objects", *HOSTILE_NAMES]
+    out = tmp_path / "o" / "a" / "b"
+    r = script("bake.py", blend, *base, "--out", out)
+    assert r.returncode == 0, r.stderr
+    _assert_inside_and_mapped(tmp_path / "o", out, json.loads((out / "bake_report.json").read_text()))
+    jobs = tmp_path / "j" / "a" / "b"
+    r = script("bake.py", blend, *base, "--out", jobs, "--jobs", "2")
+    assert r.returncode == 0, r.stderr
+    _assert_inside_and_mapped(tmp_path / "j", jobs, json.loads((jobs / "bake_report.json").read_text()))
+    ui = tmp_path / "u" / "a" / "b"
+    lm = bpy.context.scene.illumination.lightmaps
+    lm.output_dir, lm.resolution, lm.samples, lm.maps = str(ui), 8, 2, {"ao"}
+    for o in bpy.context.scene.objects:
+        o.select_set(True)
+    assert bpy.ops.illumination.bake_lightmaps() == {"FINISHED"}
+    _assert_inside_and_mapped(tmp_path / "u", ui, json.loads((ui / "bake_report.json").read_text()))

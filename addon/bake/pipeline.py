@@ -13,7 +13,7 @@ import numpy as np
 from ..blender import compat, interrupt
 from ..core import budget, errors, lightmap
 from ..core.io import png as io_png
-from ..core.io import exr
+from ..core.io import exr, names
 from ..core.errors import ILError, InputError
 from ..core.io.files import write_json
 from ..core.result import JobResult
@@ -163,7 +163,8 @@ def validate(scene, objects, maps, out, options):
                 raise InputError(refusal)
     out = check_out_dir(out)
     if not options.overwrite:
-        for path in output_files(shard(objects, options)[0] if options.shard else objects, maps, out, options):
+        for path in output_files(shard(objects, options)[0] if options.shard else objects, maps, out, options,
+                                 file_stems()):
             if os.path.exists(path):
                 raise InputError(f"{path} exists: turn on Overwrite (--overwrite) to replace it")
     return objects, maps, out, skipped, flips, failed
@@ -192,16 +193,31 @@ def _fixed_sizes(objects, options):
     return []
 
 
-def output_files(objects, maps, out, options):
+def file_stems():
+    """{object name: file stem} for every object of the file (core.io.names.file_stems: one path component,
+    unique also where case is ignored, the same in every shard and rerun), the atlas' own stem included. Object
+    names are user data: a map's file name is built from its stem only."""
+    stems = names.file_stems(o.name for o in bpy.data.objects)
+    stems[ATLAS] = ATLAS
+    return stems
+
+
+def map_file(out, stems, name, kind, suffix=".exr"):
+    """``<out>/<stem>_<kind><suffix>`` of the map of object (or atlas) ``name``."""
+    return os.path.join(out, f"{stems[name]}_{kind}{suffix}")
+
+
+def output_files(objects, maps, out, options, stems=None):
     """The map files a bake would write (EXR and PNG per map, or one vertex EXR per object and map)."""
+    stems = stems or file_stems()
     files = []
-    names = [ATLAS] if (options.atlas and options.target == "image") else [o.name for o in objects]
-    for name in names:
+    groups = [ATLAS] if (options.atlas and options.target == "image") else [o.name for o in objects]
+    for name in groups:
         for m in maps:
             if options.target == "image":
-                files += [os.path.join(out, f"{name}_{m}.exr"), os.path.join(out, f"{name}_{m}.png")]
+                files += [map_file(out, stems, name, m), map_file(out, stems, name, m, ".png")]
             else:
-                files.append(os.path.join(out, f"{name}_{m}_vertex.exr"))
+                files.append(map_file(out, stems, name, m, "_vertex.exr"))
     return files
 
 
@@ -326,10 +342,10 @@ def stored_hash(path):
     return value.decode() if isinstance(value, bytes) else value
 
 
-def _map_file(name, kind, out, options, group):
+def _map_file(name, kind, out, options, group, stems):
     if options.target == "image":
-        return os.path.join(out, f"{name}_{kind}.exr")
-    return os.path.join(out, f"{group[0].name}_{kind}_vertex.exr")
+        return map_file(out, stems, name, kind)
+    return map_file(out, stems, group[0].name, kind, "_vertex.exr")
 
 
 # ------------------------------------------------------------------ public entry point
@@ -366,11 +382,12 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     groups = [(ATLAS, objects)] if (options.atlas and options.target == "image") else [(o.name, [o]) for o in objects]
     lighting = lighting_digest(scene)
     digests = {(name, m): input_hash(scene, group, m, options, lighting) for name, group in groups for m in maps}
+    stems = file_stems()
     unchanged = {}
     if options.overwrite and not options.force:
         for name, group in groups:
             for m in maps:
-                if stored_hash(_map_file(name, m, out, options, group)) == digests[(name, m)]:
+                if stored_hash(_map_file(name, m, out, options, group, stems)) == digests[(name, m)]:
                     unchanged.setdefault(name, []).append(m)
     groups = [(name, group) for name, group in groups if len(unchanged.get(name, ())) < len(maps)]
     objects = [o for _, group in groups for o in group]
@@ -442,7 +459,8 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
             if m == "ao":
                 _check_plausible(scene, name, group, result, options)
             margin = margins.get(group[0].name, int(options.margin))
-            entries = _write(name, group, m, result, out, options, layers, margin, overlap, digests[(name, m)])
+            entries = _write(name, group, m, result, out, options, layers, margin, overlap, digests[(name, m)],
+                             stems)
             part = {"objects": {}}
             for o in group:
                 entries[o.name]["seconds"] = round(result.seconds + time.perf_counter() - t_map, 4)  # files included
@@ -1086,11 +1104,11 @@ def _batch_refusal(obj, layers, state, depsgraph, instanced):
 
 def _instanced(scene):
     """Names of the objects in a collection some object of the scene instances."""
-    names = set()
+    members = set()
     for o in scene.objects:
         if o.instance_type == "COLLECTION" and o.instance_collection is not None:
-            names.update(x.name for x in o.instance_collection.all_objects)
-    return names
+            members.update(x.name for x in o.instance_collection.all_objects)
+    return members
 
 
 def batches(scene, plan, layers, state, options):
@@ -1316,9 +1334,11 @@ def _finite(name, kind, values):
                       f"light of infinite strength): nothing written")
 
 
-def _write(name, group, kind, result, out, options, layers, margin=None, overlap=None, digest=None):
+def _write(name, group, kind, result, out, options, layers, margin=None, overlap=None, digest=None, stems=None):
     """Write the files of one baked map (dilated by ``margin`` texels); return ``{object: report entry}``.
-    ``overlap`` = ({object: fraction}, group fraction) of covered texels shared by several faces."""
+    ``overlap`` = ({object: fraction}, group fraction) of covered texels shared by several faces; ``stems`` the
+    file stems of :func:`file_stems`."""
+    stems = stems or file_stems()
     margin = int(options.margin) if margin is None else int(margin)
     if options.target == "image":
         _finite(name, kind, result.values[result.mask])
@@ -1338,9 +1358,9 @@ def _write(name, group, kind, result, out, options, layers, margin=None, overlap
         attrs["il:min_coverage"] = MIN_COVERAGE_TEXT
         if overlap is not None:
             attrs["il:overlap"] = float(overlap[1])
-        path = os.path.join(out, f"{name}_{kind}.exr")
+        path = map_file(out, stems, name, kind)
         exr.write_exr(path, _channels(kind, np.flipud(values), np.flipud(alpha)), attrs)
-        png = os.path.join(out, f"{name}_{kind}.png")
+        png = map_file(out, stems, name, kind, ".png")
         io_png.write_png(png, np.flipud(_preview(kind, values, grown)))
         res = (values.shape[1], values.shape[0])
         entries = {}
@@ -1356,7 +1376,7 @@ def _write(name, group, kind, result, out, options, layers, margin=None, overlap
     for o in group:
         v = np.asarray(result.values[o.name], np.float32)
         row = v[None, :] if v.ndim == 1 else v[None, :, :]
-        path = os.path.join(out, f"{o.name}_{kind}_vertex.exr")
+        path = map_file(out, stems, o.name, kind, "_vertex.exr")
         attrs = _attributes(kind, result, options, None)
         if digest:
             attrs[HASH_KEY] = digest

@@ -26,6 +26,7 @@ from ..core.radiosity import subdivision as rad_subdivision
 from ..core.radiosity import visibility as rad_visibility
 from ..core.errors import ILError, InputError, warn
 from ..core.io.files import check_output_dir, write_json
+from ..core.io.names import file_stems
 from ..blender import interrupt
 from ..blender.progress import Progress
 from ..blender import compat, materials, scene as scn
@@ -620,10 +621,11 @@ def write_lightmaps(out, results, patches, H):
     """``<out>/<object>_radiosity.exr``: R, G, B = irradiance H in W/m² per texel (H (N, cell², 3), the texel
     solution of core.radiosity.gather) or per patch cell (H (N, 3)), A = covered."""
     files = {}
+    stems = file_stems(results)
     for name, (obj, sel, atlas) in results.items():
         img = rad_atlas.paint_atlas(atlas, H[sel], patches.is_tri[sel])
         _finite(f"the light map of {name}", img)
-        path = os.path.join(out, f"{bpy.path.clean_name(name)}_radiosity.exr")
+        path = os.path.join(out, f"{stems[name]}_radiosity.exr")
         exr.write_exr(path, {"R": img[..., 0], "G": img[..., 1], "B": img[..., 2], "A": img[..., 3]},
                       {"il:quantity": "irradiance E (radiosity solution)", "il:units": "W/m^2",
                        "il:uv_layer": UV, "il:patches": len(sel), "il:blender_version": bpy.app.version_string})
