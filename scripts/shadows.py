@@ -42,6 +42,8 @@ def main(args):
     for m, e in result["methods"].items():
         print(f"  {m:13s} error {e['error']:.4f} (false shadow {e['false_shadow']:.4f}, "
               f"false light {e['false_light']:.4f})  {e['seconds']:.3f} s")
+    for m, why in result.get("skipped", {}).items():
+        print(f"  {m:13s} skipped: {why}")
 
 
 def build_parser():

@@ -524,3 +524,61 @@ def test_a_receiver_that_is_not_a_plane_is_named_in_a_warning():
     said = [str(w.message) for w in caught if issubclass(w.category, ILWarning)]
     assert len(said) == 1 and "'Sphere' is not planar" in said[0], said
     assert floor["off_plane"] == 0.0 and 0.9 < sphere["off_plane"] / 0.7 <= 2.0     # radius 0.7: up to 2 r off
+
+
+def _open_scan_scene(tmp_path, floor_name="Floor"):
+    """A scan-like open mesh (a sphere with its bottom cut off) over a plane, a sun and a camera, saved."""
+    scene = shadow_scenes.build("sphere", "sun", (32, 32))
+    for s in list(bpy.data.scenes):
+        if s != scene:
+            bpy.data.scenes.remove(s)
+    sphere = scene.objects["Sphere"]
+    me = sphere.data
+    import bmesh
+    bm = bmesh.new()
+    bm.from_mesh(me)
+    bmesh.ops.delete(bm, geom=[f for f in bm.faces if f.calc_center_median().z < -0.2], context="FACES")
+    bm.to_mesh(me)
+    bm.free()
+    sphere.name = "Scan"
+    scene.objects[scene["il_shadow_light"]].name = "Sun"
+    scene.objects[scene["il_shadow_receiver"]].name = floor_name
+    del scene["il_shadow_receiver"]
+    blend = tmp_path / "scan.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    return blend, scene
+
+
+def test_open_scans_skip_the_volume_methods_and_the_others_run(script, tmp_path):
+    """25.1: shadows.py with its default methods on an open scan exited 2 after the reference ("shadow volumes
+    need at least one closed mesh"): the volume methods are skipped and said why, every other method runs."""
+    blend, _ = _open_scan_scene(tmp_path)
+    r = script("shadows.py", blend, "--light", "Sun", "--resolution", "32", "--shadowmap-size", "64",
+               "--methods", "raytraced,planar,shadowmap,volume_zpass,volume_zfail", "--out", tmp_path / "o")
+    assert r.returncode == 0, r.stderr
+    report = json.loads((tmp_path / "o" / "shadows_report.json").read_text())
+    assert set(report["skipped"]) == {"volume_zpass", "volume_zfail"}
+    assert "Scan" in report["skipped"]["volume_zfail"] and "volume_zfail skipped" in r.stderr
+    assert set(report["methods"]) == {"raytraced", "planar", "shadowmap"}
+    assert report["methods"]["planar"]["error"] < 0.05 and report["methods"]["shadowmap"]["error"] < 0.05
+    assert "skipped: shadow volumes need" in r.stdout
+    r = script("shadows.py", blend, "--light", "Sun", "--resolution", "32", "--methods", "volume_zfail",
+               "--out", tmp_path / "v")
+    assert r.returncode == 2 and "closed mesh" in r.stderr and not (tmp_path / "v").exists()
+
+
+def test_the_planar_receiver_is_checked_before_the_reference_and_found_when_not_named(script, tmp_path):
+    """25.1: a missing receiver was found only after the reference render; without a name and without a
+    "Floor" the largest flat mesh receives, with a warning naming it."""
+    blend, _ = _open_scan_scene(tmp_path, floor_name="Ground")
+    t = __import__("time").perf_counter()
+    r = script("shadows.py", blend, "--light", "Sun", "--resolution", "32", "--methods", "raytraced,planar",
+               "--receiver", "Floor", "--out", tmp_path / "o")
+    assert r.returncode == 2 and "no mesh named 'Floor'" in r.stderr and "'Ground'" in r.stderr, r.stderr
+    assert "reference" not in r.stderr                    # refused before the ray-traced reference
+    r = script("shadows.py", blend, "--light", "Sun", "--resolution", "32", "--methods", "raytraced,planar",
+               "--out", tmp_path / "o")
+    assert r.returncode == 0, r.stderr
+    assert "planar shadows use 'Ground', the largest flat mesh" in r.stderr
+    report = json.loads((tmp_path / "o" / "shadows_report.json").read_text())
+    assert report["methods"]["planar"]["params"]["receiver"] == "Ground"

@@ -52,12 +52,67 @@ def check_cost(frame, methods, p):
                           faces, p["depth_source"])
 
 
+class MethodSkipped(InputError):
+    """A method that cannot run on this scene (e.g. shadow volumes without a closed caster): the comparison
+    goes on without it and reports why under "skipped"."""
+
+
+def flat_meshes(scene):
+    """[(name, area)] of the meshes the render draws whose vertices lie on one plane (core.shadow.planar's
+    PLANAR_TOLERANCE of their size), largest area first: the receivers planar shadows can be drawn on."""
+    depsgraph = scene.view_layers[0].depsgraph if scene.view_layers else None
+    found = []
+    for obj in scene.objects:
+        if obj.type != "MESH" or obj.hide_render or depsgraph is None:
+            continue
+        me = obj.evaluated_get(depsgraph).data
+        if len(me.polygons) == 0:
+            continue
+        co = np.empty(len(me.vertices) * 3)
+        me.vertices.foreach_get("co", co)
+        m = np.array(obj.matrix_world)
+        if abs(np.linalg.det(m[:3, :3])) < 1e-30:
+            continue
+        v = co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
+        areas = np.empty(len(me.polygons))
+        me.polygons.foreach_get("area", areas)
+        normals = np.empty(len(me.polygons) * 3)
+        me.polygons.foreach_get("normal", normals)
+        big = int(np.argmax(areas))
+        centers = np.empty(len(me.polygons) * 3)
+        me.polygons.foreach_get("center", centers)
+        point = m[:3, :3] @ centers.reshape(-1, 3)[big] + m[:3, 3]
+        normal = np.linalg.inv(m[:3, :3]).T @ normals.reshape(-1, 3)[big]
+        if not np.any(normal):
+            continue
+        plane = shadow_planar.plane_from_point_normal(point, normal)
+        distance, extent = shadow_planar.off_plane(v, plane)
+        if distance <= shadow_planar.PLANAR_TOLERANCE * extent:
+            found.append((obj.name, float(areas.sum() * abs(np.linalg.det(m[:3, :3])) ** (2 / 3))))
+    return sorted(found, key=lambda f: -f[1])
+
+
+def resolve_receiver(scene, receiver=None):
+    """The planar receiver's name, checked before any render: ``receiver`` when given (InputError naming the
+    flat meshes when it is no mesh), else the scene's "il_shadow_receiver", else "Floor", else the largest flat
+    mesh (with a warning); InputError when the scene has none."""
+    named = receiver or scene.get("il_shadow_receiver")
+    name = named or "Floor"
+    if name in scene.objects and scene.objects[name].type == "MESH":
+        return name
+    flats = flat_meshes(scene)
+    if named or not flats:
+        listed = ", ".join(f"'{n}'" for n, _ in flats[:8]) or "none in this scene"
+        raise InputError(f"no mesh named '{name}' to receive planar shadows: name a flat receiver with the "
+                         f"Receiver field or --receiver (flat meshes: {listed})")
+    warn(f"no receiver named: planar shadows use '{flats[0][0]}', the largest flat mesh"
+         + (f" (others: {', '.join(n for n, _ in flats[1:4])})" if len(flats) > 1 else ""))
+    return flats[0][0]
+
+
 # -- methods ------------------------------------------------------------------------------------
 def _planar(s, p):
-    name = p["receiver"] or s.user_scene.get("il_shadow_receiver", "Floor")
-    if name not in s.user_scene.objects or s.user_scene.objects[name].type != "MESH":
-        raise InputError(f"no mesh named '{name}' to receive planar shadows: name the receiver plane "
-                         "(Receiver field, --receiver)")
+    name = resolve_receiver(s.user_scene, p["receiver"])
     receiver = s.user_scene.objects[name]
     surface = s.surface_of(receiver)
     if surface is None:
@@ -114,7 +169,7 @@ def volume_inputs(s):
         sil += ns
     skipped = list(dict.fromkeys(skipped))
     if not vols:
-        raise InputError("shadow volumes need at least one closed mesh; open meshes found: " + ", ".join(skipped))
+        raise MethodSkipped("shadow volumes need at least one closed mesh; open meshes found: " + ", ".join(skipped))
     return np.concatenate(vols), {"occluder_triangles": tris, "silhouette_edges": sil,
                                   "volume_triangles": int(sum(len(x) for x in vols)), "skipped_open_meshes": skipped}
 
@@ -173,6 +228,8 @@ def compare(scene, light, methods, out, depth_source=DEPTH_SOURCE, **params):
     images = {}
     frame = ShadowFrame(scene, light, p["resolution"], p["samples"])
     check_cost(frame, methods, p)
+    if "planar" in methods:
+        p["receiver"] = resolve_receiver(scene, p["receiver"])
     with Progress("shadows", len(methods) + 1) as progress, frame as s:
         progress.step("ray-traced reference (Cycles, radius-0 light)")
         s.reference_seconds = s.render_reference()
@@ -195,13 +252,20 @@ def compare(scene, light, methods, out, depth_source=DEPTH_SOURCE, **params):
         images["raytraced_mask.png"] = metrics.mask_image(s.reference)
         for m in methods:
             progress.step(m)
-            mask, seconds, info = run_method(s, m, p)
+            try:
+                mask, seconds, info = run_method(s, m, p)
+            except MethodSkipped as e:
+                warn(f"{m} skipped: {e}")
+                report.setdefault("skipped", {})[m] = str(e)
+                continue
             entry = metrics.confusion(mask, s.reference, s.receiver)
             entry.update(seconds=seconds, params=info,
                          mask=os.path.join(out, f"{m}_mask.png"), error_image=os.path.join(out, f"{m}_error.png"))
             images[f"{m}_mask.png"] = metrics.mask_image(mask)
             images[f"{m}_error.png"] = metrics.error_image(mask, s.reference, s.receiver)
             report["methods"][m] = entry
+    if report.get("skipped") and not set(report["methods"]) - {"raytraced"}:
+        raise InputError("; ".join(report["skipped"].values()))
     report["report"] = os.path.join(out, "shadows_report.json")
     os.makedirs(out, exist_ok=True)
     for name, pixels in images.items():
