@@ -12,6 +12,7 @@ point with exit 130 (``addon.blender.interrupt``); a full disk or out-of-memory 
 line with exit 1; only a genuine bug shows its type name.
 """
 import argparse
+import contextlib
 import math
 import os
 import sys
@@ -22,7 +23,11 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if ROOT not in sys.path:
     sys.path.insert(0, ROOT)
 
-from addon.blender import interrupt  # noqa: E402  (no bpy)
+from addon.blender import chatter, interrupt  # noqa: E402  (no bpy)
+
+if "bpy" not in sys.modules:                   # Blender logs while it starts (e.g. the OCIO config in use)
+    with chatter.captured(always=True), contextlib.suppress(ImportError):
+        import bpy  # noqa: E402,F401
 from addon.core.errors import ILError, ILWarning, InputError  # noqa: E402
 from addon.core.io import blend  # noqa: E402
 from addon.core.io.files import check_output_dir  # noqa: E402
@@ -185,6 +190,7 @@ def run(p, main, argv=None):
     ``main``, exit 0 / 1 / 2 / 130 with one line on stderr."""
     args = p.parse_args(script_argv(argv))
     interrupt.install()
+    chatter.enable()
     warnings.simplefilter("always", ILWarning)
     warnings.showwarning = lambda message, category, *rest: print(
         f"{p.prog}: {'warning: ' if issubclass(category, ILWarning) else ''}{message}", file=sys.stderr)
@@ -215,9 +221,11 @@ def run(p, main, argv=None):
     except Exception as e:  # noqa: BLE001 - a bug: one line, the traceback on request
         if os.environ.get("IL_DEBUG"):
             traceback.print_exc()
-        print(f"{p.prog}: internal error (please report, IL_DEBUG=1 shows the traceback): "
+        print(f"{p.prog}: internal error (please report, IL_DEBUG=1 shows the traceback and Blender's output): "
               f"{type(e).__name__}: {e}", file=sys.stderr)
         code = 1
+    if code and os.environ.get("IL_DEBUG") and chatter.tail():
+        print(f"{p.prog}: Blender's own output, last lines:\n  " + "\n  ".join(chatter.tail()), file=sys.stderr)
     sys.stdout.flush()
     sys.stderr.flush()
     if code:

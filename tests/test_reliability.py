@@ -451,3 +451,28 @@ def test_a_full_disk_is_one_line_and_keeps_what_was_finished(tmp_path, small_dis
     report = json.loads((out / "bake_report.json").read_text())
     assert list(report["objects"]) == ["Small"]
     assert exr.read_exr(out / "Small_ao.exr")[0]["Y"].shape == tuple(report["objects"]["Small"]["ao"]["resolution"])
+
+
+def test_stdout_and_stderr_carry_the_projects_lines_only(tmp_path):
+    """25.7: Blender's "Read blend:", "Info: Baking map saved to internal image..." and Mesa's EGL lines went to the
+    scripts' stdout and stderr; a pipeline parsing them now sees only the project's progress, warnings and
+    summary."""
+    import re
+    bpy.ops.mesh.primitive_plane_add(size=4)
+    bpy.context.object.name = "Floor"
+    bpy.ops.mesh.primitive_cube_add(size=1, location=(0, 0, 0.5))
+    blend = tmp_path / "s.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    runs = {"bake.py": [str(blend), "--objects", "Floor", "Cube", "--maps", "ao", "irradiance", "--resolution", "16",
+                        "--samples", "2", "--out", str(tmp_path / "maps")],
+            "shadows.py": ["--scene", "sphere", "--methods", "raytraced,shadowmap,workbench", "--resolution", "24",
+                           "--out", str(tmp_path / "shadows")]}
+    ours = {"bake.py": re.compile(r"^(\S+ (ao|irradiance): .+\.exr \d+x\d+ |baked |report: )"),
+            "shadows.py": re.compile(r"^(shadows: report |  \w+ +error )")}
+    for name, args in runs.items():
+        r = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", name), *args], capture_output=True,
+                           text=True, cwd=ROOT, timeout=300)
+        assert r.returncode == 0, r.stderr
+        out = r.stdout.splitlines()
+        assert out and all(ours[name].match(line) for line in out), (name, r.stdout)
+        assert all(line.startswith(("[", f"{name}: warning: ")) for line in r.stderr.splitlines()), (name, r.stderr)

@@ -10,6 +10,8 @@ import contextlib
 import signal
 import threading
 
+from . import chatter
+
 _depth = 0
 _pending = False
 
@@ -38,11 +40,13 @@ def checkpoint():
 
 @contextlib.contextmanager
 def blender_call():
-    """Defer Ctrl-C until the Blender call inside the block returns, then raise it."""
+    """Defer Ctrl-C until the Blender call inside the block returns, then raise it; Blender's console output
+    of the call goes to :mod:`.chatter` (scripts)."""
     global _depth
     _depth += 1
     try:
-        yield
+        with chatter.captured() if _depth == 1 else contextlib.nullcontext():
+            yield
     finally:
         _depth -= 1
     checkpoint()
