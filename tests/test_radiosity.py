@@ -63,7 +63,10 @@ def test_cornell_run_against_cycles_and_outputs(tmp_path):
     assert (tmp_path / "radiosity_convergence.png").exists()
     # the comparison maps come from the light-map pipeline, which left no temporaries behind,
     # and the original objects are renderable again
-    assert (tmp_path / "cycles_bake" / "Floor radiosity_irradiance.exr").exists()
+    bake_report = json.loads((tmp_path / "cycles_bake" / "bake_report.json").read_text())
+    assert bake_report["objects"]["Floor radiosity"]["irradiance"]["file"] == str(
+        tmp_path / "cycles_bake" / "Floor_radiosity_irradiance.exr")
+    assert (tmp_path / "cycles_bake" / "Floor_radiosity_irradiance.exr").exists()
     assert rep["cycles_maps"] == str(tmp_path / "cycles_bake")
     assert not bpy.data.objects["Floor"].hide_render
     assert not any(i.name.startswith("IL ") for i in bpy.data.images)
@@ -165,7 +168,8 @@ def test_triangle_patches_compare_on_the_texels_cycles_bakes(tmp_path):
     assert tri.sum() >= 8
     H, Hc, a = r.arrays["H_front"][tri], r.arrays["cycles"][tri], p.area[tri, None]
     assert abs((H * a).sum() / (Hc * a).sum() - 1) < 0.06, ((H * a).sum(), (Hc * a).sum())
-    ch, _ = exr.read_exr(tmp_path / "cycles_bake" / f"{floor.name} radiosity_irradiance.exr")
+    bake_report = json.loads((tmp_path / "cycles_bake" / "bake_report.json").read_text())
+    ch, _ = exr.read_exr(bake_report["objects"][f"{floor.name} radiosity"]["irradiance"]["file"])
     atlas = rad_atlas.make_atlas(int((p.owner == p.names.index(floor.name)).sum()))
     x0, y0 = atlas.origin(np.arange(atlas.count))
     yy, xx = np.mgrid[0:atlas.cell, 0:atlas.cell]
@@ -174,3 +178,4 @@ def test_triangle_patches_compare_on_the_texels_cycles_bakes(tmp_path):
         baked = ch["A"][y0[k]:y0[k] + atlas.cell, x0[k]:x0[k] + atlas.cell] > 0.5
         assert np.array_equal(baked & ~diagonal, inside), (k, baked)
         assert compat.BAKE_TOUCHED_TEXELS or not baked[diagonal].any(), (k, baked)
+
