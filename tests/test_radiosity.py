@@ -179,3 +179,25 @@ def test_triangle_patches_compare_on_the_texels_cycles_bakes(tmp_path):
         assert np.array_equal(baked & ~diagonal, inside), (k, baked)
         assert compat.BAKE_TOUCHED_TEXELS or not baked[diagonal].any(), (k, baked)
 
+
+def test_adaptive_rounds_are_in_the_up_front_estimate_and_refused_before_any_work(script, tmp_path):
+    """Item 14b: --adaptive 8 --max-edge 0.1 was not refused (the estimate counted round 0 only). The estimate is now
+    the rounds' worst case (every patch split in every round refine_mask allows: at most 3 splits), and a refusal
+    names the largest --adaptive that fits at this edge, in one line, before the folder or the solve exists."""
+    from addon.core.radiosity import cost as rad_cost
+    meshes, _ = L.meshes_from_scene(L.build_cornell_scene())
+    base = L.scene_patches(meshes)
+    memory = 16 * 2 ** 30
+    assert rad_cost.adaptive_cost(base, 0.25, 0) == rad_cost.solve_cost(subdivision.planned_patches(base, 0.25))
+    rounds = subdivision.planned_patches_per_round(base, 0.25, 8)
+    assert rounds[0] == subdivision.planned_patches(base, 0.25) and rounds[3] == rounds[8] <= 64 * rounds[0]
+    rad_cost.check_cost(base, 0.25, memory=memory, adaptive=1)
+    with pytest.raises(InputError, match=r"--adaptive 2 with --max-edge 0.25 gives up to ~84k patches .*"
+                                         r"the largest --adaptive that fits with --max-edge 0.25 .* is 1"):
+        rad_cost.check_cost(base, 0.25, memory=memory, adaptive=2)
+    out = tmp_path / "rad"
+    proc = script("radiosity.py", "--scene", "cornell", "--adaptive", "8", "--max-edge", "0.1", "--out", out)
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len([l for l in lines if l.startswith("radiosity.py")]) == 1, proc.stderr
+    assert "--adaptive 8 with --max-edge 0.1" in lines[-1] and "the largest --adaptive that fits" in lines[-1]
+    assert not out.exists()

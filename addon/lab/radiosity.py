@@ -481,7 +481,7 @@ def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, th
     t0, c0 = time.perf_counter(), time.process_time()
     base = meshes if isinstance(meshes, rad_patches.Patches) else scene_patches(meshes)
     per = seconds_per_pair(base, max_edge, visibility)
-    cost = rad_cost.check_cost(base, max_edge, memory=memory, seconds_per_pair=per)
+    cost = rad_cost.check_cost(base, max_edge, memory=memory, seconds_per_pair=per, adaptive=adaptive)
     patches = rad_subdivision.subdivide_to_size(base, max_edge)
     patches = refine_near_emitters(patches, max_edge, memory, t, base, visibility)
     for round_ in range(adaptive + 1):
@@ -510,7 +510,7 @@ def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, th
         H = rad_solvers.irradiance(F, sol.B)
         if round_ == adaptive:
             break
-        mask = rad_subdivision.refine_mask(patches, H, threshold, min_area=(max_edge / 16) ** 2)
+        mask = rad_subdivision.refine_mask(patches, H, threshold, min_area=rad_subdivision.adaptive_min_area(max_edge))
         if not mask.any():
             break
         n_next = len(patches) + 3 * int(mask.sum())
@@ -755,7 +755,8 @@ def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge
                              "(an Emission shader or Principled emission), not lamps; give a mesh an emissive "
                              "material or build the Cornell box")
         base = scene_patches(meshes)
-        rad_cost.check_cost(base, max_edge, memory=memory, seconds_per_pair=seconds_per_pair(base, max_edge, visibility))
+        rad_cost.check_cost(base, max_edge, memory=memory, seconds_per_pair=seconds_per_pair(base, max_edge, visibility),
+                            adaptive=adaptive)
         p.step("patches, visibility, form factors, solve")
         r = solve_scene(base, max_edge, solver, tol, adaptive, memory=memory, visibility=visibility,
                         reciprocal=reciprocal)

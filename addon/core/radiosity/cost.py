@@ -8,7 +8,7 @@ from ..errors import InputError
 from ..budget import format_bytes, format_count, format_seconds
 from .form_factors import NEAR_PEAK_BYTES
 from .patches import longest_edge
-from .subdivision import MAX_LEVELS, planned_patches
+from .subdivision import MAX_LEVELS, planned_patches_per_round
 
 
 # Peak memory of a solve with N patches, per patch pair: measured with tracemalloc on the Cornell box at
@@ -53,11 +53,21 @@ def solve_cost(n, seconds_per_pair=None):
                 per * n * n + SECONDS_PER_NEAR_EVAL * NEAR_EVALS_PER_PATCH * n)
 
 
-def smallest_edge_that_fits(patches, memory, max_seconds=MAX_SECONDS, seconds_per_pair=None):
-    """The smallest max_edge whose estimated solve fits in ``memory`` bytes and ``max_seconds`` (None when
-    even the unsplit faces do not fit)."""
+def adaptive_cost(patches, max_edge, adaptive=0, seconds_per_pair=None):
+    """:class:`Cost` of a solve and its ``adaptive`` rounds at their worst case
+    (:func:`core.radiosity.subdivision.planned_patches_per_round`): patches of the last round, seconds summed over
+    the rounds, bytes of the largest round beside the previous round's form factors (as each round is checked)."""
+    ns = planned_patches_per_round(patches, max_edge, adaptive)
+    costs = [solve_cost(n, seconds_per_pair) for n in ns]
+    peak = max(c.bytes + (BYTES_PER_PAIR * ns[i - 1] ** 2 if i else 0.0) for i, c in enumerate(costs))
+    return Cost(ns[-1], peak, sum(c.seconds for c in costs))
+
+
+def smallest_edge_that_fits(patches, memory, max_seconds=MAX_SECONDS, seconds_per_pair=None, adaptive=0):
+    """The smallest max_edge whose estimated solve (with ``adaptive`` rounds at their worst case) fits in
+    ``memory`` bytes and ``max_seconds`` (None when even the unsplit faces do not fit)."""
     def fits(e):
-        c = solve_cost(planned_patches(patches, e), seconds_per_pair)
+        c = adaptive_cost(patches, e, adaptive, seconds_per_pair)
         return c.bytes <= memory and c.seconds <= max_seconds
     hi = float(longest_edge(patches.corners).max()) * 1.0000001
     if not fits(hi):
@@ -71,24 +81,38 @@ def smallest_edge_that_fits(patches, memory, max_seconds=MAX_SECONDS, seconds_pe
     return hi
 
 
-def check_cost(patches, max_edge, memory=None, max_seconds=MAX_SECONDS, option="--max-edge", seconds_per_pair=None):
+def check_cost(patches, max_edge, memory=None, max_seconds=MAX_SECONDS, option="--max-edge", seconds_per_pair=None,
+               adaptive=0):
     """Estimate the solve of ``patches`` split to ``max_edge`` (an upper bound: :func:`core.radiosity.subdivision.planned_patches`) and
     refuse (InputError, one line naming the
     limit and the smallest edge that fits) what needs more than ``memory`` bytes (default: the memory
-    a job may plan to use, core.budget) or more than ``max_seconds``. Returns the :class:`Cost`."""
+    a job may plan to use, core.budget) or more than ``max_seconds``. With ``adaptive`` rounds the estimate is
+    their worst case (:func:`adaptive_cost`) and the refusal names the largest --adaptive that fits at this edge
+    and the smallest edge that fits with these rounds. Returns the :class:`Cost`."""
     memory = memory_budget() if memory is None else memory
     per = SECONDS_PER_PAIR if seconds_per_pair is None else seconds_per_pair
-    cost = solve_cost(planned_patches(patches, max_edge), per)
+    adaptive = int(adaptive)
+    cost = adaptive_cost(patches, max_edge, adaptive, per)
     over_mem = memory is not None and cost.bytes > memory
     over_time = max_seconds is not None and cost.seconds > max_seconds
     if not (over_mem or over_time):
         return cost
     mem = memory if memory is not None else float("inf")
     secs = max_seconds if max_seconds is not None else float("inf")
-    best = smallest_edge_that_fits(patches, mem, secs, per)
+    best = smallest_edge_that_fits(patches, mem, secs, per, adaptive)
     limits = " and ".join(x for x in (f"{format_bytes(mem)} of usable memory" if memory is not None else "",
                                       f"{format_seconds(secs)} (at {per * 1e6:g} µs a patch pair)"
                                       if max_seconds is not None else "") if x)
+    if adaptive:
+        rounds = [a for a in range(adaptive) if (lambda c: c.bytes <= mem and c.seconds <= secs)(
+            adaptive_cost(patches, max_edge, a, per))]
+        largest = (f"the largest --adaptive that fits with {option} {max_edge:g} in {limits} is {rounds[-1]}"
+                   if rounds else f"no --adaptive fits with {option} {max_edge:g} in {limits}")
+        edge = (f"the smallest {option} that fits with --adaptive {adaptive} is {best:.2g}" if best is not None
+                else f"no {option} fits with --adaptive {adaptive}")
+        raise InputError(f"--adaptive {adaptive} with {option} {max_edge:g} gives up to ~{format_count(cost.patches)} "
+                         f"patches (every adaptive round splitting every patch it may) needing "
+                         f"{format_bytes(cost.bytes)} and about {format_seconds(cost.seconds)}; {largest}; {edge}")
     hint = (f"the smallest edge that fits in {limits} is {best:.2g}" if best is not None
             else f"even the unsplit faces do not fit in {limits}: simplify the scene")
     need = f"needing {format_bytes(cost.bytes)}" + (f" and about {format_seconds(cost.seconds)}" if over_time else "")

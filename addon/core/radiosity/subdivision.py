@@ -85,6 +85,29 @@ def planned_patches(patches, max_edge):
     return n + refine_budget(patches, n)
 
 
+ADAPTIVE_FINEST = 16        # adaptive rounds split no patch of area below (max_edge / ADAPTIVE_FINEST)²
+
+
+def adaptive_min_area(max_edge):
+    """``min_area`` of :func:`refine_mask` in the adaptive rounds of a solve split to ``max_edge``."""
+    return (max_edge / ADAPTIVE_FINEST) ** 2
+
+
+def planned_patches_per_round(patches, max_edge, rounds):
+    """Upper bound of the patch count of each adaptive round 0..``rounds`` (round 0: :func:`planned_patches`): every
+    patch of :func:`subdivide_to_size` split in four in every round while :func:`refine_mask` allows it (area above
+    4 × :func:`adaptive_min_area`, a quarter per split: at most 3 splits for a patch of edges ≤ max_edge); the
+    near-emitter budget's patches, children of such patches, one split fewer."""
+    k = subdivision_levels(patches, max_edge)
+    ratio = np.asarray(patches.area, float) / 4.0 ** k / (4 * adaptive_min_area(max_edge))
+    j = np.ceil(np.log(np.maximum(ratio, 1.0)) / np.log(4.0) - 1e-9).astype(int)
+    n = estimate_patches(patches, max_edge)
+    extra = refine_budget(patches, n)
+    finest = int(j.max()) if len(j) else 0
+    return [float(np.sum(4.0 ** (k + np.minimum(j, r)))) + extra * 4.0 ** min(r, max(finest - 1, 0))
+            for r in range(int(rounds) + 1)]
+
+
 EMITTER_SPREAD = 0.5        # split a patch when the direct light of a near emitter varies across it by more
 EMITTER_LEVELS = 5          # than this fraction of its mean, at most this many times (edges down to 1/32)
 BOUNCE_SOURCE = 0.25        # a "bright bounce": first-bounce radiance ρ E_direct / π above this fraction of the
