@@ -224,3 +224,123 @@ def test_an_atlas_is_one_call_with_the_same_image(tmp_path, monkeypatch):
     a = exr.read_exr(str(tmp_path / "one" / "atlas_ao.exr"))[0]
     b = exr.read_exr(str(tmp_path / "batch" / "atlas_ao.exr"))[0]
     assert (a["A"] > 0).sum() > 500 and all(np.array_equal(a[c], b[c]) for c in "YA")
+
+
+# ------------------------------------------------------------------ reports of resumed and sharded bakes
+
+def report_of(folder, name="bake_report.json"):
+    return __import__("json").loads((folder / name).read_text())
+
+
+def test_a_bake_killed_right_after_a_map_file_resumes_with_every_map_in_the_report(tmp_path, monkeypatch):
+    """Killed right after Floor_irradiance.exr is written (no preview, no report entry: what a SIGKILL leaves), the
+    rerun with Overwrite finds that map unchanged, writes its preview from the EXR and puts in the report its entry
+    rebuilt from the header, the same as a run that was not killed; entries of the old report that agree with
+    their files stay as they were. A deleted report is written again with every map, also when nothing is baked,
+    and a deleted preview is written again."""
+    objects = small_level()[:3]
+    kinds = ["ao", "irradiance"]
+    opts = BakeOptions(texel_density=6, samples=2, bounces=1, keep_products=False)
+    whole = bake_lightmaps(objects, kinds, str(tmp_path / "whole"), opts)
+    out = tmp_path / "maps"
+    real = pipeline.io_png.write_png
+
+    def killed(path, pixels):
+        if str(path).endswith("Floor_irradiance.png"):
+            raise KeyboardInterrupt                         # stands for SIGKILL: nothing after the EXR runs
+        real(path, pixels)
+
+    monkeypatch.setattr(pipeline.io_png, "write_png", killed)
+    with pytest.raises(KeyboardInterrupt):
+        bake_lightmaps(objects, kinds, str(out), opts)
+    monkeypatch.undo()
+    assert (out / "Floor_irradiance.exr").exists() and not (out / "Floor_irradiance.png").exists()
+    before = report_of(out)
+    assert "irradiance" not in before["objects"]["Floor"]
+    again = bake_lightmaps(objects, kinds, str(out), opts.replace(overwrite=True))
+    assert again["unchanged"]["Floor"] == ["ao", "irradiance"] and "Floor" not in again["objects"]
+    report = report_of(out)
+    assert {(o, m) for o, ms in report["objects"].items() for m in ms} == {(o.name, m) for o in objects for m in kinds}
+    assert report["objects"]["Sphere"]["ao"] == before["objects"]["Sphere"]["ao"]       # agrees: kept as it was
+    rebuilt, reference = report["objects"]["Floor"]["irradiance"], whole["objects"]["Floor"]["irradiance"]
+    assert rebuilt["file"] == str(out / "Floor_irradiance.exr")
+    assert rebuilt["preview"] == str(out / "Floor_irradiance.png")
+    assert set(rebuilt) == set(reference)
+    for key in ("resolution", "samples", "estimated_error", "error_estimate", "uv_layer", "coverage", "chart_area",
+                "margin", "overlap", "denoised"):
+        assert rebuilt[key] == reference[key], key
+    assert 0 < rebuilt["cycles_seconds"] <= rebuilt["seconds"]         # the bake's, from the header
+    a = exr.read_exr(str(out / "Floor_irradiance.exr"))[0]
+    b = exr.read_exr(str(tmp_path / "whole" / "Floor_irradiance.exr"))[0]
+    assert all(np.array_equal(a[c], b[c]) for c in "RGBA")
+    assert (out / "Floor_irradiance.png").read_bytes() == (tmp_path / "whole" / "Floor_irradiance.png").read_bytes()
+    preview = (out / "Sphere_ao.png").read_bytes()
+    (out / "Sphere_ao.png").unlink()
+    (out / "bake_report.json").unlink()
+    third = bake_lightmaps(objects, kinds, str(out), opts.replace(overwrite=True))
+    assert not third["objects"] and sum(len(m) for m in third["unchanged"].values()) == 6
+    written = report_of(out)
+    assert written["objects"]["Floor"]["irradiance"] == rebuilt
+    assert {(o, m) for o, ms in written["objects"].items() for m in ms} == {(o.name, m) for o in objects for m in kinds}
+    for o in objects:
+        for m in kinds:
+            e, r = written["objects"][o.name][m], report["objects"][o.name][m]
+            assert {k: v for k, v in e.items() if k != "seconds"} == {k: v for k, v in r.items() if k != "seconds"}
+    assert (out / "Sphere_ao.png").read_bytes() == preview
+    assert written["unchanged"] == third["unchanged"]
+
+
+def test_shard_parts_are_written_when_nothing_is_baked_and_merge_joins_the_latest_split(tmp_path):
+    """A share whose maps are all unchanged still writes its part (with their entries), and --merge joins the parts
+    of the latest split only, naming the earlier split's parts in a warning."""
+    from addon.core.errors import ILWarning
+    objects = small_level()[:3]
+    opts = BakeOptions(texel_density=6, samples=2, keep_products=False)
+    for k in (1, 2, 3):
+        bake_lightmaps(objects, ["ao"], str(tmp_path), opts.replace(shard=f"{k}/3"))
+    for k in (1, 2):
+        part = bake_lightmaps(objects, ["ao"], str(tmp_path), opts.replace(shard=f"{k}/2", overwrite=True))
+        assert not part["objects"] and part["unchanged"]
+        written = report_of(tmp_path, f"bake_report.shard-{k}-of-2.json")
+        assert set(written["objects"]) == set(part["unchanged"])
+    with pytest.warns(ILWarning, match=r"earlier split .*bake_report\.shard-1-of-3\.json"):
+        merged = pipeline.merge_reports(str(tmp_path))
+    assert merged["shards"] == ["bake_report.shard-1-of-2.json", "bake_report.shard-2-of-2.json"]
+    assert set(report_of(tmp_path)["objects"]) == {"Floor", "Sphere", "Suzanne"}
+    assert sum(len(m) for m in merged["unchanged"].values()) == 3
+
+
+def test_merge_keeps_the_entries_already_in_the_report(tmp_path):
+    """A plain bake of the floor, then two shards of two props, then --merge: the floor's entry stays."""
+    floor, sphere, _, cube = small_level()[:4]
+    opts = BakeOptions(texel_density=6, samples=2, keep_products=False)
+    plain = bake_lightmaps([floor], ["ao"], str(tmp_path), opts)
+    for k in (1, 2):
+        bake_lightmaps([sphere, cube], ["ao"], str(tmp_path), opts.replace(shard=f"{k}/2"))
+    merged = pipeline.merge_reports(str(tmp_path))
+    report = report_of(tmp_path)
+    assert set(merged["objects"]) == set(report["objects"]) == {"Floor", "Sphere", "Cube"}
+    assert report["objects"]["Floor"]["ao"] == plain["objects"]["Floor"]["ao"]
+    assert len(report["shards"]) == 2
+
+
+def test_damaged_shard_parts_are_set_aside_and_the_rest_merged(tmp_path, script):
+    """A truncated part, then a part that is a JSON list: each is named, moved aside as the report is, with a
+    warning, and the other parts merged (the script exits 0)."""
+    from addon.core.errors import ILWarning
+    objects = small_level()[:2]
+    bake_lightmaps(objects, ["ao"], str(tmp_path), BakeOptions(texel_density=6, samples=2, keep_products=False,
+                                                               shard="1/2"))
+    damaged = tmp_path / "bake_report.shard-2-of-2.json"
+    damaged.write_text('{"objects": {"Sph')
+    with pytest.warns(ILWarning, match=r"bake_report\.shard-2-of-2\.json could not be read .* kept as "
+                                       r".*bake_report\.shard-2-of-2\.unreadable-1\.json"):
+        merged = pipeline.merge_reports(str(tmp_path))
+    assert merged["shards"] == ["bake_report.shard-1-of-2.json"] and merged["objects"]
+    assert (tmp_path / "bake_report.shard-2-of-2.unreadable-1.json").read_text() == '{"objects": {"Sph'
+    damaged.write_text("[1, 2]")
+    r = script("bake.py", "--merge", tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "bake_report.shard-2-of-2.json could not be read" in r.stderr and "unreadable-2.json" in r.stderr
+    assert (tmp_path / "bake_report.shard-2-of-2.unreadable-2.json").read_text() == "[1, 2]"
+    assert set(report_of(tmp_path)["objects"]) == set(merged["objects"]) and not damaged.exists()

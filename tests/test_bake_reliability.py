@@ -469,3 +469,105 @@ def test_object_names_never_write_outside_the_output_folder(tmp_path, script):
         o.select_set(True)
     assert bpy.ops.illumination.bake_lightmaps() == {"FINISHED"}
     _assert_inside_and_mapped(tmp_path / "u", ui, json.loads((ui / "bake_report.json").read_text()))
+
+
+# ------------------------------------------------------------------ long bakes: Ctrl-C between passes, time bound
+
+def test_ctrl_c_stops_a_long_bake_between_its_passes_and_the_finished_maps_resume(tmp_path, script):
+    """A 1024² irradiance map at 1024 samples (one half was one Cycles call of about 860 s by its own estimate) is
+    baked in passes of cost.PASS_SECONDS: SIGINT during a pass stops it within about twice that, exit 130, the
+    small map baked before it stays (resumable), nothing of the long map is written."""
+    from addon.bake import pipeline
+    scene = bpy.context.scene
+    sc.plane(scene, "Floor", 40.0)
+    sc.box(scene, "Box", 0.25, location=(0, 0, 0.125))
+    blend = save(tmp_path / "s.blend")
+    data = blend.read_bytes()
+    out = tmp_path / "maps"
+    args = [str(blend), "--objects", "Box", "Floor", "--maps", "irradiance", "--texel-density", "26",
+            "--max-resolution", "1024", "--samples", "1024", "--out", str(out)]
+    passes = pipeline._passes("irradiance", 512, 0, 1024 ** 2)
+    assert len(passes) > 100 and max(cost.seconds(1024, 1024, ["irradiance"], n) for n, _ in passes) <= 5.0
+    assert len({s for _, s in passes}) == len(passes) and sum(n for n, _ in passes) == 512
+    p = subprocess.Popen([sys.executable, os.path.join(ROOT, "scripts", "bake.py"), *args],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    seen = ""
+    while "Box: irradiance" not in seen:              # a batch's step line comes after its bake: Floor's is next
+        line = p.stderr.readline()
+        assert line, seen
+        seen += line
+    time.sleep(3.0)                                       # inside a pass of Floor (about 3.4 s by the estimate)
+    t = time.perf_counter()
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=120)
+    stopped = time.perf_counter() - t
+    print(f"stopped {stopped:.2f} s after SIGINT")
+    assert p.returncode == 130, err
+    assert stopped < 2 * cost.PASS_SECONDS, stopped
+    assert err.strip().splitlines()[-1].startswith("bake.py: interrupted"), err
+    assert blend.read_bytes() == data
+    assert sorted(os.listdir(out)) == ["Box_irradiance.exr", "Box_irradiance.png", "bake_report.json"]
+    assert list(json.loads((out / "bake_report.json").read_text())["objects"]) == ["Box"]
+    r = script("bake.py", *[a for a in args if a != "Floor"], "--overwrite")   # resume: Box is as baked
+    assert r.returncode == 0, r.stderr
+    assert "unchanged (skipped, inputs as baked) 1 map(s): Box (irradiance)" in r.stdout, r.stdout
+
+
+def test_passes_keep_small_bakes_as_they_were_and_combine_by_samples(tmp_path):
+    """Bakes estimated within cost.PASS_SECONDS keep their one call (bit for bit as before); a longer one is
+    passes of distinct seeds whose sample-weighted mean is the map, with AO's binomial bound still its error."""
+    from addon.bake import pipeline
+    assert pipeline._passes("ao", 64, 7, 256 ** 2) == [(64, 7)]
+    assert pipeline._passes("irradiance", 32, 8, 256 ** 2) == [(32, 8)]
+    many = pipeline._passes("ao", 100, 3, 1024 ** 2)
+    assert [n for n, _ in many] == [5] * 20 and [s for _, s in many] == [3 + 8 * j for j in range(20)]
+    total = pipeline._PassSum(4)
+    total.add(np.full((2, 2), 1.0, np.float32), np.ones((2, 2), bool), 1)
+    total.add(np.full((2, 2), 0.0, np.float32), np.zeros((2, 2), bool), 3)
+    values, mask = total.result()
+    assert values.dtype == np.float32 and np.allclose(values, 0.25) and mask.all()
+    scene = bpy.context.scene
+    floor = sc.plane(scene, "Floor", 4.0)
+    sc.box(scene, "Box", 1.0, location=(0, 0, 0.5))
+    cost_ = cost.SECONDS_PER_TEXEL_SAMPLE["ao"]
+    try:                                    # the same 32² AO map as one call and as 8 passes of 8 samples
+        cost.SECONDS_PER_TEXEL_SAMPLE["ao"] = cost.PASS_SECONDS / (32 * 32 * 8)
+        split = bake_lightmaps([floor], ["ao"], tmp_path / "p", BakeOptions(resolution=32, samples=64), scene=scene)
+    finally:
+        cost.SECONDS_PER_TEXEL_SAMPLE["ao"] = cost_
+    one = bake_lightmaps([floor], ["ao"], tmp_path / "o", BakeOptions(resolution=32, samples=64), scene=scene)
+    a, _ = exr.read_exr(tmp_path / "p" / "Floor_ao.exr")
+    b, _ = exr.read_exr(tmp_path / "o" / "Floor_ao.exr")
+    covered = b["A"] > 0.5
+    assert np.array_equal(a["A"], b["A"]) and not np.array_equal(a["Y"], b["Y"])
+    assert abs(a["Y"][covered].mean() - b["Y"][covered].mean()) < 0.02
+    assert split["objects"]["Floor"]["ao"]["samples"] == 64
+    assert split["objects"]["Floor"]["ao"]["estimated_error"] == pytest.approx(
+        one["objects"]["Floor"]["ao"]["estimated_error"], rel=0.1)
+
+
+def test_a_bake_beyond_the_time_bound_is_refused_at_once(tmp_path, script):
+    """bake.py --resolution 4096 --samples 1048576 estimated 2.8e7 s by the progress line's figures: exit 2 in
+    seconds naming the largest sample count that fits, nothing written; the Bake button refuses it too."""
+    from addon.core import budget
+    sc.plane(bpy.context.scene, "Floor", 4.0)
+    blend = save(tmp_path / "s.blend")
+    t = time.perf_counter()
+    r = script("bake.py", blend, "--objects", "Floor", "--maps", "ao", "irradiance", "--resolution", "4096",
+               "--samples", "1048576", "--out", tmp_path / "maps")
+    seconds = time.perf_counter() - t
+    print(f"refused in {seconds:.2f} s: {last_line(r)}")
+    assert r.returncode == 2 and "the largest samples that fits is" in last_line(r), r.stderr
+    assert "(limit 2 h)" in last_line(r) and seconds < 30 and not (tmp_path / "maps").exists()
+    best = int(last_line(r).rsplit(" ", 1)[1])
+    per = cost.seconds(4096, 4096, ["ao", "irradiance"], 1)
+    assert best * per <= budget.MAX_SECONDS < (best + 1) * per
+    r = script("bake.py", blend, "--objects", "Floor", "--maps", "ao", "irradiance", "--resolution", "4096",
+               "--target-error", "0.001", "--out", tmp_path / "maps")      # up to max_samples 4096: the side
+    assert r.returncode == 2 and "the largest resolution that fits is" in last_line(r), r.stderr
+    lm = bpy.context.scene.illumination.lightmaps
+    lm.output_dir, lm.resolution, lm.samples, lm.maps = str(tmp_path / "ui"), 4096, 1048576, {"ao"}
+    bpy.context.scene.objects["Floor"].select_set(True)
+    with pytest.raises(RuntimeError, match="the largest samples that fits is"):
+        bpy.ops.illumination.bake_lightmaps()
+    assert not (tmp_path / "ui").exists() and bpy.context.scene.objects["Floor"].data.uv_layers.keys() == []

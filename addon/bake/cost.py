@@ -22,6 +22,9 @@ SECONDS_PER_TEXEL_SAMPLE = {"ao": 9e-7, "irradiance": 1.6e-6}
 """Rough Cycles CPU seconds per covered texel and sample on this project's 2-core machine (a fully covered
 1024² plane beside a cube, 16 samples: AO 14.4 s, irradiance with 3 bounces 26.3 s); an upper bound of
 a map's time, as every texel is counted covered."""
+PASS_SECONDS = 5.0
+"""Longest estimated Cycles call (:func:`seconds`) of a bake: a longer bake is split into sample passes of at most
+this (Ctrl-C, deferred until the current call returns, then stops it within about twice this)."""
 RESERVE = 0.8
 """Fraction of the available memory a bake may plan to use (Blender, the scene and the OS need the rest)."""
 PANEL_FALLBACK_MEMORY = 8 << 30
@@ -48,6 +51,34 @@ def peak_bytes(width, height, maps, denoise=False):
 def seconds(width, height, maps, samples):
     """Rough Cycles seconds of baking ``maps`` of one (width × height) map with ``samples`` samples."""
     return int(width) * int(height) * int(samples) * sum(SECONDS_PER_TEXEL_SAMPLE[m] for m in maps)
+
+
+def pass_samples(texels, kind):
+    """The most samples of one Cycles call of map ``kind`` over ``texels`` texels within PASS_SECONDS (at least 1)."""
+    return max(1, int(PASS_SECONDS // seconds(max(1, int(texels)), 1, [kind], 1)))
+
+
+def check_time(sizes, maps, samples, option="samples", side_option="resolution"):
+    """Raise InputError when baking ``maps`` of every (width, height) in ``sizes`` with ``samples`` is estimated
+    (:func:`seconds`, the figures of the progress line) beyond ``core.budget.MAX_SECONDS``. The one line names the
+    largest ``option`` (samples) that fits, or where no sample count fits (or ``option`` is None) the largest
+    ``side_option``: the side every map is capped at."""
+    sizes = [(int(w), int(h)) for w, h in sizes]
+    if not sizes:
+        return
+
+    def at(n, side=None):
+        return 0, sum(seconds(min(w, side or w), min(h, side or h), maps, n) for w, h in sizes)
+
+    if at(samples)[1] <= budget.MAX_SECONDS:
+        return
+    w, h = max(sizes, key=lambda s: s[0] * s[1])
+    what = (f"({' and '.join(maps)} {'up to' if len(set(sizes)) > 1 else 'at'} {w}x{h}"
+            f"{f', {len(sizes)} maps each' if len(sizes) > 1 else ''})")
+    if option and at(1)[1] <= budget.MAX_SECONDS:
+        budget.check(option, int(samples), at, 1, what)
+    side = max(max(s) for s in sizes)
+    budget.check(side_option, side, lambda r: at(samples, r), 1, f"with {samples} samples {what}")
 
 
 def largest_side(memory, maps=("ao", "irradiance"), denoise=False):

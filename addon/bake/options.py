@@ -3,7 +3,7 @@ import dataclasses
 
 from ..core.errors import InputError
 from ..core.io.files import check_output_dir as check_out_dir  # noqa: F401  (one home: core.io.files)
-from ..core.lightmap import MAX_RESOLUTION
+from ..core.lightmap import MAX_RESOLUTION, smallest_target_error
 from ..core.options import Options, option
 
 MAP_CHOICES = (("ao", "Ambient Occlusion", "k_A (1 = open)"), ("irradiance", "Irradiance", "E in W/m² (RGB)"))
@@ -74,6 +74,7 @@ class BakeOptions(Options):
         if int(self.max_samples) < int(self.pilot_samples):
             raise InputError(f"pilot samples must be at least 2 and maximum samples at least the pilot samples, "
                              f"got {self.pilot_samples} and {self.max_samples}")
+        self.check_target(())
         self.uv_layer = self.uv_layer or None
         if self.sizes:
             if self.target != "image" or self.atlas:
@@ -81,6 +82,20 @@ class BakeOptions(Options):
             for name, (w, h) in self.sizes.items():
                 if not (1 <= int(w) <= MAX_RESOLUTION and 1 <= int(h) <= MAX_RESOLUTION):
                     raise InputError(f"map size of '{name}' must be between 1 and {MAX_RESOLUTION}, got {w}x{h}")
+
+    def check_target(self, maps):
+        """Refuse a ``target_error`` below the float32 maps' resolution, or one that one of ``maps`` cannot reach
+        within ``max_samples``, before any bake, naming the smallest that can
+        (:func:`core.lightmap.smallest_target_error`)."""
+        if self.target_error is None:
+            return
+        target = float(self.target_error)
+        for m in ("irradiance", *maps):
+            least = smallest_target_error(m, self.max_samples)
+            if not target >= least:
+                why = f"for ao within {int(self.max_samples)} samples" if m == "ao" else "in float32 maps"
+                raise InputError(f"target error {target:g} cannot be reached {why}: the smallest target error is "
+                                 f"{least:.3g}")
 
 
 def shard_of(text):

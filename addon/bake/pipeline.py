@@ -54,6 +54,7 @@ class BakeResult:
     seconds         the whole map (bakes, read-back, denoising); cycles_seconds: inside the Cycles bake calls
     estimated_error RMS over covered texels, same units as values (NaN when not estimated)
     estimate        which estimate ``estimated_error`` is (one of ESTIMATES, plus DENOISED when denoised)
+    capped          a target error missed within max_samples / MAX_PAIRS (:func:`_capped`)
     """
 
     def __init__(self, values, mask, samples, seconds, estimated_error, estimate, pilot_samples=0,
@@ -61,6 +62,7 @@ class BakeResult:
         self.values, self.mask, self.samples = values, mask, samples
         self.seconds, self.estimated_error, self.pilot_samples = seconds, estimated_error, pilot_samples
         self.estimate, self.cycles_seconds = estimate, cycles_seconds
+        self.capped = False
 
 
 # ------------------------------------------------------------------ validation
@@ -117,6 +119,7 @@ def validate(scene, objects, maps, out, options):
     ``flips`` {object name: mesh} are meshes inside out (:mod:`.orientation`) whose normals the bake flips."""
     options.validate()
     maps = validate_maps(maps)
+    options.check_target(maps)
     objects = list(objects)
     if not objects:
         raise InputError("nothing selected: select or name at least one mesh object")
@@ -161,6 +164,10 @@ def validate(scene, objects, maps, out, options):
             refusal = cost.check(w, h, maps, options.denoise)
             if refusal:
                 raise InputError(refusal)
+        sizes = _fixed_sizes(objects, options)
+        if sizes and not options.sizes and not options.atlas:
+            sizes *= len(shard(objects, options)[0] if options.shard else objects)
+        _check_time(sizes, maps, options)
     out = check_out_dir(out)
     if not options.overwrite:
         for path in output_files(shard(objects, options)[0] if options.shard else objects, maps, out, options,
@@ -182,6 +189,13 @@ def _check_vertex_bakeable(obj):
             raise InputError(f"'{obj.name}': vertex colours cannot be baked through its "
                              f"{VERTEX_BAKE_UNSAFE_MODIFIERS[m.type]} modifier '{m.name}' (Blender's vertex bake "
                              f"crashes on the vertices it makes): apply the modifier, or bake an image map")
+
+
+def _check_time(sizes, maps, options, side_option="resolution"):
+    """InputError when the maps of ``sizes`` take longer than ``core.budget.MAX_SECONDS`` by the progress line's
+    figures (:func:`cost.check_time` with :func:`_planned_samples`); a target error names the side, not samples."""
+    cost.check_time(sizes, maps, _planned_samples(options), None if options.target_error is not None else "samples",
+                    side_option)
 
 
 def _fixed_sizes(objects, options):
@@ -332,13 +346,23 @@ def input_hash(scene, group, kind, options, lighting):
 
 def stored_hash(path):
     """The input hash in the header of a map file this pipeline wrote, or None."""
+    stored = _stored(path)
+    return None if stored is None else _text(stored[0].get(HASH_KEY))
+
+
+def _stored(path):
+    """(header, (width, height)) of a map file on disk, or None when it is missing or cannot be read."""
     if not os.path.exists(path):
         return None
     try:
-        _, header = exr.read_exr(path)
+        channels, header = exr.read_exr(path)
     except (OSError, RuntimeError, ValueError):
         return None
-    value = header.get(HASH_KEY)
+    shape = next(iter(channels.values())).shape if channels else (0, 0)
+    return header, (int(shape[1]), int(shape[0]))
+
+
+def _text(value):
     return value.decode() if isinstance(value, bytes) else value
 
 
@@ -356,7 +380,8 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
 
     Writes ``<out>/<object>_<map>.exr`` (+ ``.png`` preview) per object (``atlas_<map>``
     with ``options.atlas``), or ``<object>_<map>_vertex.exr`` for the vertex target, and
-    merges ``<out>/bake_report.json``. The user's file comes back as it was (materials,
+    merges ``<out>/bake_report.json`` (a shard's part with ``options.shard``), which then holds every asked-for
+    map on disk: maps unchanged under ``overwrite`` too (:func:`_kept_entries`), also when nothing is baked. The user's file comes back as it was (materials,
     images, UV layers, selection, active object, render settings), also on errors and
     interruptions; only the products (generated "Lightmap" UV layer, "IL AO" /
     "IL Irradiance" colour attributes) stay when ``options.keep_products``.
@@ -383,18 +408,25 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     lighting = lighting_digest(scene)
     digests = {(name, m): input_hash(scene, group, m, options, lighting) for name, group in groups for m in maps}
     stems = file_stems()
-    unchanged = {}
+    unchanged, kept = {}, {}
+    report_path = os.path.join(out, report_name)
     if options.overwrite and not options.force:
+        old_reports = [_read_objects(report_path), _read_objects(os.path.join(out, REPORT))]
         for name, group in groups:
             for m in maps:
-                if stored_hash(_map_file(name, m, out, options, group, stems)) == digests[(name, m)]:
+                stored = _stored(_map_file(name, m, out, options, group, stems))
+                if stored is not None and _text(stored[0].get(HASH_KEY)) == digests[(name, m)]:
                     unchanged.setdefault(name, []).append(m)
+                    for o, e in _kept_entries(name, group, m, out, options, stems, stored, old_reports).items():
+                        kept.setdefault(o, {})[m] = e
     groups = [(name, group) for name, group in groups if len(unchanged.get(name, ())) < len(maps)]
     objects = [o for _, group in groups for o in group]
     steps = (1 if options.target == "image" and groups else 0) + sum(len(maps) - len(unchanged.get(n, ()))
                                                                         for n, _ in groups)
     report = {"objects": {}, "skipped": dict(skipped), "unchanged": unchanged, "failed": failed}
-    report_path = os.path.join(out, report_name)
+    if kept or not groups:                 # the report describes the unchanged maps too, also if nothing is baked
+        _merge_report(report_path, {"objects": kept, "seconds": time.perf_counter() - t_all, "skipped": dict(skipped),
+                                    "unchanged": unchanged, "failed": failed})
     if not groups:
         report["seconds"] = time.perf_counter() - t_all
         return JobResult(report, report_path, summary(report))
@@ -438,7 +470,7 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
                 size = _map_size(group, layers, sides, options)
                 areas, overlap = None, None
                 if size is not None:
-                    refusal = cost.check(size[0], size[1], maps, options.denoise)
+                    refusal = cost.check(size[0], size[1], maps, options.denoise, what=_size_option(options))
                     if refusal:
                         raise InputError(f"'{name}': {refusal}")
                     areas = uvmod.check_coverage(group, layers, size)
@@ -449,7 +481,9 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
             plan.append((name, group, size, areas, overlap))
         if not plan:
             raise errors_[0]
-        batched, singles = batches(scene, plan, layers, state, options)
+        if options.texel_density is not None and not options.sizes:
+            _check_time([e[2] for e in plan if e[2]], maps, options, "max resolution")
+        batched, singles = batches(scene, plan, layers, state, options, maps)
         tracker = _Tracker(plan, maps, unchanged, options)
 
         def finish(entry, m, result, t_map):
@@ -459,11 +493,13 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
             if m == "ao":
                 _check_plausible(scene, name, group, result, options)
             margin = margins.get(group[0].name, int(options.margin))
+            t_files = time.perf_counter()
+            result.seconds += t_files - t_map     # the header's il:seconds: bakes and checks, not the files
             entries = _write(name, group, m, result, out, options, layers, margin, overlap, digests[(name, m)],
                              stems)
-            part = {"objects": {}}
+            part = {"objects": {}, "skipped": report["skipped"], "unchanged": unchanged}
             for o in group:
-                entries[o.name]["seconds"] = round(result.seconds + time.perf_counter() - t_map, 4)  # files included
+                entries[o.name]["seconds"] = round(result.seconds + time.perf_counter() - t_files, 4)  # files included
                 report["objects"].setdefault(o.name, {})[m] = entries[o.name]
                 part["objects"].setdefault(o.name, {})[m] = entries[o.name]
             part["seconds"] = time.perf_counter() - t_all
@@ -602,29 +638,57 @@ def shard(objects, options):
 
 
 def merge_reports(folder):
-    """Join the shard report parts (bake_report.shard-K-of-N.json) of ``folder`` into its bake_report.json (entries
-    per object and map, "skipped" and "unchanged" unions, "seconds" the sum); return a JobResult."""
-    import glob
-    parts = sorted(glob.glob(os.path.join(glob.escape(folder), SHARD_REPORT.format(k="*", n="*"))))
-    if not parts:
+    """Join the shard report parts (bake_report.shard-K-of-N.json) of ``folder`` into its bake_report.json; return
+    a JobResult. The report's entries stay and the parts' update them (per object and map); "skipped" and
+    "unchanged" are the parts' unions, "seconds" their sum. Only the parts of the latest split (the N of the newest
+    part) are joined; parts of other splits and missing shares are named in a warning. A part (or report) that
+    cannot be read is moved aside (:func:`_aside`) with a warning and the rest merged."""
+    import re
+    pattern = re.compile(r"bake_report\.shard-(\d+)-of-(\d+)\.json")
+    found = {}
+    for entry in sorted(os.listdir(folder)) if os.path.isdir(folder) else []:
+        match = pattern.fullmatch(entry)
+        if match:
+            found[os.path.join(folder, entry)] = (int(match.group(1)), int(match.group(2)))
+    if not found:
         raise InputError(f"no shard reports (bake_report.shard-K-of-N.json) in {folder}")
-    merged = {"objects": {}, "skipped": {}, "unchanged": {}, "failed": {}, "seconds": 0.0, "shards": []}
-    for path in parts:
-        with open(path, encoding="utf-8") as f:
-            part = json.load(f)
-        for obj, maps in part.get("objects", {}).items():
-            merged["objects"].setdefault(obj, {}).update(maps)
-        merged["skipped"].update(part.get("skipped", {}))
-        merged.setdefault("failed", {}).update(part.get("failed", {}))
-        for obj, maps in part.get("unchanged", {}).items():
-            merged["unchanged"].setdefault(obj, []).extend(m for m in maps if m not in merged["unchanged"].get(obj, []))
-        merged["seconds"] += float(part.get("seconds", 0.0))
-        merged["shards"].append(os.path.basename(path))
-        merged["blender_version"] = part.get("blender_version")
+    n = found[max(found, key=lambda p: (os.path.getmtime(p), found[p][1]))][1]
+    stale = sorted(os.path.basename(p) for p, (_, m) in found.items() if m != n)
+    if stale:
+        errors.warn(f"ignored the parts of an earlier split (the latest has {n} shares): " + ", ".join(stale))
+    parts = sorted((p for p, (_, m) in found.items() if m == n), key=lambda p: found[p][0])
+    missing = sorted(set(range(1, n + 1)) - {found[p][0] for p in parts})
+    if missing:
+        errors.warn(f"no report part of shard(s) {', '.join(f'{k}/{n}' for k in missing)} in {folder}: "
+                    "their maps are not in the merged report")
     path = os.path.join(folder, REPORT)
     with report_lock(folder):
+        old = _load_report(path, "a new report started") or {}
+        merged = {"objects": old.get("objects", {}), "skipped": {}, "unchanged": {}, "failed": {}, "seconds": 0.0,
+                  "shards": []}
+        joined = []
+        for part_path in parts:
+            part = _load_report(part_path, "merged without it")
+            if part is None:
+                continue
+            joined.append(part)
+            for obj, maps in part.get("objects", {}).items():
+                merged["objects"].setdefault(obj, {}).update(maps)
+            merged["skipped"].update(part.get("skipped", {}))
+            for obj, maps in part.get("unchanged", {}).items():
+                have = merged["unchanged"].setdefault(obj, [])
+                have.extend(m for m in maps if m not in have)
+            merged["seconds"] += float(part.get("seconds", 0.0))
+            merged["shards"].append(os.path.basename(part_path))
+            merged["blender_version"] = part.get("blender_version")
+        if not joined:
+            raise InputError(f"no readable shard reports (bake_report.shard-K-of-N.json) in {folder}")
+        named = {obj for part in joined for obj in part.get("objects", {})}
+        merged["failed"] = {k: v for k, v in old.get("failed", {}).items() if k not in named}
+        for part in joined:
+            merged["failed"].update(part.get("failed", {}))
         write_json(path, merged)
-    return JobResult(merged, path, summary(merged) + f" ({len(parts)} shard reports merged)")
+    return JobResult(merged, path, summary(merged) + f" ({len(joined)} shard reports merged)")
 
 
 def summary(report):
@@ -699,6 +763,11 @@ def _check_covered(name, group, kind, result, layers, areas):
 
 
 # ------------------------------------------------------------------ bakes
+
+def _size_option(options):
+    """The option a refused map side is lowered with: the fixed resolution, or the cap of the texel-density side."""
+    return "resolution" if options.texel_density is None or options.sizes else "max resolution"
+
 
 def _map_size(group, layers, sides, options):
     """(width, height) of the group's image map (None for the vertex target): ``options.sizes``, else the
@@ -841,6 +910,7 @@ def bake_map(scene, group, kind, options, layers, size, image_nodes, state):
     - AO: one N-sample bake (Cycles' stratified sampler converges faster than two independent halves
       would), error = the binomial bound √(mean k_A(1 - k_A)/N) of REFERENCE.md §3.
     Denoising (image target) runs last; the estimate then stays that of the map before denoising.
+    Each bake is the Cycles calls of :func:`_passes` (one call unless it is estimated beyond cost.PASS_SECONDS).
     """
     t0 = time.perf_counter()
     for o in state.render_hidden:               # hidden for render: seen by Cycles only for its own map
@@ -865,22 +935,30 @@ def bake_map(scene, group, kind, options, layers, size, image_nodes, state):
     inside = _centre_texels(group, layers, size) if image_target else None
     timer = {"cycles": 0.0}
 
-    def once(samples, seed):
-        values, mask, seconds = _bake_once(scene, group, kind, samples, seed, image, uv_name, options, inside)
-        timer["cycles"] += seconds
-        return values, mask
+    texels = size[0] * size[1] if image_target else sum(len(o.data.loops) for o in group)
 
-    pilot = 0
+    def once(samples, seed):
+        total = _PassSum(samples)
+        for n, s in _passes(kind, samples, seed, texels):
+            values, mask, seconds = _bake_once(scene, group, kind, n, s, image, uv_name, options, inside)
+            timer["cycles"] += seconds
+            total.add(values, mask, n)
+        return total.result()
+
+    pilot, capped = 0, False
     if options.target_error is not None:
         values, mask, n, pilot, err = _bake_to_error(once, options)
         estimate = ESTIMATES["pilots"]
+        capped = _capped(group, kind, n, err, options)
     else:
         values, mask, n, err, estimate = _estimated(kind, options, [once(m, seed) for m, seed in _calls(kind, options)])
     if image is not None:
         bpy.data.images.remove(image)           # one map's image at a time (memory, cost.BYTES_PER_TEXEL)
     if image_target and options.denoise:
-        values, estimate = _denoised(values, mask), estimate + DENOISED
-    return BakeResult(values, mask, n, time.perf_counter() - t0, err, estimate, pilot, timer["cycles"])
+        values, estimate = _denoised(values, mask, kind), estimate + DENOISED
+    result = BakeResult(values, mask, n, time.perf_counter() - t0, err, estimate, pilot, timer["cycles"])
+    result.capped = capped
+    return result
 
 
 def _calls(kind, options):
@@ -890,6 +968,49 @@ def _calls(kind, options):
     if kind == "irradiance" and n >= 2:
         return [(n // 2, int(options.seed)), (n - n // 2, int(options.seed) + 1)]
     return [(n, int(options.seed))]
+
+
+SEED_STRIDE = 2 * MAX_PAIRS
+"""Seeds of the passes of one bake step by this: a map's bakes have seeds seed .. seed + 2 MAX_PAIRS - 1."""
+
+
+def _passes(kind, samples, seed, texels):
+    """[(samples, seed)] of the Cycles calls of one bake of ``samples`` at ``seed`` over ``texels`` texels: that
+    one call when it fits cost.PASS_SECONDS (:func:`cost.seconds`, as the progress line), else near-equal sample
+    passes of at most :func:`cost.pass_samples`, seeds seed + j SEED_STRIDE, whose sample-weighted mean
+    (:class:`_PassSum`) is the bake; Ctrl-C (deferred inside a call) stops between them."""
+    samples, seed = int(samples), int(seed)
+    most = cost.pass_samples(texels, kind)
+    if samples <= most:
+        return [(samples, seed)]
+    k = -(-samples // most)
+    return [(samples // k + (j < samples % k), (seed + j * SEED_STRIDE) % 2 ** 31) for j in range(k)]
+
+
+class _PassSum:
+    """The sample-weighted mean of the passes of one bake of ``samples``, summed as they come (one pass's values
+    held at a time); a single pass comes back as it is, and the mask is the first pass's."""
+
+    def __init__(self, samples):
+        self.samples, self.sum, self.mask, self.single = int(samples), None, None, None
+
+    def add(self, values, mask, samples):
+        if self.sum is None and self.single is None and samples == self.samples:
+            self.single = values, mask
+            return
+        w = samples / self.samples
+        if isinstance(values, dict):
+            self.sum = {k: (self.sum[k] if self.sum else 0.0) + np.asarray(v, np.float64) * w for k, v in values.items()}
+        elif self.sum is None:
+            self.sum, self.mask = values.astype(np.float64) * w, mask
+        else:
+            self.sum += values * w
+
+    def result(self):
+        """(values, mask) of the whole bake."""
+        if self.single is not None:
+            return self.single
+        return (self.sum if isinstance(self.sum, dict) else self.sum.astype(np.float32)), self.mask
 
 
 def _estimated(kind, options, parts):
@@ -908,10 +1029,18 @@ def _estimated(kind, options, parts):
     return values, mask, n, float("nan"), ESTIMATES["none"]
 
 
-def _denoised(values, mask):
+#: The range a map's quantity lives in: k_A in [0, 1], E >= 0. A filter (the denoiser) may overshoot it.
+VALUE_RANGE = {"ao": (0.0, 1.0), "irradiance": (0.0, None)}
+
+
+def _denoised(values, mask, kind):
+    """OIDN on the map (empty texels filled from the nearest covered one first), clipped to VALUE_RANGE:
+    the denoiser's overshoot at edges put k_A above 1 (Sponza's floors: 1,320 of 4,940 texels, up to 1.022)."""
     filled, _ = lightmap.nearest_fill(values, mask)
     from .denoise import denoise
-    return np.where((mask[..., None] if values.ndim == 3 else mask), denoise(filled), 0.0).astype(np.float32)
+    lo, hi = VALUE_RANGE[kind]
+    smooth = np.clip(denoise(filled), lo, hi)
+    return np.where((mask[..., None] if values.ndim == 3 else mask), smooth, 0.0).astype(np.float32)
 
 
 def _bake_to_error(once, options):
@@ -950,6 +1079,17 @@ def _bake_to_error(once, options):
         m = lightmap.samples_for_error(errors[-1], per[-1], wanted, alpha, minimum=1, maximum=left // 2)
         m = min(2 ** round(math.log2(m)), left // 2)      # Cycles' Sobol sampler is best at powers of two
     return _combine(parts, weights), mask, total, 2 * per[0], err
+
+
+def _capped(group, kind, samples, error, options):
+    """True, with a warning naming the samples spent and the error reached, when the bake stopped at its sample
+    bound (max_samples, MAX_PAIRS pairs) above ``options.target_error``."""
+    if not error > float(options.target_error):
+        return False
+    errors.warn(f"'{group[0].name}' {kind}: target error {float(options.target_error):g} not reached: capped at "
+                f"{samples} samples (at most {int(options.max_samples)} in {MAX_PAIRS} pairs of bakes), error "
+                f"reached {error:.3g}")
+    return True
 
 
 def _flat(values):
@@ -1111,9 +1251,10 @@ def _instanced(scene):
     return members
 
 
-def batches(scene, plan, layers, state, options):
+def batches(scene, plan, layers, state, options, maps=None):
     """Split the image-target ``plan`` [(name, group, size, ...)] into (batches, singles): batches are lists of
-    plan entries whose maps share one Cycles call (at most BATCH_TEXELS texels each, at least one entry),
+    plan entries whose maps (of kinds ``maps``, default ``options.maps``) share Cycles calls (one pass plan,
+    at most the texels :func:`_pass_plan` allows each, at least one entry),
     singles are baked by their own calls (target error: each map chooses its own samples; vertex target;
     objects :func:`_batch_refusal` refuses)."""
     if options.target != "image" or options.target_error is not None or not options.batch:
@@ -1130,15 +1271,29 @@ def batches(scene, plan, layers, state, options):
             batched.append(entry)
     if sum(len(entry[1]) for entry in batched) < 2:      # one object: its own call is the same call
         return [], list(plan)
-    out, texels = [[]], 0
+    out, open_ = [], {}
     for entry in batched:
         t = entry[2][0] * entry[2][1]
-        if out[-1] and texels + t > BATCH_TEXELS:
-            out.append([])
-            texels = 0
-        out[-1].append(entry)
-        texels += t
+        plan_, cap = _pass_plan(t, maps or options.maps, options)
+        batch = open_.get(plan_)
+        if batch is None or batch[1] + t > cap:
+            batch = open_[plan_] = [[], 0]
+            out.append(batch[0])
+        batch[0].append(entry)
+        batch[1] += t
     return out, singles
+
+
+def _pass_plan(texels, maps, options):
+    """(the samples of every Cycles call of a fixed-sample map of ``texels`` texels, per kind of ``maps``; the most
+    texels a batch of such maps may hold: BATCH_TEXELS, and each call within cost.PASS_SECONDS). A batch joins
+    maps of one plan only, so each image comes out as its own calls make it."""
+    plan_, cap = [], BATCH_TEXELS
+    for kind in maps:
+        calls = tuple(n for samples, seed in _calls(kind, options) for n, _ in _passes(kind, samples, seed, texels))
+        plan_.append((kind, calls))
+        cap = min(cap, max(1, int(cost.PASS_SECONDS // cost.seconds(1, 1, [kind], max(calls)))))
+    return tuple(plan_), cap
 
 
 class _Proxy:
@@ -1249,8 +1404,9 @@ def _triangulated(me, layer, matrix):
 
 
 def bake_batch(scene, batch, kind, options, layers, temporary, state):
-    """Bake map ``kind`` of every group of ``batch`` (plan entries (name, group, size, ...)) in the Cycles calls
-    of one map (:func:`_calls`) through a :class:`_Proxy`; return ``{name: BakeResult}``.
+    """Bake map ``kind`` of every group of ``batch`` (plan entries (name, group, size, ...) of one pass plan,
+    :func:`batches`) in the Cycles calls of one map (:func:`_calls`, :func:`_passes`) through a :class:`_Proxy`;
+    return ``{name: BakeResult}``.
 
     Same texels, samples and seeds as the groups' own calls: Cycles seeds a bake sample by its pixel in its
     image, so each image comes out as its own call makes it (tests/test_bake_level.py). The call's seconds
@@ -1267,12 +1423,17 @@ def bake_batch(scene, batch, kind, options, layers, temporary, state):
     cycles = 0.0
     try:
         with _Proxy(scene, batch, kind, layers, temporary, images, state) as proxy:
+            largest = max(size[0] * size[1] for _, _, size, *_ in batch)   # batches() joins maps of one pass plan
             for samples, seed in _calls(kind, options):
-                for image in images.values():
-                    image.pixels.foreach_set(np.zeros(image.size[0] * image.size[1] * 4, np.float32))
-                cycles += _call_bake(scene, [proxy.obj], kind, samples, seed, PROXY_UV, options)
-                for name, image in images.items():
-                    parts[name].append(_read_image(image, kind, inside[name]))
+                sums = {name: _PassSum(samples) for name in images}
+                for n, s in _passes(kind, samples, seed, largest):
+                    for image in images.values():
+                        image.pixels.foreach_set(np.zeros(image.size[0] * image.size[1] * 4, np.float32))
+                    cycles += _call_bake(scene, [proxy.obj], kind, n, s, PROXY_UV, options)
+                    for name, image in images.items():
+                        sums[name].add(*_read_image(image, kind, inside[name]), n)
+                for name in images:
+                    parts[name].append(sums[name].result())
     finally:
         for image in images.values():
             bpy.data.images.remove(image)
@@ -1283,7 +1444,7 @@ def bake_batch(scene, batch, kind, options, layers, temporary, state):
     for name in list(parts):
         values, mask, n, err, estimate = _estimated(kind, options, parts.pop(name))
         if options.denoise:
-            values, estimate = _denoised(values, mask), estimate + DENOISED
+            values, estimate = _denoised(values, mask, kind), estimate + DENOISED
         share = texels[name] / total
         results[name] = BakeResult(values, mask, n, elapsed * share, err, estimate, 0, cycles * share)
     return results
@@ -1297,7 +1458,9 @@ def _attributes(kind, result, options, uv_name):
             "il:ao_distance": options.ao_distance, "il:uv_layer": uv_name or "",
             "il:blender_version": bpy.app.version_string, "il:bounces": options.bounces if kind != "ao" else "",
             "il:denoised": int(bool(options.denoise and options.target == "image")),
-            "il:estimated_error": result.estimated_error, "il:error_estimate": result.estimate}
+            "il:estimated_error": result.estimated_error, "il:error_estimate": result.estimate,
+            "il:pilot_samples": int(result.pilot_samples), "il:seconds": round(result.seconds, 4),
+            "il:cycles_seconds": round(result.cycles_seconds, 4)}
 
 
 def _channels(kind, values, alpha):
@@ -1322,6 +1485,8 @@ def _entry(path, res, result, extra=None):
          "error_estimate": result.estimate, "cycles_seconds": round(result.cycles_seconds, 4)}
     if result.pilot_samples:
         e["pilot_samples"] = int(result.pilot_samples)
+    if getattr(result, "capped", False):
+        e["capped"] = True
     e.update(extra or {})
     return e
 
@@ -1358,6 +1523,11 @@ def _write(name, group, kind, result, out, options, layers, margin=None, overlap
         attrs["il:min_coverage"] = MIN_COVERAGE_TEXT
         if overlap is not None:
             attrs["il:overlap"] = float(overlap[1])
+        attrs["il:margin"] = margin
+        if len(group) > 1:
+            attrs["il:objects"] = json.dumps({o.name: {"coverage": covered[o.name], "chart_area": areas[o.name]}
+                                              | ({"overlap": float(overlap[0][o.name])} if overlap else {})
+                                              for o in group})
         path = map_file(out, stems, name, kind)
         exr.write_exr(path, _channels(kind, np.flipud(values), np.flipud(alpha)), attrs)
         png = map_file(out, stems, name, kind, ".png")
@@ -1391,24 +1561,78 @@ def _write(name, group, kind, result, out, options, layers, margin=None, overlap
     return entries
 
 
+def _kept_entries(name, group, kind, out, options, stems, stored, old_reports):
+    """``{object: report entry}`` of an unchanged map on disk (``stored``: :func:`_stored` of its file): the entry
+    of the first of ``old_reports`` ("objects" of reports) that agrees with the file (name, resolution, samples,
+    estimated error and its kind, UV layer), else one rebuilt from the header's il:* attributes ("seconds" the
+    bake's without the files; figures a file written before they were kept lacks are 0, the margin the
+    option's). Writes the PNG preview of an image map when it is missing."""
+    header, res = stored
+
+    def number(key, default=0.0):
+        try:
+            return float(_text(header.get(key)))
+        except (TypeError, ValueError):
+            return default
+
+    path = _map_file(name, kind, out, options, group, stems)
+    result = BakeResult(None, None, int(number("il:samples")), number("il:seconds"),
+                        number("il:estimated_error", float("nan")), _text(header.get("il:error_estimate")) or "",
+                        int(number("il:pilot_samples")), number("il:cycles_seconds"))
+    extras, png = {group[0].name: {"attribute": ATTRIBUTE[kind]}}, None
+    if options.target == "image":
+        png = map_file(out, stems, name, kind, ".png")
+        if not os.path.exists(png):
+            channels, _ = exr.read_exr(path)
+            values = channels["Y"] if kind == "ao" else np.stack([channels[c] for c in "RGB"], axis=-1)
+            io_png.write_png(png, _preview(kind, values, np.ones(values.shape[:2], bool)))
+        try:
+            per = json.loads(_text(header.get("il:objects")) or "{}")
+        except ValueError:
+            per = {}
+        whole = {"coverage": number("il:coverage"), "chart_area": number("il:chart_area")}
+        if header.get("il:overlap") is not None:
+            whole["overlap"] = number("il:overlap")
+        extras = {}
+        for o in group:
+            own = per.get(o.name) if isinstance(per, dict) and isinstance(per.get(o.name), dict) else whole
+            extras[o.name] = {"preview": png, "uv_layer": _text(header.get("il:uv_layer")) or None,
+                              "coverage": own.get("coverage"), "chart_area": own.get("chart_area"),
+                              "margin": int(number("il:margin", int(options.margin))),
+                              "denoised": _text(header.get("il:denoised")) == "1"}
+            if "overlap" in own:
+                extras[o.name]["overlap"] = own["overlap"]
+    entries = {}
+    for o in group:
+        fresh = _entry(path, res, result, extras[o.name])
+        old = next((r[o.name][kind] for r in old_reports if kind in r.get(o.name, {})), None)
+        if old is not None and _agrees(old, fresh):
+            fresh = dict(old, file=path, **({"preview": png} if png else {}))
+        entries[o.name] = fresh
+    return entries
+
+
+def _agrees(old, new):
+    """Whether report entry ``old`` describes the same map file as ``new`` (rebuilt from its header)."""
+    try:
+        same_error = (old.get("estimated_error") is None) == (new["estimated_error"] is None) and (
+            new["estimated_error"] is None
+            or math.isclose(float(old["estimated_error"]), new["estimated_error"], rel_tol=1e-6))
+        return (os.path.basename(str(old.get("file"))) == os.path.basename(new["file"])
+                and list(old.get("resolution", ())) == new["resolution"] and old.get("samples") == new["samples"]
+                and old.get("error_estimate") == new["error_estimate"] and old.get("uv_layer") == new.get("uv_layer")
+                and same_error)
+    except (TypeError, ValueError):
+        return False
+
+
 def _merge_report(path, report):
     """Merge this run's entries into ``path`` under a lock on the folder (concurrent bakes of other objects
     into the same folder keep theirs); the top-level "seconds" is this run's. A report that cannot be read
     is kept aside under a new name, with a warning, never replaced silently."""
     with report_lock(os.path.dirname(path)):
-        old = {}
-        if os.path.exists(path):
-            try:
-                with open(path, encoding="utf-8") as f:
-                    old = json.load(f)
-                if not isinstance(old, dict):
-                    raise ValueError("not a JSON object")
-            except (OSError, ValueError) as e:
-                aside = _aside(path)
-                os.replace(path, aside)
-                errors.warn(f"{path} could not be read ({e}): kept as {aside}, a new report started")
-                old = {}
-        objects = old.get("objects", {}) if isinstance(old.get("objects"), dict) else {}
+        old = _load_report(path, "a new report started") or {}
+        objects = old.get("objects", {})
         for name, maps in report["objects"].items():
             objects.setdefault(name, {}).update(maps)
         merged = {"objects": objects, "seconds": round(report["seconds"], 4),
@@ -1417,7 +1641,60 @@ def _merge_report(path, report):
         failed.update(report.get("failed", {}))
         if failed:
             merged["failed"] = failed
+        for key in ("skipped", "unchanged"):           # the last run's, kept by the writes that do not say
+            value = report[key] if key in report else old.get(key)
+            if value:
+                merged[key] = value
         write_json(path, merged)
+
+
+def _shape_error(report):
+    """Why ``report`` (parsed JSON) is not a bake report, or None."""
+    if not isinstance(report, dict):
+        return "not a JSON object"
+    objects = report.get("objects", {})
+    if not isinstance(objects, dict) or not all(isinstance(maps, dict) and all(isinstance(e, dict)
+                                                                                for e in maps.values())
+                                                 for maps in objects.values()):
+        return '"objects" is not {object: {map: entry}}'
+    for key in ("skipped", "failed", "unchanged"):
+        if not isinstance(report.get(key, {}), dict):
+            return f'"{key}" is not a JSON object'
+    if not all(isinstance(m, list) for m in report.get("unchanged", {}).values()):
+        return '"unchanged" is not {object: [map]}'
+    if not isinstance(report.get("seconds", 0.0), (int, float)):
+        return '"seconds" is not a number'
+    return None
+
+
+def _load_report(path, then):
+    """The report in ``path``, None when there is none. One that cannot be read or is not a bake report is
+    moved aside under a new name (:func:`_aside`) with a warning ending in ``then``, and None returned; call
+    under :func:`report_lock`."""
+    if not os.path.exists(path):
+        return None
+    try:
+        with open(path, encoding="utf-8") as f:
+            report = json.load(f)
+        why = _shape_error(report)
+        if why:
+            raise ValueError(why)
+        return report
+    except (OSError, ValueError) as e:
+        aside = _aside(path)
+        os.replace(path, aside)
+        errors.warn(f"{path} could not be read ({e}): kept as {aside}, {then}")
+        return None
+
+
+def _read_objects(path):
+    """The "objects" of the report in ``path`` as it is; {} when it is missing or unreadable (nothing moved)."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            report = json.load(f)
+    except (OSError, ValueError):
+        return {}
+    return report.get("objects", {}) if _shape_error(report) is None else {}
 
 
 def _aside(path):

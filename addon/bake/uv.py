@@ -372,10 +372,40 @@ def _fits(copies, group, side):
     return True
 
 
+UNWRAP_BAND = 64.0
+"""Meshes whose size (√ of their area in object space, where Smart UV Project works) lies within
+[1 / UNWRAP_BAND, UNWRAP_BAND] m are unwrapped as they are; others on a copy scaled by a power of two to about
+1 m. Measured: Smart UV Project loses the charts of a 1e-6 m cube and of a 1e5 m one (no chart fits any map),
+1e-5 to 1e4 m unwrap alike."""
+
+
+def mesh_area(me):
+    """Surface area of mesh ``me`` in object space (its own units, no transform)."""
+    me.calc_loop_triangles()
+    co = np.zeros(len(me.vertices) * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    tv = np.zeros(len(me.loop_triangles) * 3, np.int64)
+    me.loop_triangles.foreach_get("vertices", tv)
+    t = co.reshape(-1, 3).astype(float)[tv].reshape(-1, 3, 3)
+    return float(0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum())
+
+
+def unwrap_scale(meshes):
+    """The factor the unwrap copies of ``meshes`` (one UV square) are scaled by: 1 within UNWRAP_BAND, else the
+    power of two (exact in floating point) that brings √(their total area) nearest to 1 m. Charts come out the
+    same shape at any scale, so UV coverage, chart areas and the texel density (from the real world area) are
+    scale-free."""
+    size = math.sqrt(sum(mesh_area(me) for me in meshes))
+    if size <= 0 or 1.0 / UNWRAP_BAND <= size <= UNWRAP_BAND:
+        return 1.0
+    return 2.0 ** -round(math.log2(size))
+
+
 class _Copies:
     """Temporary objects with bmesh copies of the group's meshes (all faces revealed and selected, one
-    UV layer), where Smart UV Project runs; :meth:`unwrap` copies the result into each mesh's "Lightmap"
-    layer (loop order is kept by the bmesh round trip). Removed on exit, also on errors."""
+    UV layer, scaled by :func:`unwrap_scale`), where Smart UV Project runs; :meth:`unwrap` copies the result
+    into each mesh's "Lightmap" layer (loop order is kept by the bmesh round trip). Removed on exit, also on
+    errors."""
 
     def __init__(self, scene, group, state):
         self.scene, self.group, self.state = scene, list(group), state
@@ -391,6 +421,7 @@ class _Copies:
                     raise InputError(f"mesh '{me.name}' is linked from a library: it cannot get a light-map "
                                      f"UV layer (make it local)")
         try:
+            scale = unwrap_scale(o.data for o in self.group)
             for o in self.group:
                 tmp = self.state.track(bpy.data.meshes, bpy.data.meshes.new(f"IL unwrap {o.data.name}"))
                 bm = bmesh.new()
@@ -400,6 +431,8 @@ class _Copies:
                         for item in seq:
                             item.hide = False
                             item.select = True
+                    if scale != 1.0:
+                        bmesh.ops.scale(bm, vec=(scale, scale, scale), verts=bm.verts)
                     bm.to_mesh(tmp)
                 finally:
                     bm.free()

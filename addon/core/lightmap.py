@@ -303,8 +303,29 @@ def samples_for_error(error_ref, samples_ref, target_error, alpha=0.5, minimum=1
     """
     if target_error <= 0:
         raise ValueError("target error must be positive")
-    n = math.ceil(samples_ref * (max(error_ref, 0.0) / target_error) ** (1.0 / alpha) - 1e-9)
+    if error_ref <= 0:
+        return int(min(max(samples_ref, minimum), maximum))
+    log_n = math.log(samples_ref) + (math.log(error_ref) - math.log(target_error)) / alpha
+    n = math.ceil(math.exp(min(log_n, math.log(maximum) + 1.0)) - 1e-9)
     return int(min(max(n, minimum), maximum))
+
+
+SMALLEST_TARGET_ERROR = float(np.finfo(np.float32).tiny)
+"""No target error below the smallest normal float32 (the maps' type): its square stays a normal float64."""
+
+
+def smallest_target_error(kind, max_samples):
+    """The smallest RMS error a target-error bake of ``kind`` ("ao" or "irradiance") may ask for, before any bake.
+
+    AO: one binary sample has variance k_A(1 - k_A) ≤ 1/4, so err(1) ≤ 1/2, and stratified sampling improves it
+    at most as N^-1 (:func:`convergence_exponent`'s upper clamp; Cycles measures N^-0.7): below 0.5 / max_samples
+    no map but one of k_A = 0 or 1 everywhere reaches the target. The binomial bound of one bake,
+    0.5 / √max_samples, is what max_samples guarantees; targets between the two are tried and reported capped
+    when missed. Irradiance has no a-priori bound on its variance: SMALLEST_TARGET_ERROR (the pilot says the rest).
+    """
+    if kind == "ao":
+        return max(0.5 / max(int(max_samples), 1), SMALLEST_TARGET_ERROR)
+    return SMALLEST_TARGET_ERROR
 
 
 def convergence_exponent(error_1, samples_1, error_2, samples_2, lowest=0.5, highest=1.0):
