@@ -475,8 +475,9 @@ def test_object_names_never_write_outside_the_output_folder(tmp_path, script):
 
 def test_ctrl_c_stops_a_long_bake_between_its_passes_and_the_finished_maps_resume(tmp_path, script):
     """A 1024² irradiance map at 1024 samples (one half was one Cycles call of about 860 s by its own estimate) is
-    baked in passes of cost.PASS_SECONDS: SIGINT during a pass stops it within about twice that, exit 130, the
-    small map baked before it stays (resumable), nothing of the long map is written."""
+    baked in passes of cost.PASS_SECONDS by the (pessimistic) estimate: SIGINT during a pass stops it within the
+    10 s a user may wait, exit 130, the small map baked before it stays (resumable), nothing of the long map is
+    written."""
     from addon.bake import pipeline
     scene = bpy.context.scene
     sc.plane(scene, "Floor", 40.0)
@@ -487,7 +488,7 @@ def test_ctrl_c_stops_a_long_bake_between_its_passes_and_the_finished_maps_resum
     args = [str(blend), "--objects", "Box", "Floor", "--maps", "irradiance", "--texel-density", "26",
             "--max-resolution", "1024", "--samples", "1024", "--out", str(out)]
     passes = pipeline._passes("irradiance", 512, 0, 1024 ** 2)
-    assert len(passes) > 100 and max(cost.seconds(1024, 1024, ["irradiance"], n) for n, _ in passes) <= 5.0
+    assert len(passes) > 50 and max(cost.seconds(1024, 1024, ["irradiance"], n) for n, _ in passes) <= cost.PASS_SECONDS
     assert len({s for _, s in passes}) == len(passes) and sum(n for n, _ in passes) == 512
     p = subprocess.Popen([sys.executable, os.path.join(ROOT, "scripts", "bake.py"), *args],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
@@ -496,14 +497,13 @@ def test_ctrl_c_stops_a_long_bake_between_its_passes_and_the_finished_maps_resum
         line = p.stderr.readline()
         assert line, seen
         seen += line
-    time.sleep(3.0)                                       # inside a pass of Floor (about 3.4 s by the estimate)
+    time.sleep(3.0)                                       # inside a pass of Floor
     t = time.perf_counter()
     p.send_signal(signal.SIGINT)
     _, err = p.communicate(timeout=120)
     stopped = time.perf_counter() - t
-    print(f"stopped {stopped:.2f} s after SIGINT")
     assert p.returncode == 130, err
-    assert stopped < 2 * cost.PASS_SECONDS, stopped
+    assert stopped < 10.0, stopped
     assert err.strip().splitlines()[-1].startswith("bake.py: interrupted"), err
     assert blend.read_bytes() == data
     assert sorted(os.listdir(out)) == ["Box_irradiance.exr", "Box_irradiance.png", "bake_report.json"]
@@ -520,7 +520,10 @@ def test_passes_keep_small_bakes_as_they_were_and_combine_by_samples(tmp_path):
     assert pipeline._passes("ao", 64, 7, 256 ** 2) == [(64, 7)]
     assert pipeline._passes("irradiance", 32, 8, 256 ** 2) == [(32, 8)]
     many = pipeline._passes("ao", 100, 3, 1024 ** 2)
-    assert [n for n, _ in many] == [5] * 20 and [s for _, s in many] == [3 + 8 * j for j in range(20)]
+    most = cost.pass_samples(1024 ** 2, "ao")                       # 8 at 0.9 us a texel-sample within 8 s
+    sizes = [n for n, _ in many]
+    assert len(sizes) == math.ceil(100 / most) and sum(sizes) == 100 and max(sizes) - min(sizes) <= 1
+    assert max(sizes) <= most and [s for _, s in many] == [3 + 8 * j for j in range(len(many))]
     total = pipeline._PassSum(4)
     total.add(np.full((2, 2), 1.0, np.float32), np.ones((2, 2), bool), 1)
     total.add(np.full((2, 2), 0.0, np.float32), np.zeros((2, 2), bool), 3)

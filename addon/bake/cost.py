@@ -22,9 +22,11 @@ SECONDS_PER_TEXEL_SAMPLE = {"ao": 9e-7, "irradiance": 1.6e-6}
 """Rough Cycles CPU seconds per covered texel and sample on this project's 2-core machine (a fully covered
 1024² plane beside a cube, 16 samples: AO 14.4 s, irradiance with 3 bounces 26.3 s); an upper bound of
 a map's time, as every texel is counted covered."""
-PASS_SECONDS = 5.0
+PASS_SECONDS = 8.0
 """Longest estimated Cycles call (:func:`seconds`) of a bake: a longer bake is split into sample passes of at most
-this (Ctrl-C, deferred until the current call returns, then stops it within about twice this)."""
+this, so Ctrl-C (deferred until the current call returns) stops it within 10 s. The estimate is an upper bound
+(measured calls take a third to a half of it): a smaller bound made the demo's light maps 12 calls instead of 3
+and 14 % slower in CPU time (each call syncs the scene)."""
 RESERVE = 0.8
 """Fraction of the available memory a bake may plan to use (Blender, the scene and the OS need the rest)."""
 PANEL_FALLBACK_MEMORY = 8 << 30
