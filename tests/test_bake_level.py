@@ -1,4 +1,9 @@
 """Level bakes: many objects per Cycles call (batches), resume, shards, failures (issue 13)."""
+import os
+import subprocess
+import sys
+import time
+
 import bpy
 import numpy as np
 import pytest
@@ -6,6 +11,7 @@ import pytest
 from addon.bake import BakeOptions, bake_lightmaps
 from addon.bake import pipeline
 from addon.core.io import exr
+from tests.conftest import ROOT
 
 
 def small_level():
@@ -344,3 +350,41 @@ def test_damaged_shard_parts_are_set_aside_and_the_rest_merged(tmp_path, script)
     assert "bake_report.shard-2-of-2.json could not be read" in r.stderr and "unreadable-2.json" in r.stderr
     assert (tmp_path / "bake_report.shard-2-of-2.unreadable-2.json").read_text() == "[1, 2]"
     assert set(report_of(tmp_path)["objects"]) == set(merged["objects"]) and not damaged.exists()
+
+
+@pytest.mark.parametrize("stage", ["first map", "first preview", "report"])
+def test_a_real_sigkill_at_each_stage_resumes_to_a_complete_report(tmp_path, stage):
+    """24.4 with a real SIGKILL of bake.py: as soon as the first map's EXR, its preview or the report exists, the
+    process is killed (-9, nothing of it runs after); a rerun with --overwrite ends with every map on disk, each
+    with its preview, and all of them in the report, the map that was finished kept (found unchanged)."""
+    objects = small_level()[:3]
+    blend = tmp_path / "level.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    out = tmp_path / "maps"
+    args = [sys.executable, os.path.join(ROOT, "scripts", "bake.py"), str(blend), "--objects",
+            *(o.name for o in objects), "--maps", "ao", "irradiance", "--texel-density", "6", "--samples", "2",
+            "--out", str(out)]
+    def done(pattern):
+        return [f for f in out.glob(pattern) if not f.name.startswith(".")]
+
+    watch = {"first map": lambda: done("*.exr"), "first preview": lambda: done("*.png"),
+             "report": lambda: (out / "bake_report.json").exists()}[stage]
+    p = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    while not (out.exists() and watch()) and p.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.005)
+    p.kill()
+    p.wait()
+    finished = {f.name for f in done("*.exr")}
+    assert finished, "killed before any map was written"
+    r = subprocess.run(args + ["--overwrite"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    report = report_of(out)
+    assert {(o, m) for o, ms in report["objects"].items() for m in ms} == {(o.name, m) for o in objects
+                                                                           for m in ("ao", "irradiance")}
+    for maps in report["objects"].values():
+        for e in maps.values():
+            assert os.path.isfile(e["file"]) and os.path.isfile(e["preview"]), e
+    unchanged = {f"{o}_{m}.exr" for o, ms in report.get("unchanged", {}).items() for m in ms}
+    assert finished <= unchanged, (finished, unchanged)
+    assert not list(out.glob(".*.tmp*"))                   # what the killed run was writing is removed

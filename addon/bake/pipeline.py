@@ -15,7 +15,7 @@ from ..core import budget, errors, lightmap
 from ..core.io import png as io_png
 from ..core.io import exr, names
 from ..core.errors import ILError, InputError
-from ..core.io.files import write_json
+from ..core.io.files import remove_stale_temporaries, write_json
 from ..core.result import JobResult
 from ..blender.progress import Progress
 from ..blender import materials, render, scene as sc
@@ -396,6 +396,7 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     options = options or BakeOptions()
     scene = scene or bpy.context.scene
     objects, maps, out, skipped, flips, failed = validate(scene, objects, maps, out, options)
+    remove_stale_temporaries(out)              # what a killed earlier run was writing
     _say_skipped(skipped)
     if options.denoise and options.target != "image":
         errors.warn("denoise ignored: the denoiser works on image maps, not on vertex colours")

@@ -3,6 +3,8 @@ import contextlib
 import json
 import math
 import os
+import re
+import socket
 import tempfile
 
 from ..errors import ILError, InputError
@@ -58,12 +60,13 @@ def _check_name_lengths(out, existing):
 
 @contextlib.contextmanager
 def atomic_path(path):
-    """Yield a temporary path in the target's folder; on success rename it onto ``path``."""
+    """Yield a temporary path in the target's folder (``.<stem>.<host>-<pid>.<random>.tmp<ext>``: see
+    :func:`remove_stale_temporaries`); on success rename it onto ``path``."""
     path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))
     os.makedirs(folder, exist_ok=True)
     stem, ext = os.path.splitext(os.path.basename(path))
-    fd, tmp = tempfile.mkstemp(prefix=f".{stem}.", suffix=f".tmp{ext}", dir=folder)
+    fd, tmp = tempfile.mkstemp(prefix=f".{stem}.{_OWNER}.", suffix=f".tmp{ext}", dir=folder)
     os.close(fd)
     try:
         yield tmp
@@ -72,6 +75,42 @@ def atomic_path(path):
     finally:
         if os.path.exists(tmp):
             os.remove(tmp)
+
+
+_HOST = re.sub(r"[^A-Za-z0-9-]", "-", socket.gethostname()) or "host"
+_OWNER = f"{_HOST}-{os.getpid()}"
+_TEMPORARY = re.compile(r"^\..+\.(?P<host>[A-Za-z0-9-]+)-(?P<pid>\d+)\.[^.]+\.tmp(\.[A-Za-z0-9]+)?$")
+
+
+def remove_stale_temporaries(folder):
+    """Remove the temporary files :func:`atomic_path` left in ``folder`` when its process was killed (SIGKILL,
+    power loss): those of this host whose process is gone. Another host's (a farm sharing the folder) and a live
+    process's stay. Returns the names removed."""
+    removed = []
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        return removed
+    for name in names:
+        m = _TEMPORARY.match(name)
+        if not m or m["host"] != _HOST or _alive(int(m["pid"])):
+            continue
+        with contextlib.suppress(OSError):
+            os.remove(os.path.join(folder, name))
+            removed.append(name)
+    return removed
+
+
+def _alive(pid):
+    if os.name == "nt":                           # os.kill(pid, 0) there sends CTRL_C_EVENT: assume alive
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):
+        return True
+    return True
 
 
 def _umask():

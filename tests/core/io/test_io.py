@@ -86,3 +86,24 @@ def test_exr_refuses_non_finite_values_naming_the_file_and_channel(tmp_path):
         with pytest.raises(ILError, match=f"irr.exr: non-finite values \\(R: {text}\\)"):
             exr.write_exr(tmp_path / "irr.exr", {"R": r, "G": good})
     assert not os.listdir(tmp_path)
+
+
+def test_stale_temporaries_of_killed_writers_are_removed_and_no_others(tmp_path):
+    """A SIGKILL during atomic_path leaves '.<stem>.<host>-<pid>.<random>.tmp<ext>': removed once its process is
+    gone; a live process's, another host's and the user's own dotfiles stay."""
+    import subprocess
+    import sys
+    from addon.core.io import files
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True,
+                          text=True).stdout.strip()
+    names = {"dead": f".Floor_ao.{files._HOST}-{dead}.k2j4x9_a.tmp.exr",
+             "live": f".Floor_ao.{files._HOST}-{os.getpid()}.a8d7f6q1.tmp.exr",
+             "other host": f".Floor_ao.farm-node-7-{dead}.zz81kk2m.tmp.png",
+             "user": ".hidden.tmp.exr"}
+    for name in names.values():
+        (tmp_path / name).write_bytes(b"x")
+    assert files.remove_stale_temporaries(str(tmp_path)) == [names["dead"]]
+    assert sorted(os.listdir(tmp_path)) == sorted(v for k, v in names.items() if k != "dead")
+    with files.atomic_path(tmp_path / "Floor_ao.exr") as tmp:
+        assert files._TEMPORARY.match(os.path.basename(tmp))["pid"] == str(os.getpid())
+        open(tmp, "wb").close()
