@@ -1,6 +1,7 @@
 """Radiosity of the built-in Cornell-like box or a .blend, compared with a Cycles irradiance bake.
 
     python scripts/radiosity.py [FILE.blend | --scene cornell] --out DIR [--solver jacobi|gauss_seidel|progressive]
+                                [--compare-solvers]
     blender -b FILE.blend -P scripts/radiosity.py -- --out DIR
 """
 import os
@@ -19,10 +20,12 @@ def main(args):
         raise InputError("give either FILE.blend or --scene cornell, not both")
     o = _cli.options_from(RadiosityOptions, args)
     result = radiosity.run(os.path.abspath(args.out), cornell=args.scene == "cornell", solver=o.solver,
-                           max_edge=o.max_edge, adaptive=o.adaptive, samples=o.samples, compare=o.compare, tol=o.tol)
+                           max_edge=o.max_edge, adaptive=o.adaptive, samples=o.samples, compare=o.compare, tol=o.tol,
+                           compare_solvers=o.compare_solvers)
     rep = result.report
     print(f"radiosity: {rep['patches']} patches ({rep['back_patches']} of them back sides), {rep['solver']} "
-          f"{rep['iterations']} iterations, {rep['seconds']:.2f} s")
+          f"{rep['iterations']} iterations, {rep['seconds']:.2f} s (estimated at most {rep['estimate']['seconds']:.1f} s)"
+          + (f"; solvers compared: {', '.join(rep['solvers'])}" if rep["solvers_compared"] else ""))
     if rep["rms_vs_cycles"] is not None:
         print(f"  vs Cycles ({rep['cycles_samples']} samples, {rep['cycles_seconds']:.2f} s): "
               f"RMS {rep['rms_vs_cycles']:.4g} W/m^2 ({100 * rep['relative_rms_vs_cycles']:.1f}% of the mean)")

@@ -36,6 +36,14 @@ class Progress:
             print(f"[{self.label} {self.done + 1}/{self.total} {t:6.1f}s] {message}", file=sys.stderr, flush=True)
         self.done += 1
 
+    def note(self, message):
+        """A line about the current step's progress on stderr in batch, without advancing (a pending Ctrl-C
+        stops the job here)."""
+        interrupt.checkpoint()
+        if not self.wm:
+            t = time.perf_counter() - self.t0
+            print(f"[{self.label} {max(self.done, 1)}/{self.total} {t:6.1f}s]   {message}", file=sys.stderr, flush=True)
+
     def __exit__(self, *exc):
         Progress._open -= 1
         if self.wm:

@@ -127,3 +127,6 @@ class RadiosityOptions(Options):
     tol: float = option(1e-5, "Tolerance", "relative residual to stop at", above=0, maximum=0.5, ui=False)
     compare: bool = option(True, "Compare with Cycles", "bake the same objects with Cycles and report the "
                            "difference", flag="--no-compare")
+    compare_solvers: bool = option(False, "Compare Solvers", "also run the other two solvers on the same form "
+                                   "factors for the convergence chart and CSV (progressive refinement alone can "
+                                   "take longer than the solve)")

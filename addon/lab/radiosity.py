@@ -342,16 +342,21 @@ def _cast(bvh, o, t, offset):
                         for a, b, L in zip(o.tolist(), d.tolist(), lim.tolist())), bool, count=len(o))
 
 
-def visibility_bvh(patches, offset=1e-4, bvh=None):
+def visibility_bvh(patches, offset=1e-4, bvh=None, progress=None):
     """Centre-to-centre visibility (N, N) bool by Blender's BVHTree over the patches: a ray per candidate
-    pair, cast a block of rows at a time (bounded memory; Ctrl-C stops between blocks)."""
+    pair, cast a block of rows at a time (bounded memory; Ctrl-C stops between blocks; ``progress(rays cast)``
+    before each block)."""
     n = len(patches)
     bvh = bvh or _bvh(patches)
     V = np.zeros((n, n), bool)
+    cast = 0
     for i, j in rad_visibility.candidate_pair_blocks(patches):
         if not len(i):
             continue
         interrupt.checkpoint()
+        if progress:
+            progress(cast)
+        cast += len(i)
         vis = _cast(bvh, patches.center[i] + offset * patches.normal[i],
                     patches.center[j] + offset * patches.normal[j], 2 * offset)
         V[i, j] = vis
@@ -421,6 +426,39 @@ def _visible(patches, how, bvh=None):
     return rad_visibility.visible_faces(patches, how[1]) if how[0] == "faces" else visible_bvh(patches, bvh=bvh)
 
 
+class _Notes:
+    """Progress lines of one phase (``note``: blender.progress.Progress.note or None): a line when the phase has
+    run NOTE_SECONDS and then at most every NOTE_SECONDS; ``always`` lines (a solver's first and last sweep)
+    regardless."""
+
+    def __init__(self, note, every=None):
+        self.note, self.every = note, NOTE_SECONDS if every is None else every
+        self.last = time.perf_counter()
+
+    def __call__(self, message, always=False):
+        now = time.perf_counter()
+        if self.note is not None and (always or now - self.last >= self.every):
+            self.last = now
+            self.note(message() if callable(message) else message)
+        elif self.note is None:
+            interrupt.checkpoint()
+
+
+NOTE_SECONDS = 2.0
+
+
+def _solver_notes(note, solver, n):
+    """``progress(iteration, residual)`` of core.radiosity.solvers printing through :class:`_Notes`: the first
+    sweep (or block of shots) at once, then at most every NOTE_SECONDS."""
+    notes = _Notes(note)
+    unit = "shot" if solver == "progressive" else "sweep"
+
+    def progress(k, res):
+        notes(lambda: f"{solver} {unit} {k}{f' ({k / max(n, 1):.1f} N)' if unit == 'shot' else ''}: "
+                      f"residual {res:.2e}", always=(k == 1 or (unit == "shot" and k <= max(1, n // 10))))
+    return progress
+
+
 def refine_near_emitters(patches, max_edge, memory=None, timings=None, base=None, visibility="bvh"):
     """Split the patches whose direct light from a near emitter varies across them, and grade the patches
     facing a bright bounce (core.radiosity.subdivision.emitter_refine_mask), edges not below max_edge / 2**EMITTER_LEVELS, adding at
@@ -462,14 +500,17 @@ def refine_near_emitters(patches, max_edge, memory=None, timings=None, base=None
 
 
 def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, threshold=0.25, progress=None,
-                memory=None, visibility="auto", reciprocal=True):
+                memory=None, visibility="auto", reciprocal=True, compare_solvers=False):
     """Patches -> visibility -> form factors -> solution, with ``adaptive`` refinement rounds.
 
     ``meshes`` may also be the patches of :func:`scene_patches`. The cost is checked before anything big is
     allocated (core.radiosity.cost.check_cost): a split that does not fit is refused, an adaptive round that would not fit
     is skipped with a warning. The near pairs' F_ij come from their texel-element exchange
     (core.radiosity.gather.NearField, returned as "near_field" for :func:`run`'s texel solution). Returns a dict:
-    patches, F, V, solution, H (irradiance of the patch solution), timings, cost, near, near_field, visibility.
+    patches, F, V, solution, H (irradiance of the patch solution), timings, cost (the up-front bound),
+    estimate (the same model at the patch count made, before the visibility: :func:`solve_estimate`), near,
+    near_field, visibility. ``progress(message)`` (blender.progress.Progress.note) gets the estimate, the solver's
+    sweeps and, when they run longer than NOTE_SECONDS, the visibility's and form factors' progress.
 
     ``visibility``: "faces" tests the rays against the scene's faces in numpy
     (core.radiosity.visibility.visibility_faces), "bvh" casts them with Blender's BVHTree, "auto" the faces
@@ -481,22 +522,35 @@ def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, th
     t0, c0 = time.perf_counter(), time.process_time()
     base = meshes if isinstance(meshes, rad_patches.Patches) else scene_patches(meshes)
     per = seconds_per_pair(base, max_edge, visibility)
-    cost = rad_cost.check_cost(base, max_edge, memory=memory, seconds_per_pair=per, adaptive=adaptive)
+    cost = rad_cost.check_cost(base, max_edge, memory=memory, seconds_per_pair=per, adaptive=adaptive,
+                               solver=solver, compare_solvers=compare_solvers)
     patches = rad_subdivision.subdivide_to_size(base, max_edge)
+    if progress:
+        progress(f"{len(patches)} patches; subdivision near emitters")
     patches = refine_near_emitters(patches, max_edge, memory, t, base, visibility)
+    estimate = solve_estimate(base, max_edge, len(patches), per, solver, adaptive, compare_solvers,
+                              time.perf_counter() - t0)
+    if progress:
+        progress(f"{len(patches)} patches: about {budget.format_seconds(estimate.seconds)} in all (estimate, "
+                 f"an upper bound{'' if not compare_solvers else ', with the solver comparison'})")
     for round_ in range(adaptive + 1):
-        if progress:
-            progress(f"visibility and form factors of {len(patches)} patches")
+        if progress and round_:
+            progress(f"adaptive round {round_}: visibility and form factors of {len(patches)} patches")
         interrupt.checkpoint()
         tv = time.perf_counter()
         how = visibility_method(base, patches, visibility)
         bvh = _bvh(patches) if how[0] == "bvh" else None
-        V = (visibility_bvh(patches, bvh=bvh) if bvh is not None
-             else rad_visibility.visibility_faces(patches, how[1], progress=interrupt.checkpoint))
+        notes = _Notes(progress)
+        V = (visibility_bvh(patches, bvh=bvh, progress=lambda k: notes(
+                 f"visibility: {k:,} rays cast (BVH), {time.perf_counter() - tv:.0f} s"))
+             if bvh is not None else rad_visibility.visibility_faces(patches, how[1], progress=lambda k, m: notes(
+                 f"visibility: {k}/{m} rows of patch clusters, {time.perf_counter() - tv:.0f} s")))
         t["visibility"] = t.get("visibility", 0) + time.perf_counter() - tv
         tf = time.perf_counter()
-        F = (rad_form_factors.visible_form_factors(patches, V, dtype=np.float32) if reciprocal
-             else rad_form_factors.form_factors(patches, V))
+        notes = _Notes(progress)
+        F = (rad_form_factors.visible_form_factors(patches, V, dtype=np.float32, progress=lambda k, m: notes(
+                 f"form factors: {k}/{m} chunks of visible pairs, {time.perf_counter() - tf:.0f} s"))
+             if reciprocal else rad_form_factors.form_factors(patches, V))
         del V
         t["form_factors"] = t.get("form_factors", 0) + time.perf_counter() - tf
         tn = time.perf_counter()
@@ -505,7 +559,11 @@ def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, th
         nf = rad_gather.NearField(patches, *near, CELL, visible, fine=rad_gather.fine_patches(patches, *near, CELL))
         F[near] = nf.patch_form_factors()
         t["near_field"] = t.get("near_field", 0) + time.perf_counter() - tn
-        sol = rad_solvers.solve(F, patches.rho, patches.emission, patches.area, solver, tol)
+        sol = rad_solvers.solve(F, patches.rho, patches.emission, patches.area, solver, tol,
+                                progress=_solver_notes(progress, solver, len(patches)))
+        if progress:
+            progress(f"{solver}: {sol.iterations} {'shots' if solver == 'progressive' else 'sweeps'}, residual "
+                     f"{sol.residuals[-1]:.2e}, {sol.seconds:.2f} s")
         t["solve"] = t.get("solve", 0) + sol.seconds
         H = rad_solvers.irradiance(F, sol.B)
         if round_ == adaptive:
@@ -525,13 +583,32 @@ def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, th
         patches, _ = rad_subdivision.split(patches, mask)
     t["total"] = time.perf_counter() - t0
     t["cpu"] = time.process_time() - c0
-    return {"patches": patches, "F": F, "solution": sol, "H": H, "timings": t, "cost": cost,
+    return {"patches": patches, "F": F, "solution": sol, "H": H, "timings": t, "cost": cost, "estimate": estimate,
             "near": near, "near_evals": nf.evaluations, "visible": visible, "near_field": nf, "visibility": how[0]}
 
 
-def convergence(F, patches, tol=1e-6):
-    """Every solver on the same system: {solver: Solution} (for the convergence chart)."""
-    return {s: rad_solvers.solve(F, patches.rho, patches.emission, patches.area, s, tol) for s in rad_solvers.SOLVERS}
+def solve_estimate(base, max_edge, n, seconds_per_pair, solver="jacobi", adaptive=0, compare_solvers=False,
+                   elapsed=0.0):
+    """:class:`core.radiosity.cost.Cost` of a solve made of ``n`` patches (after the subdivision near emitters,
+    ``elapsed`` seconds so far) with ``adaptive`` rounds at their worst case (the planned rounds' growth applied
+    to ``n``) and, with ``compare_solvers``, the convergence chart's other solvers: an upper bound (calibrated
+    within about 2x of the measured time on the Cornell boxes, docs/envmap-radiosity.md)."""
+    ns = rad_subdivision.planned_patches_per_round(base, max_edge, adaptive)
+    rounds = [n * r / ns[0] for r in ns]
+    costs = [rad_cost.solve_cost(m, seconds_per_pair, solver, compare_solvers and i == len(rounds) - 1)
+             for i, m in enumerate(rounds)]
+    return rad_cost.Cost(rounds[-1], max(c.bytes for c in costs), elapsed + sum(c.seconds for c in costs))
+
+
+def convergence(F, patches, tol=1e-6, known=None, progress=None):
+    """Every solver on the same system: {solver: Solution} (for the convergence chart); ``known`` solutions
+    ({solver: Solution} on the same F and tol) are reused; ``progress(message)`` as in :func:`solve_scene`."""
+    out = dict(known or {})
+    for s in rad_solvers.SOLVERS:
+        if s not in out:
+            out[s] = rad_solvers.solve(F, patches.rho, patches.emission, patches.area, s, tol,
+                                       progress=_solver_notes(progress, s, len(patches)))
+    return {s: out[s] for s in rad_solvers.SOLVERS}
 
 
 def convergence_chart(path, solutions, n):
@@ -714,36 +791,42 @@ def check_options(solver=RadiosityOptions.solver, max_edge=RadiosityOptions.max_
     RadiosityOptions(solver=solver, max_edge=max_edge, adaptive=adaptive, samples=samples, tol=tol).validate()
 
 
-def estimate(scene, max_edge):
+def estimate(scene, max_edge, solver=RadiosityOptions.solver, compare_solvers=RadiosityOptions.compare_solvers):
     """(Cost, smallest max_edge that fits the available memory) of a solve of ``scene`` (the panel's
-    figures: the same check as :func:`run`'s). Warnings about the scene are not shown."""
+    figures: the same check as :func:`run`'s, at the planned patch count's upper bound). Warnings about the
+    scene are not shown."""
     import warnings
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         meshes, _ = meshes_from_scene(scene)
     base = scene_patches(meshes)
     per = seconds_per_pair(base, max_edge)
-    cost = rad_cost.solve_cost(rad_subdivision.planned_patches(base, max_edge), per)
+    cost = rad_cost.solve_cost(rad_subdivision.planned_patches(base, max_edge), per, solver, compare_solvers)
     best = rad_cost.smallest_edge_that_fits(base, memory_budget(), seconds_per_pair=per)
     return cost, best
 
 
 def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge=RadiosityOptions.max_edge,
         adaptive=RadiosityOptions.adaptive, samples=RadiosityOptions.samples, compare=RadiosityOptions.compare,
-        tol=RadiosityOptions.tol, chart=True, memory=None, visibility="auto", reciprocal=True):
+        tol=RadiosityOptions.tol, chart=True, memory=None, visibility="auto", reciprocal=True,
+        compare_solvers=RadiosityOptions.compare_solvers):
     """The whole job of scripts/radiosity.py; returns a core.result.JobResult (reads as the report written to
     ``out``; ``arrays`` holds the solve: patches, F, solution, H, front, H_front and the comparison's arrays).
 
     Order: options, output folder, scene, emitters and the cost estimate are all checked before the
-    folder is created or anything big is allocated. ``chart=False`` skips the convergence chart (the UI
-    passes ``charts.available()``: no matplotlib inside Blender); the report's "chart" is then None, the
-    CSV table is written either way. Light maps and vertex colours hold the front side of every face
+    folder is created or anything big is allocated. Only ``solver`` runs unless ``compare_solvers``: then the
+    other two run on the same F too (the convergence chart and CSV of all three; the report's "solvers" holds
+    the solvers that ran, "solvers_compared" says which case it was). ``chart=False`` skips the convergence
+    chart (the UI passes ``charts.available()``: no matplotlib inside Blender); the report's "chart" is then
+    None, the CSV table is written either way. Progress lines (blender.progress) name the estimate at the patch
+    count made and the solver's sweeps; the report's "estimate" is that estimate, "estimate_up_front" the
+    bound checked before anything was allocated. Light maps and vertex colours hold the front side of every face
     (the side its normal points to, what a light-map bake of it measures). ``visibility`` and ``reciprocal``
     as in :func:`solve_scene` (the benchmark's before/after).
     """
     check_options(solver, max_edge, adaptive, samples, tol)
     out = check_output_dir(out)
-    steps = 5 if compare else 4
+    steps = 4 + bool(compare) + bool(compare_solvers)
     with Progress("radiosity", steps) as p:
         p.step("scene")
         if cornell:
@@ -756,10 +839,10 @@ def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge
                              "material or build the Cornell box")
         base = scene_patches(meshes)
         rad_cost.check_cost(base, max_edge, memory=memory, seconds_per_pair=seconds_per_pair(base, max_edge, visibility),
-                            adaptive=adaptive)
+                            adaptive=adaptive, solver=solver, compare_solvers=compare_solvers)
         p.step("patches, visibility, form factors, solve")
         r = solve_scene(base, max_edge, solver, tol, adaptive, memory=memory, visibility=visibility,
-                        reciprocal=reciprocal)
+                        reciprocal=reciprocal, compare_solvers=compare_solvers, progress=p.note)
         patches, F, sol, H = r["patches"], r["F"], r["solution"], r["H"]
         _finite("the radiosity solution", sol.B)
         tg = time.perf_counter()
@@ -769,8 +852,12 @@ def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge
         r["gather"] = g
         H = g.patch_mean()
         _finite("the texel solution", g.B[g.mask])
-        p.step("all solvers for the convergence chart")
-        sols = convergence(F, patches, tol)
+        sols = {solver: sol}
+        if compare_solvers:
+            p.step("the other solvers for the convergence chart")
+            tc = time.perf_counter()
+            sols = convergence(F, patches, tol, known=sols, progress=p.note)
+            r["timings"]["compare_solvers"] = time.perf_counter() - tc
         front = ~patches.back
         pf, Hf, Ht = patches.take(front), H[front], g.H[front]
         os.makedirs(out, exist_ok=True)
@@ -788,11 +875,15 @@ def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge
                   "solver": solver, "iterations": sol.iterations,
                   "seconds": round(r["timings"]["total"], 4),
                   "timings": {k: round(v, 4) for k, v in r["timings"].items()},
-                  "estimate": {"patches": int(r["cost"].patches), "bytes": int(r["cost"].bytes),
-                               "seconds": round(r["cost"].seconds, 2)},
+                  "estimate": {"patches": int(r["estimate"].patches), "bytes": int(r["estimate"].bytes),
+                               "seconds": round(r["estimate"].seconds, 2),
+                               "covers": "seconds + timings.compare_solvers" if compare_solvers else "seconds"},
+                  "estimate_up_front": {"patches": int(r["cost"].patches), "bytes": int(r["cost"].bytes),
+                                        "seconds": round(r["cost"].seconds, 2)},
                   "rms_vs_cycles": None, "scene": scene.name, "chart": chart,
                   "solvers": {s: {"iterations": so.iterations, "seconds": round(so.seconds, 5),
                                   "converged": so.converged} for s, so in sols.items()},
+                  "solvers_compared": bool(compare_solvers),
                   "objects": {n: {"lightmap": f, "object": results[n][0].name, "patches": int(len(results[n][1]))}
                               for n, f in files.items()},
                   "units": "irradiance W/m^2"}

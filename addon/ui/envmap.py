@@ -82,7 +82,7 @@ class IL_OT_radiosity(JobOperator, bpy.types.Operator):
         layout = self.layout
         layout.prop(self, "output_dir")
         props.draw(layout, self, [n for n in self.__annotations__ if n != "output_dir"])
-        layout.label(text=_estimate_line(context.scene, self.max_edge))
+        layout.label(text=_estimate_line(context.scene, self.max_edge, self.solver, self.compare_solvers))
 
     def job(self, context):
         from ..core import charts
@@ -94,24 +94,24 @@ class IL_OT_radiosity(JobOperator, bpy.types.Operator):
             warn(charts.MISSING)
         return radiosity.run(bpy.path.abspath(self.output_dir), scene=context.scene, solver=o.solver,
                              max_edge=o.max_edge, adaptive=o.adaptive, samples=o.samples, compare=o.compare,
-                             chart=chart)
+                             chart=chart, compare_solvers=o.compare_solvers)
 
 
 _ESTIMATES = {}
 
 
-def _estimate_line(scene, max_edge):
+def _estimate_line(scene, max_edge, solver="jacobi", compare_solvers=False):
     """The dialog's cost line, from the same estimate that refuses a run (lab.radiosity.estimate)."""
     from ..core import budget
     from ..lab import radiosity
-    key = (scene.name, round(max_edge, 9), bpy.data.is_dirty)
+    key = (scene.name, round(max_edge, 9), bpy.data.is_dirty, solver, compare_solvers)
     if key not in _ESTIMATES:
         try:
-            cost, best = radiosity.estimate(scene, max_edge)
+            cost, best = radiosity.estimate(scene, max_edge, solver, compare_solvers)
             fits = "" if best is None else f", smallest size that fits: {best:.2g} m"
             _ESTIMATES.clear()
-            _ESTIMATES[key] = (f"~{budget.format_count(cost.patches)} patches, {budget.format_bytes(cost.bytes)}, "
-                               f"about {budget.format_seconds(cost.seconds)}{fits}")
+            _ESTIMATES[key] = (f"up to ~{budget.format_count(cost.patches)} patches, "
+                               f"{budget.format_bytes(cost.bytes)}, at most {budget.format_seconds(cost.seconds)}{fits}")
         except Exception as e:  # noqa: BLE001 - a label, never an error in a draw callback
             _ESTIMATES[key] = f"no estimate: {e}"[:120]
     return _ESTIMATES[key]

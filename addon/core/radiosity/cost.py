@@ -18,21 +18,27 @@ from .subdivision import MAX_LEVELS, planned_patches_per_round
 # upper bound now, not remeasured.
 BYTES_PER_PAIR = 24.0
 OVERHEAD_BYTES = 600e6                  # Blender, numpy and the chunked temporaries
-# Seconds per patch pair (visibility + form factor + the three solvers of the convergence chart), measured on
-# the 2-core reference machine by scripts/bench_radiosity.py (docs/envmap-radiosity.md): with the face test
-# (core.radiosity.visibility.visibility_faces) and the visible pairs' form factors once, and with a BVH ray a
-# pair (scenes with more blocking faces than lab.radiosity.MAX_OCCLUDERS). Measured: the solve 0.23 CPU-µs a
-# pair (15,331 patches, 53.6 s including the near field; 0.15 since the culled face test and float32 F: 36.2 CPU
-# s), the convergence chart's progressive solver about 0.8 µs a pair (3,216 patches, 8.5 s); the BVH path 4 µs a
-# pair as before (a ray 4.7 µs on the candidates).
-SECONDS_PER_PAIR = 1e-6
+# Seconds of a solve of N patches (after the subdivision near emitters), an upper bound calibrated against the
+# report's per-phase timings (scripts/radiosity.py --no-compare) on the 2 cores shared with other jobs, where
+# the same solve takes 2-3 times what it takes on a quiet machine (docs/envmap-radiosity.md): 1,156 patches
+# (built-in box) 2.2 s; 1,453 and 3,172 (imported box) 4.9 and 11.5 s, of which near emitters, near field and
+# texel gather 3.9 and 9.3 s (2.9 ms a patch); 8,512 (built-in) 24.9 s, of which visibility and form factors
+# 15.2 s (2.1e-7 s a pair), the Jacobi sweeps 3.0 s and the texel gather 2.2 s. The BVH path casts a ray a
+# pair (4.7 µs measured on the candidates).
+SECONDS_FIXED = 1.5
+SECONDS_PER_PATCH = 2.5e-3
+SECONDS_PER_PAIR = 2.5e-7
 SECONDS_PER_PAIR_BVH = 4e-6
+# The solvers beyond Jacobi's sweeps (a Gauss-Seidel sweep is a row loop, a progressive shot costs a few
+# N-vectors): Gauss-Seidel 10-12 sweeps, 0.29 s at 1,156 patches; progressive refinement 6-9 N shots, 3.5 s at
+# 1,156 patches, 18 s at 8,479 (quiet machine).
+SOLVER_SECONDS_PER_PATCH = {"jacobi": 0.0, "gauss_seidel": 2.5e-4, "progressive": 3e-3}
+SOLVER_SECONDS_PER_PAIR = {"jacobi": 0.0, "gauss_seidel": 3e-8, "progressive": 2e-7}
 # The near field (:class:`core.radiosity.gather.NearField`): element form factors of the near pairs, stored as
-# float32 (4 B each), a visibility ray per receiving texel and source; made in chunks below NEAR_PEAK_BYTES.
-# Measured: 1,190 a patch on the imported Cornell box (1,453 patches, the light's back in 8 x 8 elements), 590 on
-# the built-in one (1,156), 300 on the corpus' emissive.blend (4,094); about 1 µs each with the rays.
+# float32 (4 B each); made in chunks below NEAR_PEAK_BYTES. Measured: 1,190 a patch on the imported Cornell box
+# (1,453 patches, the light's back in 8 x 8 elements), 590 on the built-in one (1,156), 300 on the corpus'
+# emissive.blend (4,094).
 NEAR_EVALS_PER_PATCH = 3000
-SECONDS_PER_NEAR_EVAL = 1e-6
 MAX_SECONDS = 3600.0
 
 
@@ -44,21 +50,29 @@ class Cost:
     seconds: float
 
 
-def solve_cost(n, seconds_per_pair=None):
-    """:class:`Cost` of solving ``n`` patches: N² form factors and visibility, plus the near field's bounded
-    work (NEAR_EVALS_PER_PATCH element form factors a patch, kept; NEAR_PEAK_BYTES at most while made)."""
+def solver_seconds(n, solver="jacobi"):
+    """Seconds ``solver`` takes beyond a Jacobi solve (SOLVER_SECONDS_PER_PATCH, SOLVER_SECONDS_PER_PAIR)."""
+    n = float(n)
+    return SOLVER_SECONDS_PER_PATCH[solver] * n + SOLVER_SECONDS_PER_PAIR[solver] * n * n
+
+
+def solve_cost(n, seconds_per_pair=None, solver="jacobi", compare_solvers=False):
+    """:class:`Cost` of solving ``n`` patches (an upper bound): N² form factors and visibility, the near field's
+    bounded work (NEAR_EVALS_PER_PATCH element form factors a patch, kept; NEAR_PEAK_BYTES at most while made),
+    ``solver``, and with ``compare_solvers`` the other solvers of the convergence chart on the same F."""
     n = float(n)
     per = SECONDS_PER_PAIR if seconds_per_pair is None else seconds_per_pair
+    extra = sum(solver_seconds(n, s) for s in SOLVER_SECONDS_PER_PAIR if compare_solvers or s == solver)
     return Cost(n, BYTES_PER_PAIR * n * n + OVERHEAD_BYTES + NEAR_PEAK_BYTES + 4 * NEAR_EVALS_PER_PATCH * n,
-                per * n * n + SECONDS_PER_NEAR_EVAL * NEAR_EVALS_PER_PATCH * n)
+                SECONDS_FIXED + SECONDS_PER_PATCH * n + per * n * n + extra)
 
 
-def adaptive_cost(patches, max_edge, adaptive=0, seconds_per_pair=None):
+def adaptive_cost(patches, max_edge, adaptive=0, seconds_per_pair=None, solver="jacobi", compare_solvers=False):
     """:class:`Cost` of a solve and its ``adaptive`` rounds at their worst case
     (:func:`core.radiosity.subdivision.planned_patches_per_round`): patches of the last round, seconds summed over
     the rounds, bytes of the largest round beside the previous round's form factors (as each round is checked)."""
     ns = planned_patches_per_round(patches, max_edge, adaptive)
-    costs = [solve_cost(n, seconds_per_pair) for n in ns]
+    costs = [solve_cost(n, seconds_per_pair, solver, compare_solvers and i == len(ns) - 1) for i, n in enumerate(ns)]
     peak = max(c.bytes + (BYTES_PER_PAIR * ns[i - 1] ** 2 if i else 0.0) for i, c in enumerate(costs))
     return Cost(ns[-1], peak, sum(c.seconds for c in costs))
 
@@ -82,7 +96,7 @@ def smallest_edge_that_fits(patches, memory, max_seconds=MAX_SECONDS, seconds_pe
 
 
 def check_cost(patches, max_edge, memory=None, max_seconds=MAX_SECONDS, option="--max-edge", seconds_per_pair=None,
-               adaptive=0):
+               adaptive=0, solver="jacobi", compare_solvers=False):
     """Estimate the solve of ``patches`` split to ``max_edge`` (an upper bound: :func:`core.radiosity.subdivision.planned_patches`) and
     refuse (InputError, one line naming the
     limit and the smallest edge that fits) what needs more than ``memory`` bytes (default: the memory
@@ -92,7 +106,7 @@ def check_cost(patches, max_edge, memory=None, max_seconds=MAX_SECONDS, option="
     memory = memory_budget() if memory is None else memory
     per = SECONDS_PER_PAIR if seconds_per_pair is None else seconds_per_pair
     adaptive = int(adaptive)
-    cost = adaptive_cost(patches, max_edge, adaptive, per)
+    cost = adaptive_cost(patches, max_edge, adaptive, per, solver, compare_solvers)
     over_mem = memory is not None and cost.bytes > memory
     over_time = max_seconds is not None and cost.seconds > max_seconds
     if not (over_mem or over_time):

@@ -190,7 +190,7 @@ def pair_form_factors(cx, cy, cz, pn, p, n, j):
     return out
 
 
-def visible_form_factors(patches, visibility, reciprocal=True, chunk_pairs=50_000, dtype=np.float64):
+def visible_form_factors(patches, visibility, reciprocal=True, chunk_pairs=50_000, dtype=np.float64, progress=None):
     """:func:`form_factors` (quadrature 1) with boolean ``visibility`` (N, N, symmetric), evaluated only for
     the visible pairs (the rest are 0 in both: pairs behind each other's plane, occluded, or on one plane).
 
@@ -199,7 +199,7 @@ def visible_form_factors(patches, visibility, reciprocal=True, chunk_pairs=50_00
     error of the centre rule O((r_s / d)²) set by the smaller patch instead of O((r_b / d)²) by the larger.
     Otherwise every visible ordered pair from its receiver's centre, equal to :func:`form_factors`. About
     ``chunk_pairs`` pairs at a time. ``dtype``: F's storage (float32 halves its memory and the solvers' memory
-    traffic, core.radiosity.solvers.product)."""
+    traffic, core.radiosity.solvers.product). ``progress(done, total)`` is called after each chunk."""
     n = len(patches)
     V = np.asarray(visibility, bool)
     if V.shape != (n, n):
@@ -227,10 +227,12 @@ def visible_form_factors(patches, visibility, reciprocal=True, chunk_pairs=50_00
             i, j = np.where(small, i, j), np.where(small, j, i)
         return i, j, pair_form_factors(cx, cy, cz, pn, np.take(patches.center, i, axis=0),
                                        np.take(patches.normal, i, axis=0), j)
-    for r, q, f in ordered_map(chunk, bounds):
+    for k, (r, q, f) in enumerate(ordered_map(chunk, bounds)):
         F[r, q] = f
         if reciprocal:
             F[q, r] = f * area[r] / area[q]
+        if progress:
+            progress(k + 1, len(bounds))
     np.fill_diagonal(F, 0.0)
     return F
 

@@ -75,8 +75,9 @@ def solve_direct(F, rho, E):
     return Solution(B, "direct", 1, [residual(F, rho, E, B)], time.perf_counter() - t, True)
 
 
-def solve_jacobi(F, rho, E, tol=1e-6, max_iter=10000):
-    """Jacobi: B^{k+1} = E + ρ ∘ (F B^k) from B⁰ = E; iteration k adds the k-th bounce."""
+def solve_jacobi(F, rho, E, tol=1e-6, max_iter=10000, progress=None):
+    """Jacobi: B^{k+1} = E + ρ ∘ (F B^k) from B⁰ = E; iteration k adds the k-th bounce. ``progress(sweep,
+    residual)`` after each sweep."""
     F, rho, E = _check(F, rho, E)
     t = time.perf_counter()
     B, res = E.copy(), []
@@ -85,18 +86,20 @@ def solve_jacobi(F, rho, E, tol=1e-6, max_iter=10000):
         B = E + rho * FB
         FB = product(F, B)                            # the residual's product is the next sweep's
         res.append(residual(F, rho, E, B, FB))
+        if progress:
+            progress(k, res[-1])
         if res[-1] < tol:
             break
     return Solution(B, "jacobi", len(res), res, time.perf_counter() - t, res[-1] < tol)
 
 
-def solve_gauss_seidel(F, rho, E, tol=1e-6, max_iter=10000):
+def solve_gauss_seidel(F, rho, E, tol=1e-6, max_iter=10000, progress=None):
     """Gauss-Seidel: one sweep updates every B_i in place, in order, with the newest B_j:
 
         B_i ← (E_i + ρ_i Σ_{j≠i} F_ij B_j) / (1 − ρ_i F_ii)
 
     i.e. (I − D − L) B^{k+1} = E + U B^k with ρF = L + D + U (strictly lower, diagonal,
-    strictly upper); F_ii = 0 for flat patches.
+    strictly upper); F_ii = 0 for flat patches. ``progress(sweep, residual)`` after each sweep.
     """
     F, rho, E = _check(F, rho, E)
     t = time.perf_counter()
@@ -108,17 +111,19 @@ def solve_gauss_seidel(F, rho, E, tol=1e-6, max_iter=10000):
         for i in range(len(F)):
             B[i] = base[i] + scale[i] * (F[i] @ B - diag[i] * B[i])
         res.append(residual(F, rho, E, B))
+        if progress:
+            progress(k, res[-1])
         if res[-1] < tol:
             break
     return Solution(B, "gauss_seidel", len(res), res, time.perf_counter() - t, res[-1] < tol)
 
 
-def solve_progressive(F, rho, E, area, tol=1e-6, max_iter=None, record_every=None):
+def solve_progressive(F, rho, E, area, tol=1e-6, max_iter=None, record_every=None, progress=None):
     """Progressive refinement (Cohen et al. 1988): shoot the patch with the most unshot power ΔB_i A_i;
     every j receives ΔB_j += ρ_j F_ji ΔB_i. One iteration = one shot.
 
     Stops when the unshot power is below ``tol`` times the emitted power; the
-    residual equals ‖ρ ∘ F ΔB‖/‖E‖, recorded every ``record_every`` shots.
+    residual equals ‖ρ ∘ F ΔB‖/‖E‖, recorded every ``record_every`` shots (``progress(shots, residual)`` then).
     """
     F, rho, E = _check(F, rho, E)
     area = np.asarray(area, np.float64)
@@ -141,6 +146,8 @@ def solve_progressive(F, rho, E, area, tol=1e-6, max_iter=None, record_every=Non
         power = dB.sum(axis=1) * area
         if shots % record_every == 0 or power.sum() <= tol * total:
             res.append(float(np.linalg.norm(rho * product(F, dB)) / nE))
+            if progress:
+                progress(shots, res[-1])
         if power.sum() <= tol * total:
             done = True
             break
@@ -150,14 +157,15 @@ def solve_progressive(F, rho, E, area, tol=1e-6, max_iter=None, record_every=Non
 SOLVERS = ("jacobi", "gauss_seidel", "progressive")
 
 
-def solve(F, rho, E, area, solver="jacobi", tol=1e-6, max_iter=None):
-    """Dispatch by name: jacobi, gauss_seidel, progressive (or direct)."""
+def solve(F, rho, E, area, solver="jacobi", tol=1e-6, max_iter=None, progress=None):
+    """Dispatch by name: jacobi, gauss_seidel, progressive (or direct); ``progress(iteration, residual)`` per
+    sweep or per recorded block of shots."""
     if solver == "jacobi":
-        return solve_jacobi(F, rho, E, tol, max_iter or 10000)
+        return solve_jacobi(F, rho, E, tol, max_iter or 10000, progress)
     if solver == "gauss_seidel":
-        return solve_gauss_seidel(F, rho, E, tol, max_iter or 10000)
+        return solve_gauss_seidel(F, rho, E, tol, max_iter or 10000, progress)
     if solver == "progressive":
-        return solve_progressive(F, rho, E, area, tol, max_iter)
+        return solve_progressive(F, rho, E, area, tol, max_iter, progress=progress)
     if solver == "direct":
         return solve_direct(F, rho, E)
     raise InputError(f"unknown solver {solver!r}; choose from {', '.join(SOLVERS)}")

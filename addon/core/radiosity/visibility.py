@@ -493,7 +493,7 @@ def visibility_faces(patches, occ, offset=1e-4, progress=None, leaf=CLUSTER_LEAF
     clusters with a candidate pair is first classified against the occluders (:func:`_classify`, a non-planar
     face's triangles first as one slab, :func:`_candidates`), and its rays are tested only against the
     occluders it leaves undecided, the cluster pairs with the same undecided occluders in one go.
-    ``progress()`` is called between rows of clusters."""
+    ``progress(done, total)`` is called after each row of clusters."""
     n = len(patches)
     pts = patches.center + offset * patches.normal
     S = occ.side(pts)
@@ -554,9 +554,9 @@ def visibility_faces(patches, occ, offset=1e-4, progress=None, leaf=CLUSTER_LEAF
         W[s1:, ia] = ok[:, s1 - s0:].T
         W[s0:s1, ia] |= ok[:, :s1 - s0].T
 
-    for _ in ordered_map(row, range(len(groups))):
+    for k, _ in enumerate(ordered_map(row, range(len(groups)))):
         if progress:
-            progress()
+            progress(k + 1, len(groups))
     inv = np.empty(n, int)
     inv[order] = np.arange(n)
     return W[inv]
