@@ -460,6 +460,8 @@ def test_walk_every_button_on_the_demo_scene(tmp_path, no_matplotlib_no_scipy, p
         ("radiosity", {"output_dir": str(tmp_path / "rad"), "compare": False}, "ERROR", "emits light", ()),
         ("assign_shading_model", {"model": "OREN_NAYAR"}, "FINISHED", "", (box, sphere)),
         ("relink_lights", {}, "FINISHED", "", ()),
+        ("remove_shading_model", {}, "FINISHED", "", (box, sphere)),
+        ("assign_shading_model", {"model": "OREN_NAYAR"}, "FINISHED", "", (box, sphere)),
         ("radiosity", {"output_dir": str(tmp_path / "rad"), "compare": False}, "ERROR", "", ()),
         ("build_shadow_scene", {}, "FINISHED", "", ()),
         ("run_shadow_comparison", {}, "FINISHED", "", ()),
@@ -509,8 +511,8 @@ def test_assigning_a_model_shows_it_and_keeps_the_replaced_materials():
     assert (outcome, message) == ("FINISHED", "")
     assert torus.active_material.get("il_model") == "BLINN_PHONG"      # the object-linked slot shows it too
     painted, plain = bpy.data.materials["User Painted"], bpy.data.materials["User Plain"]
-    assert painted.use_fake_user and painted.users == 1      # used nowhere else now: kept for the next save
-    assert not plain.use_fake_user and plain.users >= 2      # still on the sphere and the floor
+    assert torus.active_material["il_original"] == painted and painted.users == 1   # kept by its IL material
+    assert not plain.use_fake_user and plain.users >= 3      # still on the sphere and the floor, and the box's IL
 
 
 def test_bake_keeps_the_face_selection(tmp_path):

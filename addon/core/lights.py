@@ -65,6 +65,14 @@ def spot_light(p, position, direction, color, power, cutoff, exponent=0.0, physi
     return lvec, I * spot_falloff(direction, -lvec, cutoff, exponent)[..., None]
 
 
+def area_light(p, position, direction, color, power, physical=1.0, c1=1.0, c2=0.0, c3=1.0):
+    """An area light of power P as a Lambertian point emitter at its centre: I(theta) = (P/pi) cos theta for
+    theta < 90 deg from ``direction`` (its -Z), i.e. a spot of power 4P (P/(4 pi) W/sr times 4), cutoff 90 deg,
+    exponent 1. Exact in the far field; near it the relative error is ~ (size/distance)^2."""
+    return spot_light(p, position, direction, color, 4.0 * np.asarray(power, float), np.pi / 2, 1.0, physical,
+                      c1, c2, c3)
+
+
 def sun_light(p, direction, color, strength):
     """Distant light: Light Vector = -direction, I = S/pi (Blender's sun strength is E_perp in W/m^2)."""
     shape = np.shape(p)[:-1]

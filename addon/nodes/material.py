@@ -22,8 +22,11 @@ changes, and a switch between 0 and 1, animated or driven gets the group with bo
 right, only slower). Without lights the material still works: one public model node with a black light, i.e. ambient
 and emission only. A light whose type changes needs Relink Lights (as before: the type is not driven).
 The emission is the model's radiance, not a lamp: its emission sampling is off, so Cycles builds
-no light tree over the shaded triangles (other surfaces still receive it through their BSDF rays).
+no light tree over the shaded triangles (other surfaces still receive it through their BSDF rays), unless
+the material emits ("Emission Color" not black): then other surfaces sample it as Cycles would the original.
+An area light is linked as a Lambertian spot at its centre (:func:`link_light`).
 """
+import math
 import threading
 
 import bpy
@@ -31,11 +34,13 @@ import bpy
 from ..blender import compat
 from ..core.errors import InputError
 from ..core.lights import TYPES
-from . import groups
+from . import groups, source
 
 MODEL_LABELS = {"PHONG": "Phong", "BLINN_PHONG": "Blinn-Phong", "OREN_NAYAR": "Oren-Nayar",
                 "COOK_TORRANCE": "Cook-Torrance"}
 ATTENUATION_INPUTS = ("Physical", "C1", "C2", "C3", "Spot Exponent")
+#: Added to a model without it (Oren-Nayar, Cook-Torrance) when the material emits.
+EMISSION = "Emission Color"
 DRIVER_PREFIX = 'nodes["IL Light:'
 
 #: -Z axis of the world rotation (Euler XYZ: R = Rz Ry Rx), the way a light points; simple expressions only.
@@ -51,11 +56,29 @@ def model_parameters(model):
 
 
 def light_type(obj):
-    """The IL Light "Type" of a Blender light (a sun with the custom property il_hemi is a hemisphere)."""
+    """The IL Light "Type" of a Blender light (a sun with the custom property il_hemi is a hemisphere; an area
+    light is a spot: :func:`link_light`)."""
     kind = obj.data.type
     if kind == "SUN" and obj.data.get("il_hemi"):
         return TYPES["HEMI"]
-    return {"POINT": TYPES["POINT"], "SPOT": TYPES["SPOT"], "SUN": TYPES["SUN"]}.get(kind)
+    return {"POINT": TYPES["POINT"], "SPOT": TYPES["SPOT"], "SUN": TYPES["SUN"], "AREA": TYPES["SPOT"]}.get(kind)
+
+
+def light_warnings(linked):
+    """Warnings on the lights a material sums over: area lights approximated, nothing that lights."""
+    out = []
+    areas = [o for o in linked if o.data.type == "AREA"]
+    if areas:
+        odd = [o.name for o in areas if getattr(o.data, "spread", math.pi) < math.pi - 1e-6
+               or not getattr(o.data, "normalize", True)]
+        out.append(f"area light{'s' if len(areas) > 1 else ''} {', '.join(repr(o.name) for o in areas)} modelled "
+                   "as a Lambertian point emitter at the centre (a spot along -Z, I = (P/pi) cos theta, cutoff "
+                   "90 deg): exact far away, relative error ~ (size/distance)^2 near the light"
+                   + (f"; the spread below 180 deg or Normalize off of {', '.join(odd)} is not modelled"
+                      if odd else ""))
+    if linked and all(o.data.energy <= 0.0 or not any(o.data.color) for o in linked):
+        out.append("every linked light has zero power: the material shows ambient and emission only")
+    return out
 
 
 def scene_lights(scene, mode="ALL", selected=()):
@@ -104,7 +127,9 @@ def _prop(light_data, path):
 
 def link_light(node, obj):
     """Drive ``node`` (an "IL Light" group node or one of its per-type versions) from the light object ``obj``:
-    only the inputs its type reads (a point light no direction, a sun or hemisphere no position)."""
+    only the inputs its type reads (a point light no direction, a sun or hemisphere no position). An area light
+    of power P is a Lambertian emitter at its centre: a spot along its -Z of cutoff 90 deg, exponent 1 and
+    power 4P, so that I(theta) = (P/pi) cos theta (its Spot Exponent is its own, not the material's)."""
     data = obj.data
     kind = light_type(obj)
     pos, dirn = node.inputs["Position"], node.inputs["Direction"]
@@ -114,7 +139,12 @@ def link_light(node, obj):
         if kind != TYPES["POINT"]:
             _driver(dirn, k, DIRECTION_EXPR[k], [(a, _transform(obj, f"ROT_{a.upper()}")) for a in "xyz"])
         _driver(node.inputs["Color"], k, "c", [("c", _prop(data, f"color[{k}]"))])
-    _driver(node.inputs["Power"], None, "e", [("e", _prop(data, "energy"))])
+    if data.type == "AREA":
+        _driver(node.inputs["Power"], None, "4 * e", [("e", _prop(data, "energy"))])
+        node.inputs["Spot Cutoff"].default_value = math.pi / 2
+        node.inputs["Spot Exponent"].default_value = 1.0
+    else:
+        _driver(node.inputs["Power"], None, "e", [("e", _prop(data, "energy"))])
     if data.type == "SPOT":
         _driver(node.inputs["Spot Cutoff"], None, "s / 2", [("s", _prop(data, "spot_size"))])
     node.inputs["Type"].default_value = float(kind)
@@ -150,7 +180,7 @@ def parameter_nodes(mat):
     if mat is None or not mat.get("il_model") or mat.node_tree is None:
         return []
     nodes = {n.get("il_param"): n for n in mat.node_tree.nodes if n.get("il_param")}
-    order = [n for n, *_ in model_parameters(mat["il_model"])] + list(ATTENUATION_INPUTS)
+    order = [n for n, *_ in model_parameters(mat["il_model"])] + [EMISSION] + list(ATTENUATION_INPUTS)
     return [(name, nodes[name]) for name in order if name in nodes]
 
 
@@ -165,8 +195,30 @@ def _hub(nodes, frame, name, value, color, y):
     return node
 
 
+def _emits(mat, model, params):
+    """Whether the material gets an emission hub although ``model`` has no "Emission Color" input."""
+    if any(n == EMISSION for n, *_ in model_parameters(model)):
+        return False
+    value = params.get(EMISSION)
+    return EMISSION in _sources(mat) or (value is not None and any(tuple(value)[:3]))
+
+
+def _sources(mat):
+    """{parameter: output socket} of the nodes kept from the user's material that feed a parameter
+    (``mat["il_sources"]``: {parameter: [node name, output identifier]})."""
+    out, tree = {}, mat.node_tree
+    for name, (node_name, ident) in dict(mat.get("il_sources", {})).items():
+        node = tree.nodes.get(node_name) if tree is not None else None
+        socket = next((o for o in node.outputs if o.identifier == ident), None) if node is not None else None
+        if socket is not None:
+            out[name] = socket
+    return out
+
+
 def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficients=(1.0, 0.0, 1.0), params=None):
-    """(Re)build ``mat``'s tree: parameters, one IL Light + model node per light, their sum."""
+    """(Re)build ``mat``'s tree: parameters, one IL Light + model node per light, their sum. Nodes tagged
+    "il_source" (kept from the user's material, :func:`assign_materials`) stay: each one in
+    ``mat["il_sources"]`` feeds its parameter times the parameter's hub (a tint)."""
     if model not in groups.MODEL_GROUPS:
         raise InputError(f"unknown shading model '{model}' (one of {', '.join(groups.MODEL_GROUPS)})")
     if attenuation not in ("PHYSICAL", "EMPIRICAL"):
@@ -179,17 +231,30 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
     compat.ensure_use_nodes(mat)
     tree = mat.node_tree
     _remove_il_drivers(tree)
-    tree.nodes.clear()
+    for node in [n for n in tree.nodes if not n.get("il_source")]:
+        tree.nodes.remove(node)
     nodes, links = tree.nodes, tree.links
+    sources = _sources(mat)
+    emits = _emits(mat, model, params)
 
     frame = nodes.new("NodeFrame")
     frame.name = frame.label = "Parameters"
     hub = {}
     y = 300
-    for name, stype, default in model_parameters(model):
+    for name, stype, default in model_parameters(model) + ([(EMISSION, groups.C, groups.BLACK)] if emits else []):
         color = stype == groups.C
         hub[name] = _hub(nodes, frame, name, params.get(name, default), color, y)
         y -= 200 if color else 110
+    feed = dict(hub)
+    for name, socket in sources.items():
+        if name in hub:
+            mul = nodes.new("ShaderNodeVectorMath")
+            mul.operation = "MULTIPLY"
+            mul.name = mul.label = f"{name}: source x tint"
+            mul.location = (-950, hub[name].location.y)
+            links.new(socket, mul.inputs[0])
+            links.new(hub[name].outputs[0], mul.inputs[1])
+            feed[name] = mul
     att_frame = nodes.new("NodeFrame")
     att_frame.name = att_frame.label = "Attenuation"
     c1, c2, c3 = coefficients
@@ -207,7 +272,7 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
         surface.name = surface.label = f"{model_group.name}: surface (shared by every light)"
         surface.location = (-800, 600)
         for name, *_ in model_parameters(model):
-            links.new(hub[name].outputs[0], surface.inputs[name])
+            links.new(feed[name].outputs[0], surface.inputs[name])
         half = groups.ensure_group(groups.light_group_name(model_group.name))
         switches, once = groups.HALVES[model_group.name][2:]
         total = surface.outputs[once] if once else None
@@ -222,7 +287,7 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
         model_node.node_tree = model_group if obj is None else half
         if obj is None:
             for name, *_ in model_parameters(model):
-                links.new(hub[name].outputs[0], model_node.inputs[name])
+                links.new(feed[name].outputs[0], model_node.inputs[name])
             model_node.inputs["Light Color"].default_value = (0.0, 0.0, 0.0, 1.0)
             total = model_node.outputs["Color"]
             continue
@@ -240,10 +305,19 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
         light_node.parent = lframe
         light_node.location = (-600, 300 - 420 * k)
         for name in ATTENUATION_INPUTS:
-            links.new(hub[name].outputs[0], light_node.inputs[name])
+            if not (name == "Spot Exponent" and obj.data.type == "AREA"):
+                links.new(hub[name].outputs[0], light_node.inputs[name])
         links.new(light_node.outputs["Light Vector"], model_node.inputs["Light Vector"])
         links.new(light_node.outputs["Light Color"], model_node.inputs["Light Color"])
         link_light(light_node, obj)
+    if emits:
+        add = nodes.new("ShaderNodeVectorMath")
+        add.operation = "ADD"
+        add.name = add.label = "+ Emission Color"
+        add.location = (50, 300)
+        links.new(total, add.inputs[0])
+        links.new(feed[EMISSION].outputs[0], add.inputs[1])
+        total = add.outputs[0]
     emission = nodes.new("ShaderNodeEmission")
     emission.location = (250, 300)
     links.new(total, emission.inputs["Color"])
@@ -251,7 +325,9 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
     out.location = (450, 300)
     links.new(emission.outputs[0], out.inputs["Surface"])
     if hasattr(getattr(mat, "cycles", None), "emission_sampling"):
-        mat.cycles.emission_sampling = "NONE"
+        value = params.get(EMISSION)
+        lamp = EMISSION in sources or (value is not None and any(tuple(value)[:3]))
+        mat.cycles.emission_sampling = "AUTO" if lamp else "NONE"
     mat["il_model"] = model
     mat["il_attenuation"] = attenuation
     mat["il_version"] = groups.GROUP_VERSION
@@ -455,13 +531,110 @@ def split_shadable(objects):
 
 def assign_shading_model(scene, objects, model, lights="ALL", attenuation="PHYSICAL",
                          coefficients=(1.0, 0.0, 1.0), params=None, name=None):
-    """Give every mesh in ``objects`` one new material summing ``model`` over the lights.
+    """:func:`assign_materials`, returning (the IL material of the first slot shaded, warnings)."""
+    mats, warnings = assign_materials(scene, objects, model, lights, attenuation, coefficients, params, name)
+    return mats[0], warnings
 
-    ``objects`` is the selection: its editable meshes with faces get the material, lights in it
-    are the ones linked when ``lights`` is "SELECTED"; the rest (cameras, curves, empties, meshes
-    without faces, meshes linked from a library) are skipped with one warning naming them, as
-    Blender's own operators do. Returns (material, warnings). Raises InputError (and changes
-    nothing) when no mesh can be shaded.
+
+def _origin(mat):
+    """The user's material an IL material was made from (None for an empty slot); ``mat`` itself otherwise."""
+    if mat is None or mat.get("il_empty"):
+        return None
+    return mat.get("il_original", mat) if mat.get("il_model") else mat
+
+
+def _upstream(socket):
+    """Names of the nodes that feed ``socket``'s node, that node included."""
+    seen, todo = set(), [socket.node]
+    while todo:
+        node = todo.pop()
+        if node.name not in seen:
+            seen.add(node.name)
+            todo += [lk.from_node for i in node.inputs for lk in i.links]
+    return seen
+
+
+def _copy_with_sources(orig, sources):
+    """A copy of ``orig`` keeping only the nodes that feed ``sources`` ({parameter: socket of orig's tree}),
+    tagged "il_source", and ``il_sources`` naming them (see :func:`build_material`)."""
+    mat = orig.copy()
+    tree = mat.node_tree
+    keep = set().union(*(_upstream(s) for s in sources.values()))
+    ad = tree.animation_data
+    for fc in list(ad.drivers) if ad is not None else []:
+        if not any(fc.data_path.startswith(f'nodes["{k}"]') for k in keep):
+            ad.drivers.remove(fc)
+    for node in list(tree.nodes):
+        if node.name in keep:
+            node["il_source"] = True
+            node.parent = None
+        else:
+            tree.nodes.remove(node)
+    mat["il_sources"] = {k: [s.node.name, s.identifier] for k, s in sources.items()}
+    return mat
+
+
+def _convert(orig, model, linked, attenuation, coefficients, params, base_name):
+    """A new IL material of ``model`` from the user's material ``orig`` (None: an empty slot, the model's
+    defaults); returns (material, warnings)."""
+    notes, values, sources = [], {}, {}
+    if orig is not None and orig.get("il_model"):       # made before IL kept the originals: its own hubs
+        names = {n for n, *_ in model_parameters(model)} | set(ATTENUATION_INPUTS)
+        values = {k: v for k, v in read_parameters(orig).items() if k in names}
+    elif orig is not None:
+        surface = source.read_surface(orig)
+        values, sources = source.model_parameters(model, surface)
+        notes = surface.notes + source.lost(model, surface)
+    values.update(params or {})
+    sources = {k: v for k, v in sources.items() if k not in (params or {})}
+    label = base_name or f"IL {MODEL_LABELS[model]}"
+    mat = _copy_with_sources(orig, sources) if sources else bpy.data.materials.new(label)
+    mat.name = f"{label}: {orig.name}" if orig is not None else label
+    try:
+        build_material(mat, model, linked, attenuation, coefficients, values)
+    except Exception:
+        bpy.data.materials.remove(mat)
+        raise
+    if orig is None:
+        mat["il_empty"] = True
+    else:
+        mat["il_original"] = orig       # an ID property: a user, so the original is saved with the file
+    warnings = [f"material '{orig.name}': not read or approximated: {'; '.join(notes)}"] if notes else []
+    return mat, warnings
+
+
+def _slots(meshes):
+    """(owner, index, material) of every slot of ``meshes``; owner is the mesh (a slot linked to the data, each
+    shared mesh once) or the object slot (linked to the object)."""
+    seen = set()
+    for obj in meshes:
+        first = obj.data.as_pointer() not in seen
+        seen.add(obj.data.as_pointer())
+        for i, slot in enumerate(obj.material_slots):
+            if slot.link == "OBJECT":
+                yield slot, None, slot.material
+            elif first:
+                yield obj.data, i, obj.data.materials[i]
+
+
+def _put(owner, index, mat):
+    if index is None:
+        owner.material = mat
+    else:
+        owner.materials[index] = mat
+
+
+def assign_materials(scene, objects, model, lights="ALL", attenuation="PHYSICAL",
+                     coefficients=(1.0, 0.0, 1.0), params=None, name=None):
+    """Give every slot of the meshes in ``objects`` an IL material summing ``model`` over the lights.
+
+    One IL material per material of the slots (one for a material several slots or objects share; one for
+    the empty slots and slotless meshes, with the model's defaults): its parameters come from the user's
+    material (:mod:`.source`; ``params`` override them), a texture feeding Base Color or Emission Color stays
+    linked, and ``mat["il_original"]`` keeps the original for :func:`restore_materials` (saved with the file).
+    ``objects`` is the selection: lights in it are the ones linked when ``lights`` is "SELECTED"; the rest
+    (cameras, curves, empties, meshes without faces, library meshes) are skipped with one warning naming them.
+    Returns ([IL materials], warnings). Raises InputError (and changes nothing) when no mesh can be shaded.
     """
     if model not in groups.MODEL_GROUPS:
         raise InputError(f"unknown shading model '{model}' (one of {', '.join(groups.MODEL_GROUPS)})")
@@ -482,32 +655,63 @@ def assign_shading_model(scene, objects, model, lights="ALL", attenuation="PHYSI
     if not linked:
         warnings.append("no lights to link: the material shows ambient and emission only "
                         "(add lights, then Relink Lights)")
-    mat = bpy.data.materials.new(name or f"IL {MODEL_LABELS[model]}")
-    try:
-        build_material(mat, model, linked, attenuation, coefficients, params)
-    except Exception:
-        bpy.data.materials.remove(mat)
-        raise
-    mat["il_lights_mode"] = lights
-    mat["il_light_names"] = [o.name for o in linked]
-    replaced = set()
+    warnings += light_warnings(linked)
     for obj in meshes:
-        slots = obj.data.materials
-        replaced |= {m for m in slots if m is not None}
-        if len(slots) == 0:
-            slots.append(mat)
-        else:
-            for i in range(len(slots)):
-                slots[i] = mat
-        for slot in obj.material_slots:     # slots linked to the object override the mesh's material
+        if len(obj.material_slots) == 0:
+            obj.data.materials.append(None)
+            obj.data["il_added_slot"] = True
+    made, replaced = {}, set()
+    for owner, index, cur in list(_slots(meshes)):
+        orig = _origin(cur)
+        key = orig.as_pointer() if orig is not None else None
+        if key not in made:
+            mat, w = _convert(orig, model, linked, attenuation, coefficients, params, name)
+            mat["il_lights_mode"] = lights
+            mat["il_light_names"] = [o.name for o in linked]
+            made[key] = mat
+            warnings += w
+        if cur is not None and cur.get("il_model") and cur != made[key]:
+            replaced.add(cur)
+        _put(owner, index, made[key])
+    for old in replaced:
+        if old.users == 0 and (old.get("il_original") is not None or old.get("il_empty")):
+            bpy.data.materials.remove(old)      # an IL material of an earlier assignment nothing uses
+    return list(made.values()), warnings
+
+
+def restorable(objects):
+    """Whether a slot of ``objects`` holds an IL material that knows what it replaced."""
+    return any(_restores(slot.material) for obj in objects for slot in getattr(obj, "material_slots", ()))
+
+
+def _restores(mat):
+    return mat is not None and mat.get("il_model") and (mat.get("il_empty") or mat.get("il_original") is not None)
+
+
+def restore_materials(objects):
+    """Give the slots of ``objects`` back the materials :func:`assign_materials` replaced (empty slots empty,
+    slots it added removed); IL materials left unused stay until the file is saved (Blender drops them then, as
+any material without users). Returns the number of slots restored."""
+    count, seen = 0, set()
+    for obj in objects:
+        data = obj.data if obj.type == "MESH" else None
+        first = data is not None and data.as_pointer() not in seen
+        if data is not None:
+            seen.add(data.as_pointer())
+        for i, slot in enumerate(obj.material_slots):
+            mat = slot.material
+            if not _restores(mat) or (slot.link != "OBJECT" and not first):
+                continue
             if slot.link == "OBJECT":
-                replaced |= {slot.material} - {None}
-                slot.material = mat
-    for old in sorted(replaced - {mat}, key=lambda m: m.name):
-        if old.users == 0 and not old.get("il_model") and not old.library:
-            old.use_fake_user = True        # else saving the file would silently drop the user's material
-            warnings.append(f"material '{old.name}' is no longer used: kept with a fake user")
-    return mat, warnings
+                slot.material = _origin(mat)
+            else:
+                data.materials[i] = _origin(mat)
+            count += 1
+        if first and data.get("il_added_slot") and len(data.materials) == 1 and data.materials[0] is None:
+            data.materials.clear()      # (pop leaves the objects' slot count stale)
+        if first and "il_added_slot" in data and not any(_restores(m) for m in data.materials):
+            del data["il_added_slot"]
+    return count
 
 
 def il_materials():
@@ -529,6 +733,7 @@ def relink_lights(scene, materials=None):
         else:
             candidates = scene_lights(scene, "ALL")
         linked = [o for o in candidates if o.type == "LIGHT" and light_type(o) is not None]
+        warnings += [w for w in light_warnings(linked) if w not in warnings]
         params = read_parameters(mat)
         build_material(mat, mat["il_model"], linked, mat.get("il_attenuation", "PHYSICAL"), params=params)
         mat["il_light_names"] = [o.name for o in linked]

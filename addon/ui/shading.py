@@ -29,7 +29,8 @@ class IL_OT_add_node_groups(JobOperator, bpy.types.Operator):
 
 
 class IL_OT_assign_shading_model(JobOperator, bpy.types.Operator):
-    """Give the selected meshes a material that sums the model over the lights, linked by drivers"""
+    """Give each material of the selected meshes an IL material that sums the model over the lights, linked by
+    drivers, with the parameters read from it (Remove Shading Model gives the originals back)"""
 
     bl_idname = "illumination.assign_shading_model"
     bl_label = "Assign Shading Model"
@@ -43,12 +44,38 @@ class IL_OT_assign_shading_model(JobOperator, bpy.types.Operator):
 
     def job(self, context):
         o = props.options(ShadingOptions, self)
-        mat, warnings = material.assign_shading_model(context.scene, context.selected_objects, o.model, o.lights,
-                                                      o.attenuation, o.coefficients)
+        mats, warnings = material.assign_materials(context.scene, context.selected_objects, o.model, o.lights,
+                                                   o.attenuation, o.coefficients)
         for w in warnings:
             warn(w)
-        return JobResult({"material": mat.name, "lights": list(mat["il_light_names"])},
-                         summary=f"assigned '{mat.name}' ({len(mat['il_light_names'])} lights)")
+        names, lights = [m.name for m in mats], list(mats[0]["il_light_names"])
+        what = f"'{names[0]}'" if len(names) == 1 else f"{len(names)} materials"
+        return JobResult({"material": names[0], "materials": names, "lights": lights},
+                         summary=f"assigned {what} ({len(lights)} lights)")
+
+
+def _restorable(cls, context):
+    """True when a selected object holds a material Assign Shading Model made."""
+    if material.restorable(context.selected_objects):
+        return True
+    cls.poll_message_set("Nothing to restore: no selected object has a material made by Assign Shading Model")
+    return False
+
+
+class IL_OT_remove_shading_model(JobOperator, bpy.types.Operator):
+    """Give the selected objects back the materials Assign Shading Model replaced"""
+
+    bl_idname = "illumination.remove_shading_model"
+    bl_label = "Remove Shading Model"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return polls.has_scene(cls, context) and polls.object_mode(cls, context) and _restorable(cls, context)
+
+    def job(self, context):
+        count = material.restore_materials(context.selected_objects)
+        return JobResult({"slots": count}, summary=f"restored {count} material slot(s)")
 
 
 class IL_OT_relink_lights(JobOperator, bpy.types.Operator):
@@ -91,6 +118,7 @@ class IL_PT_shading(Sidebar, bpy.types.Panel):
         op = layout.operator(IL_OT_assign_shading_model.bl_idname, icon="MATERIAL")
         for name in ShadingOptions.__dataclass_fields__:
             setattr(op, name, getattr(settings, name))
+        layout.operator(IL_OT_remove_shading_model.bl_idname, icon="LOOP_BACK")
         layout.operator(IL_OT_relink_lights.bl_idname, icon="LIGHT")
 
         obj = context.active_object
@@ -105,7 +133,8 @@ class IL_PT_shading(Sidebar, bpy.types.Panel):
         box.label(text=f"Lights: {', '.join(mat.get('il_light_names', [])) or 'none'}", icon="LIGHT")
 
 
-classes = (IL_PG_shading, IL_OT_add_node_groups, IL_OT_assign_shading_model, IL_OT_relink_lights, IL_PT_shading)
+classes = (IL_PG_shading, IL_OT_add_node_groups, IL_OT_assign_shading_model, IL_OT_remove_shading_model,
+           IL_OT_relink_lights, IL_PT_shading)
 _register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
 
 
