@@ -1,5 +1,8 @@
 """Bake AO and irradiance light maps with Cycles (CPU); the .blend on disk is never modified.
 
+    python scripts/bake.py scene.blend --objects Floor --maps ao --target vertex --out out/maps --save-as baked.blend
+                                           (a copy of the file with the "IL AO" colour attributes and Lightmap UVs)
+
     python scripts/bake.py scene.blend --objects Floor Box --maps ao irradiance --out out/maps
     blender -b scene.blend -P scripts/bake.py -- --objects Floor --maps ao --out out/maps --target-error 0.01
     python scripts/bake.py scene.blend --objects ... --out out/maps --shard 2/8     (one share of a farm job)
@@ -31,6 +34,7 @@ def main(args):
     import bpy
     from addon.bake import BakeOptions, bake_lightmaps
     options = _cli.options_from(BakeOptions, args)
+    save_as = check_save_as(args.save_as, bpy.data.filepath) if args.save_as else None
     objects = []
     for name in args.objects:
         obj = bpy.data.objects.get(name)
@@ -47,10 +51,45 @@ def main(args):
                   f"{e['samples']} samples {e['seconds']:.2f} s est. error {err} ({kind})")
     print(result.summary)
     print(f"report: {result.path}")
+    if save_as:
+        save_copy(save_as)
+        print(f"saved a copy: {save_as}")
     if result.get("failed"):
         from addon.core.errors import ILError
         raise ILError(f"{len(result['failed'])} object(s) failed, the others are baked: "
                       + "; ".join(f"{n}: {why}" for n, why in result["failed"].items()))
+
+
+def check_save_as(path, opened):
+    """The absolute path of ``--save-as``: a .blend whose folder exists, never the opened file (InputError)."""
+    from addon.core.errors import InputError
+    path = os.path.abspath(path)
+    if not path.lower().endswith(".blend"):
+        raise InputError(f"--save-as: not a .blend file name: {path}")
+    if not os.path.isdir(os.path.dirname(path)):
+        raise InputError(f"--save-as: no such folder: {os.path.dirname(path)}")
+    same = opened and (os.path.realpath(path) == os.path.realpath(opened)
+                       or (os.path.exists(path) and os.path.samefile(path, opened)))
+    if same:
+        raise InputError(f"--save-as: {path} is the opened file, which a bake never writes: name a copy")
+    return path
+
+
+def save_copy(path):
+    """Save the session (baked colour attributes and generated light-map layers kept) as a copy at ``path``:
+    written beside it under a temporary name and moved into place, so ``path`` is whole or untouched; the opened
+    file and the session's file path are left as they were."""
+    import bpy
+    from addon.core.errors import ILError
+    tmp = os.path.join(os.path.dirname(path), f".{os.path.basename(path)}.{os.getpid()}.tmp.blend")
+    try:
+        result = bpy.ops.wm.save_as_mainfile(filepath=tmp, copy=True, check_existing=False, compress=False)
+        if "FINISHED" not in result:
+            raise ILError(f"--save-as: Blender did not save {path} ({', '.join(result)})")
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
 
 
 def run_jobs(args):
@@ -128,6 +167,9 @@ def build_parser():
     p.add_argument("--objects", nargs="+", metavar="NAME", help="mesh objects to bake (required unless --merge)")
     p.add_argument("--out", help="output folder (required unless --merge)")
     p.add_argument("--merge", metavar="DIR", help="join the shard reports in DIR into DIR/bake_report.json and stop")
+    p.add_argument("--save-as", metavar="COPY.blend",
+                   help="after the bake, save a copy of the file with the baked colour attributes (--target vertex) "
+                        "and generated light-map UV layers; the opened .blend is never written")
     p.add_argument("--jobs", type=_cli.number(int, 1, 256), metavar="J",
                    help="run J shard processes of this bake at once here and merge their reports")
     return _cli.add_options(p, BakeOptions)

@@ -109,3 +109,43 @@ def test_quick_sweeps_write_charts_tables_and_failures(tmp_path):
     # radius sweep: GTAO is best with its radius matched to the AO distance
     gt = {r["radius_over_ao_distance"]: r["rmse"] for r in result.tables["ssao_radius"] if r["method"] == "gtao"}
     assert min(gt, key=gt.get) == 1.0
+
+
+def _scaled_scene_blend(path, scale):
+    """A box on a floor seen by a camera, every position × ``scale``, saved as ``path``."""
+    import bpy
+    from addon.blender import scene as sc
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    bpy.ops.mesh.primitive_plane_add(size=6 * scale)
+    bpy.ops.mesh.primitive_cube_add(size=1 * scale, location=(0, 0, 0.5 * scale))
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    scene.collection.objects.link(cam)
+    cam.location = (3 * scale, -3 * scale, 2.5 * scale)
+    cam.rotation_euler = (1.05, 0, 0.785)
+    scene.camera = cam
+    scene.render.resolution_x = scene.render.resolution_y = 32
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    return path
+
+
+def test_default_radius_follows_the_scene_scale_and_is_reported(script, tmp_path):
+    radii = {}
+    for scale in (1.0, 0.1):
+        blend = _scaled_scene_blend(tmp_path / f"s{scale}.blend", scale)
+        out = tmp_path / f"o{scale}"
+        r = script("ssao.py", blend, "--methods", "gtao", "--samples", "4", "--reference-samples", "16", "--out", out)
+        assert r.returncode == 0, r.stderr
+        data = json.load(open(out / "ssao_report.json"))
+        radii[scale] = data["radius"]
+        assert data["radius_rule"].startswith("default: 0.1 x the frame width")
+        assert f"ssao: radius {data['radius']:.4g} m" in r.stderr
+        assert data["methods"]["gtao"]["params"]["radius"] == pytest.approx(data["radius"])
+        assert data["reference"]["ao_distance"] == pytest.approx(data["radius"])
+    assert radii[0.1] == pytest.approx(0.1 * radii[1.0], rel=1e-3)
+    assert 0.2 < radii[1.0] < 2.0
+    # a given radius is used as given
+    r = script("ssao.py", tmp_path / "s1.0.blend", "--methods", "gtao", "--samples", "4", "--reference-samples", "16",
+               "--radius", "0.3", "--out", tmp_path / "given")
+    data = json.load(open(tmp_path / "given" / "ssao_report.json"))
+    assert r.returncode == 0 and data["radius"] == 0.3 and data["radius_rule"] == "given"

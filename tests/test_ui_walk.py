@@ -689,6 +689,7 @@ def test_ssao_and_shadow_buttons_give_what_their_scripts_give(tmp_path, script):
     scene, path = _user_file(tmp_path)
     ss = scene.illumination.ssao
     ss.methods, ss.resolution, ss.samples, ss.reference_samples, ss.radius = {"gtao", "hbao"}, 48, 4, 16, 0.75
+    ss.radius_auto = False                 # the button uses the Radius field, as --radius does
     ss.output_dir = str(tmp_path / "ssao_button")
     assert press("ssao_compare") == ("FINISHED", "")
     from addon.lab.options import SSAOOptions

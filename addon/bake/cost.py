@@ -19,14 +19,66 @@ DENOISE_BYTES_PER_TEXEL = 620
 """Extra peak bytes per texel with the denoiser (compositor images and OpenImageDenoise buffers): measured
 AO 661-667 and irradiance 665-674 in all, so about 475 more; ×1.3."""
 SECONDS_PER_TEXEL_SAMPLE = {"ao": 9e-7, "irradiance": 1.6e-6}
-"""Rough Cycles CPU seconds per covered texel and sample on this project's 2-core machine (a fully covered
-1024² plane beside a cube, 16 samples: AO 14.4 s, irradiance with 3 bounces 26.3 s); an upper bound of
-a map's time, as every texel is counted covered."""
+"""Rough Cycles CPU seconds per covered texel and sample on this project's 2-core machine under a plain-colour
+world without lights (a fully covered 1024² plane beside a cube, 16 samples: AO 14.4 s, irradiance with 3
+bounces 26.3 s); :class:`Speed` scales them for what makes Cycles slower. An upper bound of a map's time, as
+every texel is counted covered."""
+BOUNCE_FACTOR = 0.05
+"""Irradiance per bounce beyond 3: × (1 + 0.05 (K - 3)) (256² floor beside a sphere, 16 samples, colour world:
+3 bounces 1.38e-6 s per texel-sample, 8 bounces 1.65e-6)."""
+LIGHT_FACTOR = (2.0, 0.3, 8)
+"""Irradiance with lamps: × (2.0 + 0.3 min(lights, 8)) (same bake: 1 point light 3.0e-6, 3 lights 3.6e-6; AO
+samples no light)."""
+WORLD_IMAGE_FACTOR = 6.0
+"""An image-textured world (an Environment Texture) evaluates the image at every ray that leaves: × 6, either
+map (same bake under forest.exr, 1024×512: AO 4.1e-6, irradiance 7.8e-6 with 3 bounces and 5.7e-6 with 0; lights
+add nothing there, so the larger of this and the light factor counts)."""
+WORLD_IMAGE_CALL_SECONDS = 6.0
+"""Seconds every Cycles call spends before its first sample under an image-textured world (loading the image and
+building its importance map), per 1024×512 image pixels, at least this: measured 3.6-5.1 s per call (16² map at
+1 sample, 64² at 16, two calls of an irradiance map) with forest.exr, whatever the map's size."""
 PASS_SECONDS = 8.0
 """Longest estimated Cycles call (:func:`seconds`) of a bake: a longer bake is split into sample passes of at most
 this, so Ctrl-C (deferred until the current call returns) stops it within 10 s. The estimate is an upper bound
 (measured calls take a third to a half of it): a smaller bound made the demo's light maps 12 calls instead of 3
-and 14 % slower in CPU time (each call syncs the scene)."""
+and 14 % slower in CPU time (each call syncs the scene). A call's fixed seconds (:class:`Speed`) come first; a
+pass holds at least one sample."""
+
+
+class Speed:
+    """What makes a scene's Cycles bakes slower than SECONDS_PER_TEXEL_SAMPLE: an image-textured world (``world_
+    pixels`` > 0, the largest world image's pixels: a factor and fixed seconds per call), ``lights`` (lamps the
+    bake sees) and ``bounces`` (irradiance). ``rate(kind)`` seconds per texel-sample, ``call(kind)`` fixed seconds
+    of one Cycles call."""
+
+    def __init__(self, world_pixels=0, lights=0, bounces=3):
+        self.world_pixels, self.lights, self.bounces = int(world_pixels), int(lights), int(bounces)
+
+    def rate(self, kind):
+        base = SECONDS_PER_TEXEL_SAMPLE[kind]
+        factor = WORLD_IMAGE_FACTOR if self.world_pixels else 1.0
+        if kind == "irradiance":
+            base *= 1.0 + BOUNCE_FACTOR * max(0, self.bounces - 3)
+            if self.lights:
+                a, b, most = LIGHT_FACTOR
+                factor = max(factor, a + b * min(self.lights, most))
+        return base * factor
+
+    def call(self, kind):
+        if not self.world_pixels:
+            return 0.0
+        return WORLD_IMAGE_CALL_SECONDS * max(1.0, self.world_pixels / (1024 * 512))
+
+    def describe(self):
+        """What the estimate accounts for, for messages ("" for a plain scene)."""
+        parts = (["an image-textured world"] if self.world_pixels else []) + \
+                ([f"{self.lights} light(s)"] if self.lights else [])
+        return ", ".join(parts)
+
+
+PLAIN = Speed()
+
+
 RESERVE = 0.8
 """Fraction of the available memory a bake may plan to use (Blender, the scene and the OS need the rest)."""
 PANEL_FALLBACK_MEMORY = 8 << 30
@@ -50,17 +102,32 @@ def peak_bytes(width, height, maps, denoise=False):
     return int(width) * int(height) * per_texel(maps, denoise)
 
 
-def seconds(width, height, maps, samples):
-    """Rough Cycles seconds of baking ``maps`` of one (width × height) map with ``samples`` samples."""
-    return int(width) * int(height) * int(samples) * sum(SECONDS_PER_TEXEL_SAMPLE[m] for m in maps)
+def seconds(width, height, maps, samples, speed=None):
+    """Upper bound of the Cycles seconds of baking ``maps`` of one (width × height) map with ``samples`` samples
+    under ``speed`` (:class:`Speed`, default a plain scene): texels × samples × rate, plus each call's fixed seconds
+    (the calls of :func:`calls`)."""
+    speed = speed or PLAIN
+    texels = int(width) * int(height)
+    return sum(texels * int(samples) * speed.rate(m) + calls(texels, m, samples, speed) * speed.call(m) for m in maps)
 
 
-def pass_samples(texels, kind):
-    """The most samples of one Cycles call of map ``kind`` over ``texels`` texels within PASS_SECONDS (at least 1)."""
-    return max(1, int(PASS_SECONDS // seconds(max(1, int(texels)), 1, [kind], 1)))
+def calls(texels, kind, samples, speed=None):
+    """How many Cycles calls a fixed-sample bake of ``samples`` makes: two halves for irradiance (at 2 samples
+    or more), each in passes of :func:`pass_samples`."""
+    halves = [int(samples) // 2, int(samples) - int(samples) // 2] if kind == "irradiance" and samples >= 2 \
+        else [int(samples)]
+    most = pass_samples(texels, kind, speed)
+    return sum(-(-n // most) for n in halves if n > 0)
 
 
-def check_time(sizes, maps, samples, option="samples", side_option="resolution"):
+def pass_samples(texels, kind, speed=None):
+    """The most samples of one Cycles call of map ``kind`` over ``texels`` texels within PASS_SECONDS, its fixed
+    seconds included (at least 1)."""
+    speed = speed or PLAIN
+    return max(1, int((PASS_SECONDS - speed.call(kind)) // (max(1, int(texels)) * speed.rate(kind))))
+
+
+def check_time(sizes, maps, samples, option="samples", side_option="resolution", speed=None):
     """Raise InputError when baking ``maps`` of every (width, height) in ``sizes`` with ``samples`` is estimated
     (:func:`seconds`, the figures of the progress line) beyond ``core.budget.MAX_SECONDS``. The one line names the
     largest ``option`` (samples) that fits, or where no sample count fits (or ``option`` is None) the largest
@@ -70,7 +137,7 @@ def check_time(sizes, maps, samples, option="samples", side_option="resolution")
         return
 
     def at(n, side=None):
-        return 0, sum(seconds(min(w, side or w), min(h, side or h), maps, n) for w, h in sizes)
+        return 0, sum(seconds(min(w, side or w), min(h, side or h), maps, n, speed) for w, h in sizes)
 
     if at(samples)[1] <= budget.MAX_SECONDS:
         return

@@ -167,7 +167,9 @@ def validate(scene, objects, maps, out, options):
         sizes = _fixed_sizes(objects, options)
         if sizes and not options.sizes and not options.atlas:
             sizes *= len(shard(objects, options)[0] if options.shard else objects)
-        _check_time(sizes, maps, options)
+        _check_time(sizes, maps, options, speed=speed(scene, options))
+    if options.target == "vertex":
+        _warn_coarse(scene, objects, maps, options)
     out = check_out_dir(out)
     if not options.overwrite:
         for path in output_files(shard(objects, options)[0] if options.shard else objects, maps, out, options,
@@ -191,11 +193,63 @@ def _check_vertex_bakeable(obj):
                              f"crashes on the vertices it makes): apply the modifier, or bake an image map")
 
 
-def _check_time(sizes, maps, options, side_option="resolution"):
+def vertex_spacing(obj):
+    """Typical distance (m) between neighbouring vertices of ``obj``'s mesh in world space: 2 √(area / vertices)
+    (a square's edge for a 4-vertex plane)."""
+    n = max(1, len(obj.data.vertices))
+    return 2.0 * math.sqrt(uvmod.world_area(obj) / n)
+
+
+def _occluder_size(scene, obj):
+    """The smallest largest dimension (m) of the other meshes that render, or None."""
+    sizes = [max(o.dimensions) for o in scene.view_layers[0].objects
+             if o.type == "MESH" and o is not obj and not o.hide_render and max(o.dimensions) > 0]
+    return min(sizes) if sizes else None
+
+
+def _warn_coarse(scene, objects, maps, options):
+    """Warn for each object too coarse for the vertex target: its vertex spacing (:func:`vertex_spacing`) above
+    the scale of what shades it (the AO distance for AO, the smallest other mesh for irradiance; the smaller of
+    both when baking both), so shadows between vertices are lost; names the mesh and what to do."""
+    for o in objects:
+        scales = []
+        if "ao" in maps:
+            scales.append(("the AO distance", float(options.ao_distance)))
+        near = _occluder_size(scene, o)
+        if near is not None:
+            scales.append(("the smallest other object", near))
+        if not scales:
+            continue
+        what, scale = min(scales, key=lambda x: x[1])
+        spacing = vertex_spacing(o)
+        if spacing <= scale:
+            continue
+        cuts = math.ceil(2 * spacing / scale)
+        errors.warn(f"'{o.name}': too coarse for vertex colours: its {len(o.data.vertices)} vertices lie about "
+                    f"{spacing:.3g} m apart, more than {what} ({scale:.3g} m), so contact shadows between them are "
+                    f"lost: subdivide it (about {cuts} cuts per edge) or bake an image map (--target image)")
+
+
+def _check_time(sizes, maps, options, side_option="resolution", speed=None):
     """InputError when the maps of ``sizes`` take longer than ``core.budget.MAX_SECONDS`` by the progress line's
-    figures (:func:`cost.check_time` with :func:`_planned_samples`); a target error names the side, not samples."""
+    figures (:func:`cost.check_time` with :func:`_planned_samples` and ``speed``); a target error names the side,
+    not samples."""
     cost.check_time(sizes, maps, _planned_samples(options), None if options.target_error is not None else "samples",
-                    side_option)
+                    side_option, speed)
+
+
+def speed(scene, options):
+    """The :class:`cost.Speed` of ``scene``'s bakes: the largest image of its world's node tree (an Environment or
+    Image Texture), its lights that render, ``options.bounces``."""
+    pixels = 0
+    world = scene.world
+    if world is not None and world.node_tree is not None:
+        for node in world.node_tree.nodes:
+            image = getattr(node, "image", None)
+            if node.type in ("TEX_ENVIRONMENT", "TEX_IMAGE") and not node.mute and image is not None:
+                pixels = max(pixels, int(image.size[0]) * int(image.size[1]) or 1024 * 512)
+    lights = sum(1 for o in scene.view_layers[0].objects if o.type == "LIGHT" and not o.hide_render)
+    return cost.Speed(pixels, lights, int(options.bounces))
 
 
 def _fixed_sizes(objects, options):
@@ -483,7 +537,7 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
         if not plan:
             raise errors_[0]
         if options.texel_density is not None and not options.sizes:
-            _check_time([e[2] for e in plan if e[2]], maps, options, "max resolution")
+            _check_time([e[2] for e in plan if e[2]], maps, options, "max resolution", speed(scene, options))
         batched, singles = batches(scene, plan, layers, state, options, maps)
         tracker = _Tracker(plan, maps, unchanged, options)
 
@@ -493,7 +547,7 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
                 _check_covered(name, group, m, result, layers, areas)
             if m == "ao":
                 _check_plausible(scene, name, group, result, options)
-            margin = margins.get(group[0].name, int(options.margin))
+            margin = margins.get(group[0].name, float(options.margin))
             t_files = time.perf_counter()
             result.seconds += t_files - t_map     # the header's il:seconds: bakes and checks, not the files
             entries = _write(name, group, m, result, out, options, layers, margin, overlap, digests[(name, m)],
@@ -506,13 +560,15 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
             part["seconds"] = time.perf_counter() - t_all
             _merge_report(report_path, part)      # finished maps are in the report, also if a later one fails
 
+        pace = speed(scene, options)
+
         def announce(entry, m):
             name, _, size = entry[:3]
             estimate = ""
             if size:
                 peak = cost.peak_bytes(size[0], size[1], [m], options.denoise)
                 estimate = (f" {size[0]}x{size[1]} (about {budget.format_bytes(peak)}, "
-                            f"{cost.seconds(size[0], size[1], [m], _planned_samples(options)):.2g} s)")
+                            f"{cost.seconds(size[0], size[1], [m], _planned_samples(options), pace):.2g} s)")
             step(f"{name}: {m}" + (estimate or " (vertices)") + tracker.line())
             tracker.done(entry, m)
 
@@ -937,10 +993,11 @@ def bake_map(scene, group, kind, options, layers, size, image_nodes, state):
     timer = {"cycles": 0.0}
 
     texels = size[0] * size[1] if image_target else sum(len(o.data.loops) for o in group)
+    pace = speed(scene, options)
 
     def once(samples, seed):
         total = _PassSum(samples)
-        for n, s in _passes(kind, samples, seed, texels):
+        for n, s in _passes(kind, samples, seed, texels, pace):
             values, mask, seconds = _bake_once(scene, group, kind, n, s, image, uv_name, options, inside)
             timer["cycles"] += seconds
             total.add(values, mask, n)
@@ -975,13 +1032,14 @@ SEED_STRIDE = 2 * MAX_PAIRS
 """Seeds of the passes of one bake step by this: a map's bakes have seeds seed .. seed + 2 MAX_PAIRS - 1."""
 
 
-def _passes(kind, samples, seed, texels):
+def _passes(kind, samples, seed, texels, pace=None):
     """[(samples, seed)] of the Cycles calls of one bake of ``samples`` at ``seed`` over ``texels`` texels: that
     one call when it fits cost.PASS_SECONDS (:func:`cost.seconds`, as the progress line), else near-equal sample
     passes of at most :func:`cost.pass_samples`, seeds seed + j SEED_STRIDE, whose sample-weighted mean
-    (:class:`_PassSum`) is the bake; Ctrl-C (deferred inside a call) stops between them."""
+    (:class:`_PassSum`) is the bake; Ctrl-C (deferred inside a call) stops between them. ``pace``: the scene's
+    :class:`cost.Speed`."""
     samples, seed = int(samples), int(seed)
-    most = cost.pass_samples(texels, kind)
+    most = cost.pass_samples(texels, kind, pace)
     if samples <= most:
         return [(samples, seed)]
     k = -(-samples // most)
@@ -1263,6 +1321,7 @@ def batches(scene, plan, layers, state, options, maps=None):
     scene.view_layers[0].update()
     depsgraph = scene.view_layers[0].depsgraph
     instanced = _instanced(scene)
+    pace = speed(scene, options)
     batched, singles = [], []
     for entry in plan:
         group = entry[1]
@@ -1275,7 +1334,7 @@ def batches(scene, plan, layers, state, options, maps=None):
     out, open_ = [], {}
     for entry in batched:
         t = entry[2][0] * entry[2][1]
-        plan_, cap = _pass_plan(t, maps or options.maps, options)
+        plan_, cap = _pass_plan(t, maps or options.maps, options, pace)
         batch = open_.get(plan_)
         if batch is None or batch[1] + t > cap:
             batch = open_[plan_] = [[], 0]
@@ -1285,15 +1344,18 @@ def batches(scene, plan, layers, state, options, maps=None):
     return out, singles
 
 
-def _pass_plan(texels, maps, options):
+def _pass_plan(texels, maps, options, pace=None):
     """(the samples of every Cycles call of a fixed-sample map of ``texels`` texels, per kind of ``maps``; the most
     texels a batch of such maps may hold: BATCH_TEXELS, and each call within cost.PASS_SECONDS). A batch joins
-    maps of one plan only, so each image comes out as its own calls make it."""
+    maps of one plan only, so each image comes out as its own calls make it. ``pace``: :class:`cost.Speed`."""
+    pace = pace or cost.PLAIN
     plan_, cap = [], BATCH_TEXELS
     for kind in maps:
-        calls = tuple(n for samples, seed in _calls(kind, options) for n, _ in _passes(kind, samples, seed, texels))
+        calls = tuple(n for samples, seed in _calls(kind, options)
+                      for n, _ in _passes(kind, samples, seed, texels, pace))
         plan_.append((kind, calls))
-        cap = min(cap, max(1, int(cost.PASS_SECONDS // cost.seconds(1, 1, [kind], max(calls)))))
+        room = max(cost.PASS_SECONDS - pace.call(kind), 0.0)
+        cap = min(cap, max(1, int(room // (pace.rate(kind) * max(calls)))))
     return tuple(plan_), cap
 
 
@@ -1425,9 +1487,10 @@ def bake_batch(scene, batch, kind, options, layers, temporary, state):
     try:
         with _Proxy(scene, batch, kind, layers, temporary, images, state) as proxy:
             largest = max(size[0] * size[1] for _, _, size, *_ in batch)   # batches() joins maps of one pass plan
+            pace = speed(scene, options)
             for samples, seed in _calls(kind, options):
                 sums = {name: _PassSum(samples) for name in images}
-                for n, s in _passes(kind, samples, seed, largest):
+                for n, s in _passes(kind, samples, seed, largest, pace):
                     for image in images.values():
                         image.pixels.foreach_set(np.zeros(image.size[0] * image.size[1] * 4, np.float32))
                     cycles += _call_bake(scene, [proxy.obj], kind, n, s, PROXY_UV, options)
@@ -1501,14 +1564,16 @@ def _finite(name, kind, values):
 
 
 def _write(name, group, kind, result, out, options, layers, margin=None, overlap=None, digest=None, stems=None):
-    """Write the files of one baked map (dilated by ``margin`` texels); return ``{object: report entry}``.
-    ``overlap`` = ({object: fraction}, group fraction) of covered texels shared by several faces; ``stems`` the
-    file stems of :func:`file_stems`."""
+    """Write the files of one baked map; return ``{object: report entry}``. ``margin``: the layout's margin in
+    texels (default the asked one; the map is dilated by :func:`uv.dilation` texels; both in the report and the
+    header). ``overlap`` = ({object: fraction}, group fraction) of covered texels shared by several faces;
+    ``stems`` the file stems of :func:`file_stems`."""
     stems = stems or file_stems()
-    margin = int(options.margin) if margin is None else int(margin)
+    margin = uvmod.margin_value(options.margin if margin is None else margin)
+    grow = uvmod.dilation(options.margin, margin)
     if options.target == "image":
         _finite(name, kind, result.values[result.mask])
-        values, grown = lightmap.dilate(result.values, result.mask, margin)
+        values, grown = lightmap.dilate(result.values, result.mask, grow)
         values = np.where(grown[..., None] if values.ndim == 3 else grown, values, 0.0)
         alpha = result.mask.astype(np.float32)
         uv_name = layers.get(group[0].name)
@@ -1525,6 +1590,7 @@ def _write(name, group, kind, result, out, options, layers, margin=None, overlap
         if overlap is not None:
             attrs["il:overlap"] = float(overlap[1])
         attrs["il:margin"] = margin
+        attrs["il:dilation"] = grow
         if len(group) > 1:
             attrs["il:objects"] = json.dumps({o.name: {"coverage": covered[o.name], "chart_area": areas[o.name]}
                                               | ({"overlap": float(overlap[0][o.name])} if overlap else {})
@@ -1537,7 +1603,8 @@ def _write(name, group, kind, result, out, options, layers, margin=None, overlap
         entries = {}
         for o in group:
             extra = {"preview": png, "uv_layer": uv_name, "coverage": covered[o.name],
-                     "chart_area": areas[o.name], "margin": margin, "denoised": bool(options.denoise)}
+                     "chart_area": areas[o.name], "margin": margin, "dilation": grow,
+                     "denoised": bool(options.denoise)}
             if overlap is not None:
                 extra["overlap"] = float(overlap[0][o.name])
             entries[o.name] = _entry(path, res, result, extra)
@@ -1599,7 +1666,9 @@ def _kept_entries(name, group, kind, out, options, stems, stored, old_reports):
             own = per.get(o.name) if isinstance(per, dict) and isinstance(per.get(o.name), dict) else whole
             extras[o.name] = {"preview": png, "uv_layer": _text(header.get("il:uv_layer")) or None,
                               "coverage": own.get("coverage"), "chart_area": own.get("chart_area"),
-                              "margin": int(number("il:margin", int(options.margin))),
+                              "margin": uvmod.margin_value(number("il:margin", float(options.margin))),
+                              "dilation": int(number("il:dilation", uvmod.dilation(
+                                  options.margin, number("il:margin", float(options.margin))))),
                               "denoised": _text(header.get("il:denoised")) == "1"}
             if "overlap" in own:
                 extras[o.name]["overlap"] = own["overlap"]

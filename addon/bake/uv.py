@@ -201,12 +201,36 @@ def check_overlap(scene, objects, layers, size):
             names = ", ".join(f"'{m.name}'" for m in copies)
             errors.warn(f"'{o.name}': {kinds} copies share the light-map texels ({100 * frac:.0f} % of its texels "
                         f"hold several faces, modifier {names}): apply the modifier to give each copy its own")
+        elif lightmap.overlap_fraction(tri, FINE_SIDE, FINE_SIDE) <= MAX_OVERLAP:
+            errors.warn(too_few_texels(o, tri, size))
         else:
             errors.warn(f"'{o.name}': faces share texels of UV layer '{layer}' ({100 * frac:.0f} % of its texels "
                         f"hold several faces, which get one value): use a layer without overlapping charts, or let "
                         f"the bake generate one")
     group = lightmap.overlap_fraction(np.concatenate(every), w, h) if len(objects) > 1 else fractions[objects[0].name]
     return fractions, group
+
+
+FINE_SIDE = 2048
+"""Side at which a layout whose charts overlap at the map's size is measured again: overlap that vanishes there
+comes from too few texels (several tiny triangles around one texel centre), not from charts over each other."""
+TEXELS_PER_TRIANGLE = 4
+"""Covered texels per triangle the suggested side gives (a texel per triangle at least, with room)."""
+
+
+def too_few_texels(obj, tri, size):
+    """The warning for a layout whose faces share texels only because the map is too small for the mesh: covered
+    texels against triangles, and the side (and texel density) that gives each triangle TEXELS_PER_TRIANGLE."""
+    w, h = size
+    covered = max(1, int(lightmap.coverage_mask(tri, w, h).sum()))
+    n = len(tri)
+    side = min(lightmap.MAX_RESOLUTION, math.ceil(max(w, h) * math.sqrt(TEXELS_PER_TRIANGLE * n / covered)))
+    area = world_area(obj)
+    density = side * math.sqrt(chart_area(tri) / area) if area > 0 else 0.0
+    return (f"'{obj.name}': {covered} texels for {n} triangles in {article(f'{w}x{h}')} map "
+            f"({covered / n:.2g} per triangle): the map is too small for the mesh, so neighbouring faces share "
+            f"texels; a resolution of {side} (about {density:.3g} texels/m) gives each triangle about "
+            f"{TEXELS_PER_TRIANGLE} texels")
 
 
 def _side_that_fits(tri, w, h, cap=4096):
@@ -222,7 +246,9 @@ def _side_that_fits(tri, w, h, cap=4096):
 # ------------------------------------------------------------------ generated layouts
 
 def prepare(scene, objects, state, options, together=False):
-    """Return ``({object: layer name}, {object: side its layout was made for}, {object: dilation texels})``.
+    """Return ``({object: layer name}, {object: side its layout was made for}, {object: margin in texels})``
+    (the generated layout's margin, possibly lowered to half a texel; else the asked one; :func:`dilation`
+    gives the texels the map is dilated by).
 
     ``options.uv_layer`` is used as it is; otherwise an existing "Lightmap" layer (from an earlier
     bake) is reused as it is when it still covers the map, or one is generated. With ``together`` the
@@ -238,7 +264,7 @@ def prepare(scene, objects, state, options, together=False):
         else:
             todo.append(o)
     for o in objects:
-        margins[o.name] = int(options.margin)
+        margins[o.name] = float(options.margin)
     groups = [todo] if together else [[o] for o in todo]
     for group in groups:
         if group:
@@ -281,7 +307,7 @@ def _margins(margin):
 
 
 def _unwrap_with_margin(scene, group, state, options, names):
-    """Generate "Lightmap" for ``group``; return (side the layout was made for, dilation texels).
+    """Generate "Lightmap" for ``group``; return (side the layout was made for, its margin in texels).
 
     A fixed resolution gives the side at once; the margin is lowered (down to half a texel, with a
     warning) until the charts lie inside the unit square and cover the map (MIN_COVERAGE), else the
@@ -330,10 +356,26 @@ def _unwrap_with_margin(scene, group, state, options, names):
 
 
 def _dilation(label, asked, margin, side):
+    """The layout's margin ``margin`` (texels), with a warning when it is below the ``asked`` one; the message
+    gives the numbers the report and the EXR header carry (margin, dilation)."""
     if margin < float(asked):
+        d = dilation(asked, margin)
         errors.warn(f"{label}: light-map margin lowered from {asked} to {margin:g} texel(s) so that the charts "
-                    f"fit and fill {article(f'{side}x{side}')} map")
-    return min(int(asked), math.ceil(margin))
+                    f"fit and fill {article(f'{side}x{side}')} map (charts {2 * margin:g} texel(s) apart, dilated by "
+                    f"{d} texel(s))")
+    return margin
+
+
+def dilation(asked, margin):
+    """Texels a map is dilated by: the asked margin, at most the layout's ``margin`` rounded up (a half-texel
+    layout is dilated by 1)."""
+    return min(int(asked), math.ceil(float(margin)))
+
+
+def margin_value(margin):
+    """``margin`` (texels) as the report and the EXR header give it: an int when whole, else the float."""
+    m = float(margin)
+    return int(m) if m.is_integer() else m
 
 
 def _fit(copies, group, side, margin):

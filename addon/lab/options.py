@@ -82,9 +82,11 @@ class SSAOOptions(Options):
                              maximum=ssao_limits.MAX_RESOLUTION)
     samples: int = option(16, "Samples", "depth-buffer samples per pixel", minimum=1,
                           maximum=ssao_limits.MAX_SAMPLES)
-    radius: float = option(1.0, "Radius", "SSAO radius in metres = the reference's AO distance (at most 1e6: "
-                           "the methods' float32 squares of radius and depth stay finite)", above=0,
-                           maximum=MAX_SSAO_RADIUS, soft_max=10.0, unit="LENGTH")
+    radius: float = option(None, "Radius", "SSAO radius in metres = the reference's AO distance (at most 1e6: "
+                           "the methods' float32 squares of radius and depth stay finite); default: a tenth of "
+                           "the frame's width at the median depth of the visible geometry (a built-in scene: 1 m)",
+                           kind=float, above=0, maximum=MAX_SSAO_RADIUS, soft_max=10.0, unit="LENGTH",
+                           ui_default=1.0)
     reference_samples: int = option(1024, "Reference Samples", "Cycles AO samples per pixel of the reference "
                                     "(1024: noise <= 0.016)", minimum=1, maximum=ssao_limits.MAX_REFERENCE_SAMPLES)
     blur: bool = option(False, "Depth-Aware Blur", "depth-aware blur after each numpy method")

@@ -2,7 +2,7 @@
 import json
 
 import bpy
-from bpy.props import EnumProperty, StringProperty
+from bpy.props import BoolProperty, EnumProperty, StringProperty
 
 from ..lab.options import SSAO_SCENE_CHOICES, SSAOOptions
 from .panel import Sidebar
@@ -17,6 +17,9 @@ class IL_PG_ssao(bpy.types.PropertyGroup):
         "scene_kind": EnumProperty(name="Scene", items=SSAO_SCENE_CHOICES, default="corner",
                                    description="Built-in scene that Build SSAO Scene adds"),
         **props.properties(SSAOOptions),
+        "radius_auto": BoolProperty(name="Radius from Scene", default=True,
+                                    description="Radius = a tenth of the frame's width at the median depth of the "
+                                    "visible geometry (the report gives it); off: the Radius below"),
         "output_dir": props.output_dir("//ssao/", "Folder for the AO images, error images and ssao_report.json"),
         "last_report": StringProperty(name="Last Report", default="", options={"SKIP_SAVE"}),
     }
@@ -57,7 +60,7 @@ class IL_OT_ssao_compare(JobOperator, bpy.types.Operator):
     def job(self, context):
         from ..lab import ssao as lab
         s = context.scene.illumination.ssao
-        o = props.options(SSAOOptions, s)
+        o = props.options(SSAOOptions, s, radius=None if s.radius_auto else s.radius)
         out = bpy.path.abspath(s.output_dir)
         result = lab.compare(context.scene, o.methods, out, samples=o.samples, radius=o.radius,
                              reference_samples=o.reference_samples, resolution=o.resolution, blur=o.blur, seed=o.seed)
@@ -85,7 +88,10 @@ class IL_PT_ssao(Sidebar, bpy.types.Panel):
         col = layout.column(align=True)
         col.prop(s, "resolution")
         col.prop(s, "samples")
-        col.prop(s, "radius")
+        col.prop(s, "radius_auto")
+        sub = col.row(align=True)
+        sub.active = not s.radius_auto
+        sub.prop(s, "radius")
         col.prop(s, "reference_samples")
         layout.prop(s, "blur")
         layout.prop(s, "output_dir")

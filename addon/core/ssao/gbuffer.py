@@ -239,3 +239,20 @@ def positions_at(gb, x, y):
         ndc_y -= p[1, 3]
         ndc_y /= p[1, 1]
     return ndc_x, ndc_y, np.negative(d), on
+
+
+DEFAULT_RADIUS_FRACTION = 0.1
+"""The default SSAO radius is this fraction of the frame's width in metres at the median depth of the geometry
+pixels (:func:`default_radius`)."""
+
+
+def default_radius(gb, fraction=DEFAULT_RADIUS_FRACTION):
+    """The radius (metres) used when none is given: ``fraction`` × the frame's width at the median view depth
+    z of the geometry pixels, W / pixels_per_metre(z) (perspective: about 2 z / P00; orthographic: the view
+    width). It scales with the scene (a scene and camera scaled by s get s × the radius) and is the same
+    share of the frame, ``fraction`` × W pixels, at any distance. None when no pixel is geometry."""
+    depth = gb.depth[gb.mask]
+    if not depth.size:
+        return None
+    z = np.float32(np.median(depth))
+    return float(fraction * gb.width / float(pixels_per_metre(gb, np.asarray([z], np.float32))[0]))

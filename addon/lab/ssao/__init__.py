@@ -18,6 +18,7 @@ restored afterwards, also after an error (:func:`preserved`, blender.state).
 import contextlib
 import hashlib
 import os
+import sys
 import time
 
 import bpy
@@ -46,6 +47,11 @@ from . import scenes
 REFERENCE_VERSION = 1
 #: Pixel filter width of every lab render (pixels): effectively no jitter.
 FILTER_WIDTH = 0.01
+#: The built-in scenes' radius when none is given (they are built around it, in metres).
+BUILTIN_RADIUS = 1.0
+#: How a radius that was not given is chosen (the report's "radius_rule").
+RADIUS_RULE = (f"default: {ssao_gbuffer.DEFAULT_RADIUS_FRACTION:g} x the frame width at the median depth "
+               f"of the visible geometry")
 
 
 # ---------------------------------------------------------------- parameters
@@ -57,7 +63,7 @@ def parse_methods(methods):
 
 def check_params(samples=16, radius=1.0, reference_samples=1024, resolution=None):
     """InputError for values out of range (lab.options.SSAOOptions' limits; ``resolution`` None keeps the
-    scene's)."""
+    scene's, ``radius`` None is derived from the scene)."""
     SSAOOptions(samples=samples, radius=radius, reference_samples=reference_samples,
                 resolution=SSAOOptions.resolution if resolution is None else resolution).validate()
 
@@ -340,6 +346,8 @@ def compare(scene, methods, out=None, samples=SSAOOptions.samples, radius=SSAOOp
             seed=SSAOOptions.seed, method_params=None):
     """Run the comparison on ``scene`` (its camera); write files to ``out`` (if given); return a
     core.result.JobResult (reads as the report; ``path`` is ssao_report.json when ``out`` is given).
+    ``radius`` None: :func:`core.ssao.gbuffer.default_radius` of the G-buffer, said on stderr and in the
+    report's "radius" and "radius_rule".
 
     Report (DESIGN.md): {"reference": {"samples", "seconds", ...}, "methods": {m: {"rmse", "bias",
     "mean", "seconds", "params"}}} over geometry pixels (G-buffer mask) only.
@@ -358,6 +366,13 @@ def compare(scene, methods, out=None, samples=SSAOOptions.samples, radius=SSAOOp
         gb, world, gb_seconds = render_gbuffer(scene)
         if not gb.mask.any():
             raise ILError(f"the camera of scene '{scene.name}' sees no geometry")
+        rule = "given"
+        if radius is None and scene.get("il_ssao_scene"):
+            radius, rule = BUILTIN_RADIUS, f"default of the built-in scenes: {BUILTIN_RADIUS:g} m"
+        elif radius is None:
+            radius, rule = ssao_gbuffer.default_radius(gb), RADIUS_RULE
+        if rule != "given":
+            print(f"ssao: radius {radius:.4g} m ({rule}; --radius to choose)", file=sys.stderr, flush=True)
         progress.step(f"reference: Cycles AO pass, {reference_samples} samples")
         ref = render_reference(scene, radius, reference_samples, cache_dir)
         mask = gb.mask
@@ -369,7 +384,7 @@ def compare(scene, methods, out=None, samples=SSAOOptions.samples, radius=SSAOOp
     report = {
         "scene": scene.get("il_ssao_scene", scene.name),
         "resolution": [gb.width, gb.height],
-        "radius": float(radius), "samples": int(samples), "blur": bool(blur),
+        "radius": float(radius), "radius_rule": rule, "samples": int(samples), "blur": bool(blur),
         "geometry_pixels": int(mask.sum()),
         "gbuffer": {"seconds": gb_seconds, "samples": 1, "filter_width": FILTER_WIDTH},
         "reference": {"samples": ref["samples"], "seconds": ref["seconds"], "cached": ref["cached"],
@@ -424,9 +439,9 @@ def run_builtin(name, methods, out=None, resolution=SSAOOptions.resolution, **kw
     """Build the built-in scene ``name``, compare, remove the scene again; return the report."""
     ssao_limits.check_scene(name)
     methods = parse_methods(methods)
-    check_params(kwargs.get("samples", SSAOOptions.samples), kwargs.get("radius", SSAOOptions.radius),
+    check_params(kwargs.get("samples", SSAOOptions.samples), kwargs.get("radius"),
                  kwargs.get("reference_samples", SSAOOptions.reference_samples), resolution)
-    scene = scenes.build_scene(name, resolution, kwargs.get("radius", SSAOOptions.radius))
+    scene = scenes.build_scene(name, resolution, kwargs.get("radius") or BUILTIN_RADIUS)
     try:
         return compare(scene, methods, out, resolution=resolution, **kwargs)
     finally:
@@ -436,7 +451,8 @@ def run_builtin(name, methods, out=None, resolution=SSAOOptions.resolution, **kw
 def summary_lines(report):
     """One line for the reference (samples, noise, seconds) and one per method (RMSE, bias, seconds)."""
     ref = report["reference"]
-    lines = [f"reference: {ref['samples']} samples, noise {ref['noise_rms']:.4f} rms, "
+    lines = [f"radius: {report['radius']:.4g} m ({report.get('radius_rule', 'given')})",
+             f"reference: {ref['samples']} samples, noise {ref['noise_rms']:.4f} rms, "
              f"{ref['seconds']:.2f} s{' (cached)' if ref['cached'] else ''}"]
     for m, r in report["methods"].items():
         lines.append(f"{m:>10}: RMSE {r['rmse']:.4f}  bias {r['bias']:+.4f}  {r['seconds']:.3f} s")
