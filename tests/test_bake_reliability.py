@@ -582,27 +582,32 @@ HDR = os.path.join(bpy.utils.system_resource("DATAFILES", path="studiolights/wor
 
 
 @pytest.mark.skipif(not os.path.exists(HDR), reason="no bundled studio light")
-def test_estimate_under_an_hdr_world_bounds_the_measured_cycles_seconds(tmp_path):
+def test_the_estimate_counts_an_image_textured_world(tmp_path):
+    """25.6: the progress line said "about 0.21 s" for a bake that took 4.9 s under an HDR world. The estimate
+    (the figures of the progress line, the passes and the 2-hour bound) now reads the world: under a 1024x512
+    environment image every map costs the image-world rate and each Cycles call the image's load, far above
+    the plain world's figure. Measured seconds against it are a benchmark figure (docs/lightmaps.md), not a
+    timed test."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     bpy.ops.mesh.primitive_plane_add(size=4)
-    floor = bpy.context.object
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(0, 0, 0.6))
     world = sc.world(scene, strength=1.0)
+    from addon.bake import pipeline
+    plain = {}
+    for kind, res, samples in (("ao", 32, 4), ("irradiance", 64, 8)):
+        options = BakeOptions(maps=[kind], resolution=res, samples=samples, bounces=3)
+        pace = pipeline.speed(scene, options)
+        assert pace.world_pixels == 0
+        plain[kind] = cost.seconds(res, res, [kind], samples, pace)
     tex = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
     tex.image = bpy.data.images.load(HDR)
     world.node_tree.links.new(tex.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
-    from addon.bake import pipeline
     for kind, res, samples in (("ao", 32, 4), ("irradiance", 64, 8)):
-        options = BakeOptions(maps=[kind], resolution=res, samples=samples, bounces=3, overwrite=True)
+        options = BakeOptions(maps=[kind], resolution=res, samples=samples, bounces=3)
         pace = pipeline.speed(scene, options)
         assert pace.world_pixels == 1024 * 512
-        estimate = cost.seconds(res, res, [kind], samples, pace)
-        rep = bake_lightmaps([floor], [kind], tmp_path / kind, options, scene=scene)
-        measured = rep["objects"][floor.name][kind]["cycles_seconds"]
-        # an upper bound, within a factor of 6 of what Cycles took (3.6-5.1 s per call measured; the plain model
-        # said 0.0037 s for the AO map, 1000 x too little)
-        assert measured <= estimate <= 6 * measured, (kind, measured, estimate)
+        hdr = cost.seconds(res, res, [kind], samples, pace)
+        assert hdr >= 1.0 and hdr > 100 * plain[kind], (kind, plain[kind], hdr)
 
 
 def test_lowered_margin_is_the_same_number_in_message_report_and_header(tmp_path, script):
