@@ -80,10 +80,12 @@ def save_copy(path):
     written beside it under a temporary name and moved into place, so ``path`` is whole or untouched; the opened
     file and the session's file path are left as they were."""
     import bpy
+    from addon.blender import interrupt
     from addon.core.errors import ILError
     tmp = os.path.join(os.path.dirname(path), f".{os.path.basename(path)}.{os.getpid()}.tmp.blend")
     try:
-        result = bpy.ops.wm.save_as_mainfile(filepath=tmp, copy=True, check_existing=False, compress=False)
+        with interrupt.blender_call():      # Blender's "Info: Saved copy as ..." kept off stdout (blender.chatter)
+            result = bpy.ops.wm.save_as_mainfile(filepath=tmp, copy=True, check_existing=False, compress=False)
         if "FINISHED" not in result:
             raise ILError(f"--save-as: Blender did not save {path} ({', '.join(result)})")
         os.replace(tmp, path)

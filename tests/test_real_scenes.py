@@ -4,7 +4,9 @@ Outputs are checked, not only exit codes: maps finite, AO in [0, 1], irradiance 
 least MIN_COVERAGE, the floor's irradiance at least the sun's E = S cos(theta), the irradiance
 map of a two-valued sky against its closed form, shadow and SSAO errors bounded, radiosity
 within the built-in scene's agreement with Cycles. A crash names the signal and the objects
-that crash alone.
+that crash alone. public_like.blend (open scan, OBJ triangle soup, textured glTF, multi-material mesh, area
+lights and an .hdr world) checks each fix of issue 25 by its output: masks, rendered slot colours, map values,
+the printed lines, the SSAO radius.
 """
 import json
 import math
@@ -523,3 +525,310 @@ def test_envmap_of_a_plain_world_colour(corpus, tmp_path, script):
     ch, _ = exr.read_exr(out / "irradiance_latlong.exr")
     for c, L in zip("RGB", (0.05, 0.05, 0.06)):
         np.testing.assert_allclose(ch[c], math.pi * L, rtol=0.02)
+
+
+# ---------------------------------------------------------------- public_like: what public scenes showed (issue 25)
+
+PUBLIC_SUN_ROTATION = (-0.9, 0.0, 0.6)      # low, behind the objects: their shadows fall toward the camera
+FOREIGN_OUTPUT = ("Info:", "Read blend", "color_management", "EGL", "Saved copy", "Warning:")
+
+
+def foreign_lines(proc, tool, stdout_pattern):
+    """Lines of ``proc``'s stdout and stderr that are not ``tool``'s own (25.7): stdout lines must match
+    ``stdout_pattern``, stderr lines be progress ("[") or the tool's warnings, and neither carry Blender's
+    console output."""
+    import re
+    ours = re.compile(stdout_pattern)
+    bad = [f"stdout: {ln!r}" for ln in proc.stdout.splitlines() if not ours.match(ln)]
+    bad += [f"stderr: {ln!r}" for ln in proc.stderr.splitlines()
+            if not ln.startswith(("[", f"{tool}: warning: ", f"{tool.split('.')[0]}: "))]
+    bad += [f"Blender's output: {ln!r}" for ln in (proc.stdout + proc.stderr).splitlines()
+            if any(word in ln for word in FOREIGN_OUTPUT)]
+    return bad
+
+
+def with_sun(entry, path):
+    """A copy of the file with a sun added (the shadow lab needs a point, spot or sun light; the file has area
+    lights only), saved at ``path``; the corpus file stays as it is."""
+    import bpy
+    bpy.ops.wm.open_mainfile(filepath=entry["path"])
+    bpy.ops.object.light_add(type="SUN", rotation=PUBLIC_SUN_ROTATION)
+    bpy.context.object.name = "Sun"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    return path
+
+
+def test_public_shadows_on_open_scans_skip_only_the_volume_methods(corpus, tmp_path, script):
+    """25.1: a file with no closed mesh (scan, soup, glTF and open boxes) and the default methods: exit 0, both
+    volume methods in the report's "skipped" and named in a warning, the planar and shadow-map masks written and
+    within 5 % of the ray-traced mask on the receiver pixels -- recounted from the PNGs, not taken from the
+    report."""
+    from addon.core.io import png
+    from addon.core.shadow.metrics import COLOURS
+    entry = corpus["files"]["public_like"]
+    blend = with_sun(entry, tmp_path / "public_sun.blend")
+    out = tmp_path / "shadows"
+    proc = script("shadows.py", blend, "--light", "Sun", "--resolution", 64, "--shadowmap-size", 512, "--out", out,
+                  timeout=300)
+    assert proc.returncode == 0, failure("shadows.py", "public_like", proc, "(default methods)")
+    rep = json.loads((out / "shadows_report.json").read_text())
+    problems = []
+    skipped = rep.get("skipped", {})
+    if sorted(skipped) != ["volume_zfail", "volume_zpass"]:
+        problems.append(f"skipped {sorted(skipped)}, want exactly the two volume methods")
+    if sorted(rep["methods"]) != ["planar", "raytraced", "shadowmap"]:
+        problems.append(f"methods run {sorted(rep['methods'])}, want raytraced, planar, shadowmap")
+    for m in ("volume_zpass", "volume_zfail"):
+        if not any(ln.startswith("shadows.py: warning: ") and m in ln and "closed mesh" in ln
+                   for ln in proc.stderr.splitlines()):
+            problems.append(f"{m}: no warning saying why it was skipped")
+        if (out / f"{m}_mask.png").exists():
+            problems.append(f"{m}: a mask written for a skipped method")
+    missing = [n for n in (entry["scan"], entry["soup"], entry["gltf"], entry["multi"])
+               if n not in skipped.get("volume_zpass", "")]
+    if missing:
+        problems.append(f"open meshes not named in the skip reason: {missing}")
+    read = lambda name: png.decode_png((out / name).read_bytes())
+    ref = read("raytraced_mask.png") > 127
+    shadowed = rep["reference"]["shadowed_fraction"]
+    if not 0.05 < shadowed < 0.95:
+        problems.append(f"reference shadowed fraction {shadowed:.3f}: the check needs both light and shadow")
+    for m in ("planar", "shadowmap"):
+        if not (out / f"{m}_mask.png").is_file():
+            problems.append(f"{m}: no mask")
+            continue
+        mask = read(f"{m}_mask.png") > 127
+        receiver = np.any(read(f"{m}_error.png") != np.array(COLOURS["background"], np.uint8), axis=-1)
+        err = float((mask != ref)[receiver].mean())
+        if receiver.sum() != rep["reference"]["receiver_pixels"]:
+            problems.append(f"{m}: error image has {receiver.sum()} receiver pixels, the report "
+                            f"{rep['reference']['receiver_pixels']}")
+        if not err <= 0.05:
+            problems.append(f"{m}: {err:.3f} of the receiver differs from the ray-traced mask (> 0.05)")
+        if abs(err - rep["methods"][m]["error"]) > 1e-9:
+            problems.append(f"{m}: masks differ on {err:.4f} of the receiver, the report says "
+                            f"{rep['methods'][m]['error']:.4f}")
+    problems += foreign_lines(proc, "shadows.py", r"^(shadows: report |  \w+ +(error |skipped: ))")
+    assert not problems, "shadows.py on public_like.blend + Sun:\n  " + "\n  ".join(problems)
+
+
+def test_public_shading_keeps_slot_colours_texture_and_emission_under_area_lights(corpus, capfd):
+    """25.2, 25.3: Assign Shading Model (Phong) on everything of a file lit by area lights only. The
+    multi-material mesh's red, green and emissive slots render, region by region (Material Index pass), as the
+    NumPy twin of Phong with the manifest's slot colours and the area lights as Lambertian spots (mean within
+    1e-3 relative); the emitter adds its Emission Color x Strength; the glTF mesh's IL material keeps the image
+    texture linked and both checker colours show in the render; the warning names the area lights."""
+    import bpy
+    from mathutils import Vector
+    from addon.blender import render
+    from addon.core import brdf, lights as twin_lights
+    from addon.nodes import material
+    entry = corpus["files"]["public_like"]
+    bpy.ops.wm.open_mainfile(filepath=entry["path"])
+    scene = bpy.context.scene
+    capfd.readouterr()
+    for o in scene.objects:
+        o.select_set(o.type == "MESH")
+    bpy.context.view_layer.objects.active = bpy.data.objects[entry["multi"]]
+    assert bpy.ops.illumination.assign_shading_model(model="PHONG") == {"FINISHED"}
+    said = capfd.readouterr()
+    said = said.out + said.err
+    problems = []
+    areas = entry["area_lights"]
+    if not any(all(f"'{a}'" in ln for a in areas) and "Lambertian" in ln for ln in said.splitlines()):
+        problems.append(f"no warning naming the area lights {areas} as modelled: {said!r}")
+
+    multi = bpy.data.objects[entry["multi"]]
+    can = bpy.data.objects[entry["gltf"]]
+    il = [s.material for s in multi.material_slots]
+    if [m.get("il_original").name if m.get("il_original") else None for m in il] != \
+            [s["material"] for s in entry["slots"]]:
+        problems.append(f"{multi.name}: slots not converted one by one: {[m.name for m in il]}")
+    for m in bpy.data.materials:
+        m.pass_index = 0
+    for k, m in enumerate(il):
+        m.pass_index = k + 1
+    can_mat = can.material_slots[0].material
+    can_mat.pass_index = len(il) + 1
+    tex = [n for n in can_mat.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage"]
+    if not (can_mat.get("il_model") and tex and tex[0].image and tex[0].image.name == entry["gltf_image"]
+            and tex[0].outputs["Color"].is_linked):
+        problems.append(f"{can.name}: the IL material {can_mat.name} lost the linked image texture")
+
+    render.cycles_cpu(scene, samples=1)
+    scene.cycles.filter_width = 0.01
+    scene.cycles.max_bounces = 0
+    scene.render.resolution_percentage = 100
+    vl = scene.view_layers[0]
+    vl.use_pass_position = vl.use_pass_normal = vl.use_pass_material_index = True
+    passes = render.render_layers(scene)
+    index_key = next(k for k in passes if "Material" in k or k == "IndexMA")
+    index = np.rint(passes[index_key]).astype(int)
+    rgb = passes["Combined"][..., :3].astype(float)
+    cam = np.array(scene.camera.matrix_world.translation)
+    lamps = [bpy.data.objects[a] for a in areas]
+    for k, (slot, mat) in enumerate(zip(entry["slots"], il)):
+        sel = index == k + 1
+        if sel.sum() < 10:
+            problems.append(f"{slot['material']}: {int(sel.sum())} pixels in the render (want >= 10)")
+            continue
+        p = passes["Position"][sel].astype(float)
+        n = passes["Normal"][sel].astype(float)
+        v = cam - p
+        params = material.read_parameters(mat)
+        twin = params["Ka"] * np.array(params["Ambient Light"][:3]) + np.zeros_like(p)
+        for lamp in lamps:
+            axis = np.array(lamp.matrix_world.to_3x3() @ Vector((0, 0, -1)))
+            lv, I = twin_lights.area_light(p, np.array(lamp.matrix_world.translation), axis,
+                                           tuple(lamp.data.color), lamp.data.energy)
+            twin += brdf.phong(n, lv, v, I, kd=slot["color"], ks=params["Ks"], shininess=params["Shininess"],
+                               normalized=params["Normalized"])
+        if slot["emission"]:
+            twin += np.array(slot["emission"]) * slot["strength"]
+        got, want = rgb[sel].mean(axis=0), twin.mean(axis=0)
+        if not np.all(np.abs(got - want) <= 1e-3 * want.max() + 1e-5):
+            problems.append(f"{slot['material']}: mean colour {np.round(got, 4)}, the twin with the slot's colour "
+                            f"{slot['color']} gives {np.round(want, 4)}")
+        ambient = params["Ka"] * np.array(params["Ambient Light"][:3])
+        lit = want - ambient - (np.array(slot["emission"]) * slot["strength"] if slot["emission"] else 0.0)
+        if lit.max() <= 5 * ambient.max():
+            problems.append(f"{slot['material']}: the area lights give it {lit} only (ambient {ambient}): the "
+                            "check would not see them missing")
+        if slot["emission"] and not np.all(got >= 0.99 * np.array(slot["emission"]) * slot["strength"]):
+            problems.append(f"{slot['material']}: {np.round(got, 3)} below its emission "
+                            f"{slot['emission']} x {slot['strength']}")
+    label = rgb[index == len(il) + 1]
+    yellow = (label[:, 0] > 1.5 * label[:, 2]).sum() if len(label) else 0
+    blue = (label[:, 2] > 1.5 * label[:, 0]).sum() if len(label) else 0
+    if min(yellow, blue) < 3:
+        problems.append(f"{can.name}: the label's two colours do not both show ({yellow} yellow, {blue} blue "
+                        f"of {len(label)} pixels)")
+    seen = rgb[np.linalg.norm(passes["Normal"], axis=-1) > 0.5]
+    if not np.mean(seen.max(axis=-1) > 0.05) > 0.5:           # ambient alone: k_a I_a = 0.02
+        problems.append("area lights only: most of the shaded geometry renders black (ambient only)")
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    assert not problems, "assign_shading_model(PHONG) on public_like.blend:\n  " + "\n  ".join(problems)
+
+
+BAKE_STDOUT = r"^(\S+ (ao|irradiance): .+\.exr \d+x\d+ |baked |report: |saved a copy: )"
+
+
+def test_public_denoised_bake_stays_in_range_and_prints_only_its_own_lines(corpus, tmp_path, script):
+    """25.4, 25.7: AO and irradiance of the floor under an HDR world, denoised: every covered k_A in [0, 1]
+    (the denoiser overshot 1 on the unoccluded floor) with contact shadows below 1, every E finite and >= 0;
+    stdout and stderr carry bake.py's own lines only."""
+    entry = corpus["files"]["public_like"]
+    floor = entry["receiver"]
+    out = tmp_path / "maps"
+    proc = script("bake.py", entry["path"], "--objects", floor, "--maps", "ao", "irradiance", "--denoise",
+                  "--samples", 4, "--resolution", 64, "--out", out, timeout=300)
+    assert proc.returncode == 0, failure("bake.py --denoise", "public_like", proc)
+    report = json.loads((out / "bake_report.json").read_text())["objects"][floor]
+    problems = []
+    for kind in ("ao", "irradiance"):
+        rep = report[kind]
+        if rep.get("denoised") is not True:
+            problems.append(f"{kind}: not denoised by the report")
+        problems += check_map(floor, kind, rep["file"], rep, MIN_COVERAGE, 64)
+    ch, _ = exr.read_exr(report["ao"]["file"])
+    y = ch["Y"][covered(ch)]
+    if not (y.max() <= 1.0 and y.min() < 0.9):
+        problems.append(f"ao: k_A {y.min():.3f} .. {y.max():.4f} (want <= 1, with contact shadows below 0.9)")
+    ch, _ = exr.read_exr(report["irradiance"]["file"])
+    e = np.stack([ch[c] for c in "RGB"])
+    if not (np.all(np.isfinite(e)) and e.min() >= 0):
+        problems.append(f"irradiance: E not finite or negative ({np.nanmin(e):.4g} .. {np.nanmax(e):.4g})")
+    problems += foreign_lines(proc, "bake.py", BAKE_STDOUT)
+    assert not problems, "bake.py --denoise on public_like.blend:\n  " + "\n  ".join(problems)
+
+
+def test_public_vertex_bake_names_the_coarse_floor_and_saves_a_copy(corpus, tmp_path, script):
+    """25.8: --target vertex on the 4-vertex floor beside 0.1 m objects: a warning names the floor as too coarse;
+    --save-as writes a copy whose floor carries "IL AO" with the values of the vertex map; the corpus file's bytes
+    are unchanged; stdout carries bake.py's lines only (Blender's "Info: Saved copy" was printed there)."""
+    import bpy
+    entry = corpus["files"]["public_like"]
+    floor = entry["receiver"]
+    before = open(entry["path"], "rb").read()
+    copy = tmp_path / "baked.blend"
+    out = tmp_path / "vertex"
+    proc = script("bake.py", entry["path"], "--objects", floor, "--maps", "ao", "--target", "vertex",
+                  "--samples", 4, "--out", out, "--save-as", copy, timeout=300)
+    assert proc.returncode == 0, failure("bake.py --target vertex --save-as", "public_like", proc)
+    problems = []
+    warned = [ln for ln in proc.stderr.splitlines() if ln.startswith("bake.py: warning: ") and "too coarse" in ln]
+    if not any(f"'{floor}'" in ln and "subdivide" in ln for ln in warned):
+        problems.append(f"no warning naming '{floor}' as too coarse for vertex colours: {proc.stderr!r}")
+    if open(entry["path"], "rb").read() != before:
+        problems.append("the corpus file was written")
+    if not copy.is_file() or [p.name for p in tmp_path.iterdir() if p.name.endswith(".tmp.blend")]:
+        problems.append("no copy, or its temporary left behind")
+    else:
+        ch, _ = exr.read_exr(json.loads((out / "bake_report.json").read_text())["objects"][floor]["ao"]["file"])
+        bpy.ops.wm.open_mainfile(filepath=str(copy))
+        me = bpy.data.objects[floor].data
+        attr = me.color_attributes.get("IL AO")
+        if attr is None or attr.domain != "POINT" or len(attr.data) != len(me.vertices):
+            problems.append(f"copy: no per-vertex 'IL AO' on {floor} ({list(me.color_attributes.keys())})")
+        else:
+            values = np.array([d.color[0] for d in attr.data])
+            if not np.allclose(values, ch["Y"].ravel(), atol=1e-6):
+                problems.append(f"copy: 'IL AO' {values} != the vertex map {ch['Y'].ravel()}")
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+    problems += foreign_lines(proc, "bake.py", BAKE_STDOUT)
+    assert not problems, "bake.py --target vertex --save-as on public_like.blend:\n  " + "\n  ".join(problems)
+
+
+def test_public_ssao_radius_comes_from_the_scene(corpus, tmp_path, script):
+    """25.6: without --radius on a scene of ~0.2 m objects, the radius is 0.1 x the frame width at the median view
+    depth of the visible geometry -- recomputed here by casting the camera's pixel rays into the file (within 2 %),
+    far from the 1 m built-in default -- said on stderr and in the report, and used as the reference's AO
+    distance."""
+    import bpy
+    from mathutils import Vector
+    entry = corpus["files"]["public_like"]
+    out = tmp_path / "ssao"
+    width = 48
+    proc = script("ssao.py", entry["path"], "--methods", "gtao", "--samples", 8, "--reference-samples", 16,
+                  "--resolution", width, "--out", out, timeout=300)
+    assert proc.returncode == 0, failure("ssao.py", "public_like", proc, "(no --radius)")
+    rep = json.loads((out / "ssao_report.json").read_text())
+    radius = rep["radius"]
+
+    bpy.ops.wm.open_mainfile(filepath=entry["path"])
+    scene = bpy.context.scene
+    cam = scene.camera
+    w, h = rep["resolution"]
+    scene.render.resolution_x, scene.render.resolution_y = w, h
+    corners = [cam.matrix_world @ c for c in cam.data.view_frame(scene=scene)]   # TR, BR, BL, TL
+    origin, forward = cam.matrix_world.translation, cam.matrix_world.to_3x3() @ Vector((0, 0, -1))
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    depths = []
+    for j in range(h):
+        for i in range(w):
+            u, t = (i + 0.5) / w, (j + 0.5) / h
+            top = corners[3].lerp(corners[0], u)
+            bottom = corners[2].lerp(corners[1], u)
+            direction = (top.lerp(bottom, t) - origin).normalized()
+            hit, location, *_ = scene.ray_cast(depsgraph, origin, direction)
+            if hit:
+                depths.append((location - origin).dot(forward))
+    frame_at_1 = (corners[0] - corners[3]).length / (corners[0] - origin).dot(forward)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    want = 0.1 * frame_at_1 * float(np.median(depths))
+    problems = []
+    if not 0.1 < len(depths) / (w * h) < 0.95:
+        problems.append(f"the camera sees geometry on {len(depths) / (w * h):.2f} of the frame")
+    if not abs(radius - want) <= 0.02 * want:
+        problems.append(f"radius {radius:.4g} m, the rule on the file's own geometry gives {want:.4g} m")
+    if not radius < 0.2:
+        problems.append(f"radius {radius:.4g} m: not scaled to a scene of 0.2 m objects")
+    if not rep.get("radius_rule", "").startswith("default: 0.1 x the frame width"):
+        problems.append(f"radius_rule {rep.get('radius_rule')!r}")
+    if f"ssao: radius {radius:.4g} m" not in proc.stderr:
+        problems.append(f"stderr does not state the radius {radius:.4g} m")
+    if not (rep["reference"]["ao_distance"] == pytest.approx(radius)
+            and rep["methods"]["gtao"]["params"]["radius"] == pytest.approx(radius)):
+        problems.append("the reference's AO distance or GTAO's radius is not the reported radius")
+    assert not problems, "ssao.py on public_like.blend (no --radius):\n  " + "\n  ".join(problems)

@@ -14,7 +14,8 @@ prints the manifest's path.
 Manifest (``manifest.json``): {"hash", "blender", "files": {STEM: {"path", "camera", "world",
 "lights": [{"name", "type"}], "meshes": [{"name", "kind", "faces", "materials", "uv",
 "hidden_render", "emissive"}], "unsupported": [{"name", "type", "kind"}], "objects": {NAME:
-KIND}, "emitters": [NAME], "receiver": NAME or None}}}.
+KIND}, "emitters": [NAME], "receiver": NAME or None}}}; public_like adds "scan", "soup", "gltf",
+"gltf_image", "multi", "slots": [{"material", "color", "emission", "strength"}], "area_lights", "sky".
 """
 import hashlib
 import json
@@ -29,7 +30,10 @@ EXPORT_NAMES = {"obj": "shapes.obj", "ply": "monkey.ply", "stl": "column.stl", "
 SUN_STRENGTH = 3.0                 # W/m^2
 SUN_ROTATION = (0.5, 0.2, 0.4)     # XYZ Euler, radians
 SKY_UPPER, SKY_LOWER = 1.0, 0.2    # modifiers.blend world: lat-long texture, radiance above / below the horizon
-FILES = ("primitives", "modifiers", "odd_meshes", "imported", "emissive", "unsupported")
+FILES = ("primitives", "modifiers", "odd_meshes", "imported", "emissive", "unsupported", "public_like")
+PUBLIC_SLOTS = (("Slot Red", (0.8, 0.1, 0.1), None, 0.0), ("Slot Green", (0.1, 0.7, 0.1), None, 0.0),
+                ("Slot Glow", (0.5, 0.5, 0.5), (1.0, 0.6, 0.2), 3.0))   # public_like's multi-material mesh
+PUBLIC_SKY = (2.0, 0.3)            # public_like's .hdr world: radiance at the zenith, below the horizon
 
 
 def corpus_hash():
@@ -617,6 +621,186 @@ def _builder():
         kinds[linked.name] = "unsupported:library_linked_mesh"
         return save(outdir, "unsupported"), kinds, {"receiver": floor.name}
 
+    # ------------------------------------------------------------------ public_like.blend
+    def public_like(outdir, tmp):
+        """Objects of ~0.2 m on a 1 m floor, area lights only and an HDR world: the kinds of file public
+        scenes are (scans, soups, glTF and OBJ round trips, multi-material meshes), none of them closed."""
+        import math
+        from mathutils import Vector
+
+        def aim(obj, location, target):
+            obj.location = location
+            direction = Vector(target) - Vector(location)
+            obj.rotation_euler = direction.to_track_quat("-Z", "Y").to_euler()
+
+        bpy.ops.wm.read_factory_settings(use_empty=False)
+        scene = bpy.context.scene
+        for name in ("Cube", "Light"):                    # no point light: area lights only
+            obj = bpy.data.objects.get(name)
+            if obj is not None:
+                bpy.data.objects.remove(obj)
+        scene.render.resolution_x, scene.render.resolution_y = 64, 48
+        kinds = {}
+
+        # the world: an equirectangular .hdr, written by Blender's image save and loaded as an HDRI is
+        w, h = 32, 16
+        sky = bpy.data.images.new("Sky Source", w, h, float_buffer=True)
+        upper, lower = PUBLIC_SKY
+        px = []
+        for row in range(h):                              # row 0 at the bottom (Blender's pixel order)
+            elevation = (row + 0.5) / h * math.pi - math.pi / 2
+            v = lower if elevation < 0 else lower + (upper - lower) * math.sin(elevation)
+            px += [(v, v * 0.95, v * 0.9, 1.0)] * w
+        sky.pixels[:] = [c for p in px for c in p]
+        hdr_path = os.path.join(tmp, "sky.hdr")
+        sky.filepath_raw = hdr_path
+        sky.file_format = "HDR"
+        sky.save()
+        bpy.data.images.remove(sky)
+        hdri = bpy.data.images.load(hdr_path)
+        hdri.name = "sky.hdr"
+        hdri.pack()
+        if scene.world is None:
+            scene.world = bpy.data.worlds.new("World")
+        _use_nodes(scene.world)
+        nt = scene.world.node_tree
+        env = nt.nodes.new("ShaderNodeTexEnvironment")
+        env.image = hdri
+        nt.links.new(env.outputs["Color"], nt.nodes["Background"].inputs["Color"])
+        nt.nodes["Background"].inputs["Strength"].default_value = 1.0
+
+        # a 1 m floor (4 vertices: coarse for vertex colours beside 0.1 m objects)
+        bpy.ops.mesh.primitive_plane_add(size=1.0)
+        floor = added()
+        floor.name = "Floor"
+        give(floor, principled("Floor Material", (0.6, 0.6, 0.6)))
+        kinds[floor.name] = "primitive:plane"
+
+        # a scan: a displaced UV sphere, its bottom cut off and a few faces missing (holes); open, not manifold
+        bpy.ops.mesh.primitive_uv_sphere_add(segments=24, ring_count=12, radius=0.1)
+        scan = added()
+        scan.name = "Scan"
+        noise = bpy.data.textures.new("Scan Noise", type="CLOUDS")
+        noise.noise_scale = 0.3
+        bpy.context.view_layer.objects.active = scan
+        scan.select_set(True)
+        bpy.ops.object.modifier_add(type="DISPLACE")
+        scan.modifiers[-1].texture = noise
+        scan.modifiers[-1].strength = 0.02
+        bpy.ops.object.modifier_apply(modifier=scan.modifiers[-1].name)
+        deselect()
+        bm = bmesh.new()
+        bm.from_mesh(scan.data)
+        bottom = [f for f in bm.faces if f.calc_center_median().z < -0.05]
+        bmesh.ops.delete(bm, geom=bottom, context="FACES")
+        bm.faces.ensure_lookup_table()
+        upper_faces = sorted((f for f in bm.faces if f.calc_center_median().z > 0.02), key=lambda f: f.index)
+        holes = upper_faces[5::37][:4]
+        bmesh.ops.delete(bm, geom=holes, context="FACES")
+        bm.to_mesh(scan.data)
+        bm.free()
+        low = min(v.co.z for v in scan.data.vertices)
+        scan.location = (-0.16, 0.08, -low)
+        give(scan, principled("Scan Material", (0.7, 0.65, 0.55)))
+        kinds[scan.name] = "scan:open"
+
+        # a multi-material mesh: a box without its bottom, red and green sides and a glowing top
+        bpy.ops.mesh.primitive_cube_add(size=0.12, location=(-0.08, -0.16, 0.06))
+        multi = added()
+        multi.name = "Multi"
+        for name, color, emission, strength in PUBLIC_SLOTS:
+            give(multi, principled(name, color, emission, strength))
+        bm = bmesh.new()
+        bm.from_mesh(multi.data)
+        bmesh.ops.delete(bm, geom=[f for f in bm.faces if f.normal.z < -0.9], context="FACES")
+        for f in bm.faces:
+            f.material_index = 2 if f.normal.z > 0.9 else 1 if abs(f.normal.x) > 0.9 else 0
+        bm.to_mesh(multi.data)
+        bm.free()
+        kinds[multi.name] = "multi_material:open"
+
+        # a triangle soup: an ico sphere split into loose triangles, out and back through OBJ without an MTL
+        bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=2, radius=0.06, location=(0.17, 0.12, 0.06))
+        soup = added()
+        soup.name = "Soup"
+        bpy.context.view_layer.objects.active = soup
+        soup.select_set(True)
+        bpy.ops.object.mode_set(mode="EDIT")
+        bpy.ops.mesh.select_all(action="SELECT")
+        bpy.ops.mesh.quads_convert_to_tris()
+        bpy.ops.mesh.edge_split(type="EDGE")
+        bpy.ops.object.mode_set(mode="OBJECT")
+        obj_path = os.path.join(tmp, "soup.obj")
+        bpy.ops.wm.obj_export(filepath=obj_path, export_selected_objects=True, export_materials=False)
+        bpy.data.objects.remove(soup)
+
+        # a textured mesh: an open cylinder (a label on a can), its Base Color an image made here, out and
+        # back through glTF (.glb)
+        bpy.ops.mesh.primitive_cylinder_add(vertices=24, radius=0.05, depth=0.14, end_fill_type="NOTHING",
+                                            location=(0.14, -0.14, 0.07))
+        can = added()
+        can.name = "Can"
+        label = bpy.data.images.new("Label", 32, 32)
+        label.pixels[:] = [c for y in range(32) for x in range(32)
+                           for c in ((0.9, 0.8, 0.1, 1.0) if (x // 8 + y // 8) % 2 else (0.1, 0.2, 0.8, 1.0))]
+        label.pack()
+        mat = principled("Can Label", (1.0, 1.0, 1.0))
+        tex = mat.node_tree.nodes.new("ShaderNodeTexImage")
+        tex.image = label
+        mat.node_tree.links.new(tex.outputs["Color"], mat.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
+        give(can, mat)
+        glb_path = os.path.join(tmp, "can.glb")
+        can.select_set(True)
+        bpy.ops.export_scene.gltf(filepath=glb_path, export_format="GLB", use_selection=True)
+        deselect()
+        bpy.data.objects.remove(can)
+        bpy.data.materials.remove(mat)
+        bpy.data.images.remove(label)
+
+        for path, fmt in ((obj_path, "obj"), (glb_path, "gltf")):
+            before = set(bpy.data.objects)
+            if fmt == "obj":
+                bpy.ops.wm.obj_import(filepath=path)
+            else:
+                bpy.ops.import_scene.gltf(filepath=path)
+            new = sorted(set(bpy.data.objects) - before, key=lambda o: o.name)
+            assert len(new) == 1 and new[0].type == "MESH", [o.name for o in new]
+            kinds[new[0].name] = "import:" + fmt + (":soup" if fmt == "obj" else ":textured")
+            if fmt == "obj":
+                soup_name = new[0].name
+            else:
+                gltf_name = new[0].name
+        deselect()
+        images = [i for s in bpy.data.objects[gltf_name].material_slots if s.material
+                  for n in s.material.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage" and n.image
+                  for i in [n.image]]
+        assert images, "the glTF importer gave the mesh no image texture"
+        for image in images:
+            if image.packed_file is None:
+                image.pack()
+
+        # area lights only, a key and a fill, aimed at the objects
+        target = (0.0, -0.02, 0.05)
+        areas = []
+        for name, location, power, size in (("Area Key", (0.45, -0.5, 0.8), 12.0, 0.25),
+                                            ("Area Fill", (-0.7, -0.35, 0.45), 4.0, 0.4)):
+            bpy.ops.object.light_add(type="AREA")
+            light = added()
+            light.name = light.data.name = name
+            light.data.energy, light.data.size = power, size
+            aim(light, location, target)
+            areas.append(light.name)
+
+        cam = bpy.data.objects["Camera"]
+        aim(cam, (0.55, -0.75, 0.42), target)
+        scene.camera = cam
+        slots = [{"material": n, "color": list(c), "emission": list(e) if e else None, "strength": s}
+                 for n, c, e, s in PUBLIC_SLOTS]
+        extra = {"receiver": floor.name, "scan": scan.name, "soup": soup_name, "gltf": gltf_name,
+                 "gltf_image": images[0].name, "multi": multi.name, "slots": slots, "area_lights": areas,
+                 "sky": list(PUBLIC_SKY)}
+        return save(outdir, "public_like"), kinds, extra
+
     # ------------------------------------------------------------------ manifest
     def describe(path, kinds, extra):
         bpy.ops.wm.open_mainfile(filepath=path)
@@ -653,7 +837,8 @@ def _builder():
         return entry
 
     return {"primitives": primitives, "modifiers": modifiers, "odd_meshes": odd_meshes,
-            "imported": imported, "emissive": emissive, "unsupported": unsupported, "describe": describe}
+            "imported": imported, "emissive": emissive, "unsupported": unsupported, "public_like": public_like,
+            "describe": describe}
 
 
 def _inside(work, final, digest):
@@ -663,7 +848,7 @@ def _inside(work, final, digest):
     built = {}
     try:
         for stem in FILES:
-            args = (work, tmp) if stem == "imported" else (work,)
+            args = (work, tmp) if stem in ("imported", "public_like") else (work,)
             built[stem] = steps[stem](*args)
             print(f"corpus: built {stem}.blend", file=sys.stderr, flush=True)
         files = {}
