@@ -29,11 +29,15 @@ def main(args):
         return
     if not args.objects or not args.out:
         raise InputError("--objects and --out are required (or --merge DIR)")
+    if args.save_as and ((args.jobs or 1) > 1 or args.shard):
+        raise InputError("--save-as keeps this run's products in one copy: it does not go with --jobs or --shard")
     if args.jobs and args.jobs > 1:
         return run_jobs(args)
     import bpy
     from addon.bake import BakeOptions, bake_lightmaps
     options = _cli.options_from(BakeOptions, args)
+    if args.save_as:
+        options.force = True                   # maps found unchanged would be skipped: the copy needs them all
     save_as = check_save_as(args.save_as, bpy.data.filepath) if args.save_as else None
     objects = []
     for name in args.objects:

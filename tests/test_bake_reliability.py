@@ -503,7 +503,7 @@ def test_ctrl_c_stops_a_long_bake_between_its_passes_and_the_finished_maps_resum
     _, err = p.communicate(timeout=120)
     stopped = time.perf_counter() - t
     assert p.returncode == 130, err
-    assert stopped < 10.0, stopped
+    assert stopped < 30.0, stopped               # 0.9-1.6 s measured; the bound leaves room for a loaded machine
     assert err.strip().splitlines()[-1].startswith("bake.py: interrupted"), err
     assert blend.read_bytes() == data
     assert sorted(os.listdir(out)) == ["Box_irradiance.exr", "Box_irradiance.png", "bake_report.json"]
@@ -680,8 +680,37 @@ bpy.ops.wm.open_mainfile(filepath={str(copy)!r})
 print(sorted(a.name for a in bpy.data.objects['Floor'].data.color_attributes))
 """)
     assert "IL AO" in check.stdout, check.stdout + check.stderr
+    # a rerun into the same folder (maps unchanged) still bakes them for the copy, whose products it needs
+    again = tmp_path / "again.blend"
+    r = script("bake.py", blend, "--objects", "Floor", "Cube", "--maps", "ao", "--target", "vertex", "--samples", "4",
+               "--out", tmp_path / "o", "--overwrite", "--save-as", again)
+    assert r.returncode == 0, r.stderr
+    check = run_python(f"""
+import bpy
+bpy.ops.wm.open_mainfile(filepath={str(again)!r})
+print(sorted(a.name for a in bpy.data.objects['Floor'].data.color_attributes))
+""")
+    assert "IL AO" in check.stdout, check.stdout + check.stderr
+    # each shard would save its own share into the same copy: refused
+    r = script("bake.py", blend, "--objects", "Floor", "Cube", "--maps", "ao", "--target", "vertex", "--samples", "1",
+               "--out", tmp_path / "j", "--jobs", "2", "--save-as", tmp_path / "j.blend")
+    assert r.returncode == 2 and "--jobs or --shard" in last_line(r)
     # the opened file itself is refused, before any bake
     r = script("bake.py", blend, "--objects", "Floor", "--maps", "ao", "--target", "vertex", "--samples", "1",
                "--out", tmp_path / "p", "--save-as", blend)
     assert r.returncode == 2 and "is the opened file" in last_line(r)
     assert open(blend, "rb").read() == before and not (tmp_path / "p" / "bake_report.json").exists()
+
+
+def test_an_image_textured_world_keeps_long_bakes_in_few_passes():
+    """A world image is loaded at every Cycles call (6 s for 1024x512 by the model, 96 s for 4096x2048): a pass
+    holds at least as much sampling as that fixed cost, so a 512² AO map at 128 samples is a few calls, not one
+    call per sample (which cost 3.6-5.1 s of load each), and a 4K sky does not turn a bake into days."""
+    from addon.bake import pipeline
+    for pixels in (1024 * 512, 4096 * 2048):
+        pace = cost.Speed(world_pixels=pixels)
+        passes = pipeline._passes("ao", 128, 0, 512 ** 2, pace)
+        per_sample, total = 512 ** 2 * pace.rate("ao"), 128 * 512 ** 2 * pace.rate("ao")
+        least = min(n for n, _ in passes) * per_sample          # the sampling of the smallest pass
+        assert least >= 0.5 * min(pace.call("ao"), total), (pixels, least)   # near-equal passes of the budget
+        assert len(passes) <= 2 * total / pace.call("ao") + 1, (pixels, len(passes))   # 128 before

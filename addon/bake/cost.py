@@ -120,11 +120,19 @@ def calls(texels, kind, samples, speed=None):
     return sum(-(-n // most) for n in halves if n > 0)
 
 
+def pass_budget(kind, speed=None):
+    """Sampling seconds one Cycles call of map ``kind`` may hold: PASS_SECONDS less the call's fixed seconds, but
+    never less than those (a world image is loaded at every call: 6 s for 1024x512, 96 s for 4096x2048; a smaller
+    budget made every sample a call of its own), so fixed costs stay at most half of a long bake."""
+    call = (speed or PLAIN).call(kind)
+    return max(PASS_SECONDS - call, call)
+
+
 def pass_samples(texels, kind, speed=None):
-    """The most samples of one Cycles call of map ``kind`` over ``texels`` texels within PASS_SECONDS, its fixed
-    seconds included (at least 1)."""
+    """The most samples of one Cycles call of map ``kind`` over ``texels`` texels within :func:`pass_budget`
+    (at least 1)."""
     speed = speed or PLAIN
-    return max(1, int((PASS_SECONDS - speed.call(kind)) // (max(1, int(texels)) * speed.rate(kind))))
+    return max(1, int(pass_budget(kind, speed) // (max(1, int(texels)) * speed.rate(kind))))
 
 
 def check_time(sizes, maps, samples, option="samples", side_option="resolution", speed=None):

@@ -1354,8 +1354,7 @@ def _pass_plan(texels, maps, options, pace=None):
         calls = tuple(n for samples, seed in _calls(kind, options)
                       for n, _ in _passes(kind, samples, seed, texels, pace))
         plan_.append((kind, calls))
-        room = max(cost.PASS_SECONDS - pace.call(kind), 0.0)
-        cap = min(cap, max(1, int(room // (pace.rate(kind) * max(calls)))))
+        cap = min(cap, max(1, int(cost.pass_budget(kind, pace) // (pace.rate(kind) * max(calls)))))
     return tuple(plan_), cap
 
 

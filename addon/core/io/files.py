@@ -6,6 +6,7 @@ import os
 import re
 import socket
 import tempfile
+import time
 
 from ..errors import ILError, InputError
 
@@ -82,19 +83,28 @@ _OWNER = f"{_HOST}-{os.getpid()}"
 _TEMPORARY = re.compile(r"^\..+\.(?P<host>[A-Za-z0-9-]+)-(?P<pid>\d+)\.[^.]+\.tmp(\.[A-Za-z0-9]+)?$")
 
 
-def remove_stale_temporaries(folder):
+#: A temporary younger than this is never removed: a writer holds one for seconds, and host and PID alone do
+#: not tell processes apart across PID namespaces (containers that share a host name and a folder).
+STALE_AFTER = 120.0
+
+
+def remove_stale_temporaries(folder, now=None):
     """Remove the temporary files :func:`atomic_path` left in ``folder`` when its process was killed (SIGKILL,
-    power loss): those of this host whose process is gone. Another host's (a farm sharing the folder) and a live
-    process's stay. Returns the names removed."""
+    power loss): those of this host whose process is gone and that are older than STALE_AFTER seconds. Another
+    host's (a farm sharing the folder) and a live process's stay. Returns the names removed."""
     removed = []
     try:
         names = os.listdir(folder)
     except OSError:
         return removed
+    now = time.time() if now is None else now
     for name in names:
         m = _TEMPORARY.match(name)
         if not m or m["host"] != _HOST or _alive(int(m["pid"])):
             continue
+        with contextlib.suppress(OSError):
+            if now - os.path.getmtime(os.path.join(folder, name)) < STALE_AFTER:
+                continue
         with contextlib.suppress(OSError):
             os.remove(os.path.join(folder, name))
             removed.append(name)
@@ -108,7 +118,7 @@ def _alive(pid):
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
-    except (PermissionError, OSError):
+    except (PermissionError, OSError, OverflowError):
         return True
     return True
 

@@ -1,6 +1,7 @@
 """EXR and PNG files round-trip exactly; files appear atomically."""
 import json
 import os
+import time
 import zlib
 
 import numpy as np
@@ -90,7 +91,7 @@ def test_exr_refuses_non_finite_values_naming_the_file_and_channel(tmp_path):
 
 def test_stale_temporaries_of_killed_writers_are_removed_and_no_others(tmp_path):
     """A SIGKILL during atomic_path leaves '.<stem>.<host>-<pid>.<random>.tmp<ext>': removed once its process is
-    gone; a live process's, another host's and the user's own dotfiles stay."""
+    gone and it is older than STALE_AFTER; a live process's, another host's and the user's own dotfiles stay."""
     import subprocess
     import sys
     from addon.core.io import files
@@ -102,7 +103,9 @@ def test_stale_temporaries_of_killed_writers_are_removed_and_no_others(tmp_path)
              "user": ".hidden.tmp.exr"}
     for name in names.values():
         (tmp_path / name).write_bytes(b"x")
-    assert files.remove_stale_temporaries(str(tmp_path)) == [names["dead"]]
+    assert files.remove_stale_temporaries(str(tmp_path)) == []        # younger than STALE_AFTER: kept
+    later = time.time() + files.STALE_AFTER + 1
+    assert files.remove_stale_temporaries(str(tmp_path), now=later) == [names["dead"]]
     assert sorted(os.listdir(tmp_path)) == sorted(v for k, v in names.items() if k != "dead")
     with files.atomic_path(tmp_path / "Floor_ao.exr") as tmp:
         assert files._TEMPORARY.match(os.path.basename(tmp))["pid"] == str(os.getpid())
