@@ -826,7 +826,7 @@ def test_public_ssao_radius_comes_from_the_scene(corpus, tmp_path, script):
         problems.append(f"radius {radius:.4g} m: not scaled to a scene of 0.2 m objects")
     if not rep.get("radius_rule", "").startswith("default: 0.1 x the frame width"):
         problems.append(f"radius_rule {rep.get('radius_rule')!r}")
-    if f"ssao: radius {radius:.4g} m" not in proc.stderr:
+    if f"radius {radius:.4g} m (" not in proc.stderr:
         problems.append(f"stderr does not state the radius {radius:.4g} m")
     if not (rep["reference"]["ao_distance"] == pytest.approx(radius)
             and rep["methods"]["gtao"]["params"]["radius"] == pytest.approx(radius)):

@@ -139,7 +139,7 @@ def test_default_radius_follows_the_scene_scale_and_is_reported(script, tmp_path
         data = json.load(open(out / "ssao_report.json"))
         radii[scale] = data["radius"]
         assert data["radius_rule"].startswith("default: 0.1 x the frame width")
-        assert f"ssao: radius {data['radius']:.4g} m" in r.stderr
+        assert f"radius {data['radius']:.4g} m (" in r.stderr
         assert data["methods"]["gtao"]["params"]["radius"] == pytest.approx(data["radius"])
         assert data["reference"]["ao_distance"] == pytest.approx(data["radius"])
     assert radii[0.1] == pytest.approx(0.1 * radii[1.0], rel=1e-3)

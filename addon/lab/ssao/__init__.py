@@ -18,7 +18,6 @@ restored afterwards, also after an error (:func:`preserved`, blender.state).
 import contextlib
 import hashlib
 import os
-import sys
 import time
 
 import bpy
@@ -372,7 +371,7 @@ def compare(scene, methods, out=None, samples=SSAOOptions.samples, radius=SSAOOp
         elif radius is None:
             radius, rule = ssao_gbuffer.default_radius(gb), RADIUS_RULE
         if rule != "given":
-            print(f"ssao: radius {radius:.4g} m ({rule}; --radius to choose)", file=sys.stderr, flush=True)
+            progress.note(f"radius {radius:.4g} m ({rule}; --radius to choose)")
         progress.step(f"reference: Cycles AO pass, {reference_samples} samples")
         ref = render_reference(scene, radius, reference_samples, cache_dir)
         mask = gb.mask
