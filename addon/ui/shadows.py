@@ -91,7 +91,7 @@ class IL_PT_shadows(Sidebar, bpy.types.Panel):
         col.prop(st, "light_type")
         col.operator(IL_OT_build_shadow_scene.bl_idname, icon="LIGHT_SUN")
         layout.prop_search(st, "light", context.scene, "objects")
-        layout.prop_search(st, "receiver", context.scene, "objects")
+        layout.prop_search(st, "receiver", context.blend_data, "objects")
         layout.prop(st, "methods")
         col = layout.column(align=True)
         col.prop(st, "resolution")

@@ -57,23 +57,44 @@ class MethodSkipped(InputError):
     goes on without it and reports why under "skipped"."""
 
 
-def flat_meshes(scene):
-    """[(name, area)] of the meshes the render draws whose vertices lie on one plane (core.shadow.planar's
-    PLANAR_TOLERANCE of their size), largest area first: the receivers planar shadows can be drawn on."""
-    depsgraph = scene.view_layers[0].depsgraph if scene.view_layers else None
-    found = []
-    for obj in scene.objects:
-        if obj.type != "MESH" or obj.hide_render or depsgraph is None:
+def _drawn_instances(scene):
+    """Yield the depsgraph instances of every mesh the view layer draws, objects and instances alike (collection
+    instances of collections outside the scene, geometry-nodes instances); objects or instancers hidden for
+    render are left out."""
+    if not scene.view_layers:
+        return
+    depsgraph = scene.view_layers[0].depsgraph
+    depsgraph.update()
+    for inst in depsgraph.object_instances:
+        ob = inst.object
+        if ob.type != "MESH" or not inst.show_self or ob.original.hide_render:
             continue
-        me = obj.evaluated_get(depsgraph).data
+        if inst.is_instance and inst.parent and inst.parent.original.hide_render:
+            continue
+        yield inst
+
+
+def _drawn_meshes(scene):
+    """Yield (original object's name, world vertices, evaluated mesh, matrix) of each of _drawn_instances."""
+    for inst in _drawn_instances(scene):
+        ob = inst.object
+        me = ob.data
         if len(me.polygons) == 0:
+            continue
+        m = np.array(inst.matrix_world, np.float64)
+        if abs(np.linalg.det(m[:3, :3])) < 1e-30:
             continue
         co = np.empty(len(me.vertices) * 3)
         me.vertices.foreach_get("co", co)
-        m = np.array(obj.matrix_world)
-        if abs(np.linalg.det(m[:3, :3])) < 1e-30:
-            continue
-        v = co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
+        yield ob.original.name, co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3], me, m
+
+
+def flat_meshes(scene):
+    """[(name, area)] of the meshes the render draws, instances included, whose vertices lie on one plane
+    (core.shadow.planar's PLANAR_TOLERANCE of their size), largest area first: the receivers planar shadows can
+    be drawn on. An object drawn several times is named once, with its largest copy."""
+    found = {}
+    for name, v, me, m in _drawn_meshes(scene):
         areas = np.empty(len(me.polygons))
         me.polygons.foreach_get("area", areas)
         normals = np.empty(len(me.polygons) * 3)
@@ -88,17 +109,21 @@ def flat_meshes(scene):
         plane = shadow_planar.plane_from_point_normal(point, normal)
         distance, extent = shadow_planar.off_plane(v, plane)
         if distance <= shadow_planar.PLANAR_TOLERANCE * extent:
-            found.append((obj.name, float(areas.sum() * abs(np.linalg.det(m[:3, :3])) ** (2 / 3))))
-    return sorted(found, key=lambda f: -f[1])
+            area = float(areas.sum() * abs(np.linalg.det(m[:3, :3])) ** (2 / 3))
+            found[name] = max(area, found.get(name, 0.0))
+    return sorted(found.items(), key=lambda f: -f[1])
 
 
 def resolve_receiver(scene, receiver=None):
     """The planar receiver's name, checked before any render: ``receiver`` when given (InputError naming the
-    flat meshes when it is no mesh), else the scene's "il_shadow_receiver", else "Floor", else the largest flat
-    mesh (with a warning); InputError when the scene has none."""
+    flat meshes when the render draws no mesh of that name), else the scene's "il_shadow_receiver", else
+    "Floor", else the largest flat mesh (with a warning); InputError when the scene has none. A mesh drawn only
+    through a collection or geometry-nodes instance counts."""
     named = receiver or scene.get("il_shadow_receiver")
     name = named or "Floor"
     if name in scene.objects and scene.objects[name].type == "MESH":
+        return name
+    if any(inst.object.original.name == name for inst in _drawn_instances(scene)):
         return name
     flats = flat_meshes(scene)
     if named or not flats:
@@ -112,24 +137,31 @@ def resolve_receiver(scene, receiver=None):
 
 # -- methods ------------------------------------------------------------------------------------
 def _planar(s, p):
+    """Each drawn copy of the receiver (the object, or its instances) is a plane; the shadows of every caster
+    triangle not lying on that plane are drawn on it, and the copies' masks are joined."""
     name = resolve_receiver(s.user_scene, p["receiver"])
-    receiver = s.user_scene.objects[name]
-    surface = s.surface_of(receiver)
-    if surface is None:
+    copies = s.surfaces_named(name)
+    if not copies:
         raise InputError(f"the receiver '{name}' has no faces the render sees (hidden for render, or no faces)")
-    tri = surface.verts[surface.tris]
-    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    big = int(np.argmax(np.linalg.norm(n, axis=1)))
-    plane = shadow_planar.plane_from_point_normal(tri[big, 0], n[big])
-    distance, extent = shadow_planar.off_plane(surface.verts, plane)
-    if distance > shadow_planar.PLANAR_TOLERANCE * extent:
-        warn(f"the receiver '{name}' is not planar: its vertices lie up to {distance:.3g} m off the plane of its "
-             f"largest face (size {extent:.3g} m); planar shadows are drawn on that plane only")
-    tris = s.caster_triangles(exclude=receiver)
-    cover = shadow_planar.planar_shadow_mask(tris, plane, s.light.h, s.world_to_view, s.proj,
-                                             s.width, s.height, s.depth, offset=p["offset"])
-    return s.reach & ~cover, {"receiver": name, "offset": p["offset"], "plane": [round(float(x), 6) for x in plane],
-                              "off_plane": round(distance, 6)}
+    cover = np.zeros(s.reach.shape, bool)
+    planes, off = [], 0.0
+    for surface in copies:
+        tri = surface.verts[surface.tris]
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        big = int(np.argmax(np.linalg.norm(n, axis=1)))
+        plane = shadow_planar.plane_from_point_normal(tri[big, 0], n[big])
+        distance, extent = shadow_planar.off_plane(surface.verts, plane)
+        if distance > shadow_planar.PLANAR_TOLERANCE * extent:
+            warn(f"the receiver '{surface.name}' is not planar: its vertices lie up to {distance:.3g} m off the "
+                 f"plane of its largest face (size {extent:.3g} m); planar shadows are drawn on that plane only")
+        tris = s.caster_triangles(exclude=surface)
+        on_plane = np.abs(tris @ plane[:3] + plane[3]).max(axis=1) <= shadow_planar.PLANAR_TOLERANCE * max(extent, 1e-9)
+        cover |= shadow_planar.planar_shadow_mask(tris[~on_plane], plane, s.light.h, s.world_to_view, s.proj,
+                                                  s.width, s.height, s.depth, offset=p["offset"])
+        planes.append([round(float(x), 6) for x in plane])
+        off = max(off, distance)
+    return s.reach & ~cover, {"receiver": name, "offset": p["offset"], "plane": planes[0],
+                              "copies": len(copies), "off_plane": round(off, 6)}
 
 
 def shadowmap_mask(s, maps, p):

@@ -307,13 +307,14 @@ class ShadowFrame:
 
     def caster_triangles(self, exclude=None):
         """(T, 3, 3) world-space triangles of every surface that casts shadows (:meth:`gather_surfaces`,
-        Surface.casts), without the object ``exclude`` itself (its instances stay)."""
-        parts = [x.verts[x.tris] for x in self.surfaces if x.casts and (x.instance or x.obj != exclude)]
+        Surface.casts), without the Surface ``exclude``."""
+        parts = [x.verts[x.tris] for x in self.surfaces if x.casts and x is not exclude]
         return np.concatenate(parts) if parts else np.zeros((0, 3, 3))
 
-    def surface_of(self, obj):
-        """The :class:`blender.scene.Surface` of ``obj`` itself (not an instance of it), or None."""
-        return next((x for x in self.surfaces if not x.instance and x.obj == obj), None)
+    def surfaces_named(self, name):
+        """The :class:`blender.scene.Surface` copies of the object called ``name``: the object itself and each
+        instance of it (a collection instance, an instancer's copy)."""
+        return [x for x in self.surfaces if x.obj is not None and x.obj.name == name]
 
     def engine_mask(self, engine):
         """EEVEE or Workbench's own shadow: (lit mask, seconds) from two renders, shadows on and off.
