@@ -445,6 +445,47 @@ class _Notes:
 
 
 NOTE_SECONDS = 2.0
+# The face test's cost a pair depends on how well its cluster bounds decide (2.5e-7 s on the boxes, 1.1e-5 s on
+# the corpus' public_like.blend with 486 blocking faces round small open meshes); the BVH's varies less: 1.4e-6 s
+# a pair on the imported box (8,479 patches, 100 s), 7e-7 s on public_like (1,723 patches, 2.1 s). "auto" times
+# the face test's first PROBE_SECONDS and casts with the BVH when the face test would take longer than
+# SWITCH_FACTOR times the BVH at BVH_SECONDS_PER_PAIR.
+PROBE_SECONDS = 1.5
+BVH_SECONDS_PER_PAIR = 1.5e-6
+SWITCH_FACTOR = 1.5
+
+
+class _UseBVH(Exception):
+    def __init__(self, faces, bvh):
+        super().__init__(faces, bvh)
+        self.faces, self.bvh = faces, bvh
+
+
+class _FaceProbe:
+    """``progress(k, m, share)`` of core.radiosity.visibility.visibility_faces: progress lines with the time left,
+    and ``projected`` (seconds of the whole face test: its set-up until the first row, then the rows' rate over the
+    share of pairs they hold, the rows running in a shuffled order) once the rows have run PROBE_SECONDS. With
+    ``switch``, raises :class:`_UseBVH` then when the BVH would be faster (SWITCH_FACTOR)."""
+
+    def __init__(self, n, notes, switch):
+        self.n, self.notes, self.switch = n, notes, switch
+        self.t0 = time.perf_counter()
+        self.first = None
+        self.projected = None
+
+    def __call__(self, k, m, done):
+        elapsed = time.perf_counter() - self.t0
+        if self.first is None:
+            self.first = (elapsed, done)
+        e1, d1 = self.first
+        rate = (elapsed - e1) / (done - d1) if done > d1 else None
+        if self.projected is None and rate is not None and (elapsed - e1 >= PROBE_SECONDS or k == m):
+            self.projected = e1 + rate * (1.0 - d1)
+            bvh = BVH_SECONDS_PER_PAIR * self.n ** 2
+            if self.switch and k < m and self.projected - elapsed > SWITCH_FACTOR * bvh:
+                raise _UseBVH(self.projected, bvh)
+        left = f", about {budget.format_seconds(rate * (1.0 - done))} left" if rate and k < m else ""
+        self.notes(f"visibility: {k}/{m} rows of patch clusters, {elapsed:.0f} s{left}")
 
 
 def _solver_notes(note, solver, n):
@@ -539,12 +580,25 @@ def solve_scene(meshes, max_edge=0.25, solver="jacobi", tol=1e-5, adaptive=0, th
         interrupt.checkpoint()
         tv = time.perf_counter()
         how = visibility_method(base, patches, visibility)
-        bvh = _bvh(patches) if how[0] == "bvh" else None
         notes = _Notes(progress)
-        V = (visibility_bvh(patches, bvh=bvh, progress=lambda k: notes(
-                 f"visibility: {k:,} rays cast (BVH), {time.perf_counter() - tv:.0f} s"))
-             if bvh is not None else rad_visibility.visibility_faces(patches, how[1], progress=lambda k, m: notes(
-                 f"visibility: {k}/{m} rows of patch clusters, {time.perf_counter() - tv:.0f} s")))
+        probe = _FaceProbe(len(patches), notes, switch=visibility == "auto")
+        try:
+            V = (rad_visibility.visibility_faces(patches, how[1], progress=probe) if how[0] == "faces" else None)
+        except _UseBVH as e:
+            notes(f"visibility: the face test would take about {budget.format_seconds(e.faces)}, Blender's BVH "
+                  f"about {budget.format_seconds(e.bvh)}: casting rays with the BVH", always=True)
+            how = ("bvh", None)
+            probe.projected = time.perf_counter() - tv + rad_cost.SECONDS_PER_PAIR_BVH * len(patches) ** 2
+        if probe.projected is not None and not round_ and probe.projected > per * len(patches) ** 2:
+            estimate = rad_cost.Cost(estimate.patches, estimate.bytes,
+                                     estimate.seconds + probe.projected - per * len(patches) ** 2)
+            if progress:
+                progress(f"about {budget.format_seconds(estimate.seconds)} in all (estimate revised on the "
+                         f"visibility's timed rows)")
+        bvh = _bvh(patches) if how[0] == "bvh" else None
+        if bvh is not None:
+            V = visibility_bvh(patches, bvh=bvh, progress=lambda k: notes(
+                f"visibility: {k:,} rays cast (BVH), {time.perf_counter() - tv:.0f} s"))
         t["visibility"] = t.get("visibility", 0) + time.perf_counter() - tv
         tf = time.perf_counter()
         notes = _Notes(progress)
@@ -883,7 +937,7 @@ def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge
                   "rms_vs_cycles": None, "scene": scene.name, "chart": chart,
                   "solvers": {s: {"iterations": so.iterations, "seconds": round(so.seconds, 5),
                                   "converged": so.converged} for s, so in sols.items()},
-                  "solvers_compared": bool(compare_solvers),
+                  "solvers_compared": bool(compare_solvers), "visibility": r["visibility"],
                   "objects": {n: {"lightmap": f, "object": results[n][0].name, "patches": int(len(results[n][1]))}
                               for n, f in files.items()},
                   "units": "irradiance W/m^2"}

@@ -492,8 +492,9 @@ def visibility_faces(patches, occ, offset=1e-4, progress=None, leaf=CLUSTER_LEAF
     points on both sides of their plane count. The points are grouped in :func:`clusters`; every pair of
     clusters with a candidate pair is first classified against the occluders (:func:`_classify`, a non-planar
     face's triangles first as one slab, :func:`_candidates`), and its rays are tested only against the
-    occluders it leaves undecided, the cluster pairs with the same undecided occluders in one go.
-    ``progress(done, total)`` is called after each row of clusters."""
+    occluders it leaves undecided, the cluster pairs with the same undecided occluders in one go. The rows run
+    in a fixed shuffled order (each writes its own part of the matrix), so the time of the first rows tells that
+    of the whole: ``progress(rows done, rows, share of the candidate pairs done)`` is called after each."""
     n = len(patches)
     pts = patches.center + offset * patches.normal
     S = occ.side(pts)
@@ -554,9 +555,13 @@ def visibility_faces(patches, occ, offset=1e-4, progress=None, leaf=CLUSTER_LEAF
         W[s1:, ia] = ok[:, s1 - s0:].T
         W[s0:s1, ia] |= ok[:, :s1 - s0].T
 
-    for k, _ in enumerate(ordered_map(row, range(len(groups)))):
+    rows = np.random.default_rng(0).permutation(len(groups))
+    sizes = np.diff(start).astype(np.float64)
+    pairs = sizes * (n - start[:-1])
+    share = np.cumsum(pairs[rows]) / max(pairs.sum(), 1.0)
+    for k, _ in enumerate(ordered_map(row, rows)):
         if progress:
-            progress(k + 1, len(groups))
+            progress(k + 1, len(groups), float(share[k]))
     inv = np.empty(n, int)
     inv[order] = np.arange(n)
     return W[inv]
