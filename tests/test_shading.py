@@ -9,6 +9,8 @@ from addon.core import brdf, lights as twin_lights
 from addon.blender import render
 from addon.blender import scene as sc
 from addon.nodes import groups, material
+from addon.nodes.models import BY_ID, MODELS, Model
+from addon.nodes.options import MODEL_CHOICES
 
 CONTRACT = {
     "IL Phong": ["Light Vector", "Light Color", "Ka", "Ambient Light", "Kd", "Ks", "Shininess", "Emission Color",
@@ -22,6 +24,57 @@ CONTRACT = {
 
 def _sockets(tree, in_out):
     return [i.name for i in tree.interface.items_tree if i.item_type == "SOCKET" and i.in_out == in_out]
+
+
+def test_every_model_file_is_registered_in_its_order():
+    """Each public module of addon/nodes/models defines one Model, and MODELS holds them all by ``order``."""
+    import pathlib
+    import addon.nodes.models as pkg
+    import importlib
+    files = sorted(f.stem for f in pathlib.Path(pkg.__file__).parent.glob("*.py") if not f.stem.startswith("_"))
+    records = [importlib.import_module(f"addon.nodes.models.{f}").MODEL for f in files]
+    assert len(MODELS) == len(files) >= 4 and all(r in MODELS for r in records)
+    assert {m.id: m for m in MODELS} == BY_ID and [m.order for m in MODELS] == sorted(m.order for m in MODELS)
+    assert [m.id for m in MODELS][:4] == ["PHONG", "BLINN_PHONG", "OREN_NAYAR", "COOK_TORRANCE"]   # menu order
+
+
+@pytest.mark.both_versions
+@pytest.mark.parametrize("model", MODELS, ids=[m.id for m in MODELS])
+def test_model_record_is_complete_and_its_groups_build(model):
+    """Every record: id, label, descriptions, a public group named "IL <label>", inputs after the light's two
+    (each with a socket type, default, range or None, description), callable halves and twin, switches among
+    its inputs, sweep cases naming its inputs; the options, labels and group tables read it; its public group
+    and both halves build with its interface, the ``once`` term is a surface output."""
+    assert isinstance(model, Model)
+    assert model.id.isupper() and model.label and model.description and model.group_description
+    assert model.group == f"IL {model.label}"
+    names = [i.name for i in model.inputs]
+    assert names[:2] == ["Light Vector", "Light Color"] and len(set(names)) == len(names)
+    for i in model.params:
+        assert i.socket in (groups.F, groups.C, groups.V) and i.default is not None and i.description, i
+        assert i.range is None or (len(i.range) == 2 and i.range[0] <= i.default <= i.range[1]), i
+    assert callable(model.surface) and callable(model.light) and callable(model.twin)
+    assert set(model.switches) <= set(names) and model.sweep
+    for case in model.sweep:
+        assert set(case) <= set(names), case
+    assert (model.id, model.label, model.description) in MODEL_CHOICES
+    assert material.MODEL_LABELS[model.id] == model.label and groups.MODEL_GROUPS[model.id] == model.group
+    assert groups.INPUTS[model.group] == list(model.inputs) and groups.DESCRIPTIONS[model.group]
+    assert CONTRACT[model.group] == names       # the public contract (DESIGN.md) names every model's inputs
+    assert model.id in {c[0] for c in MATERIAL_CASES}
+    tree = groups.ensure_group(model.group)
+    assert _sockets(tree, "INPUT") == names and _sockets(tree, "OUTPUT") == ["Color", "Emission"]
+    surface = groups.ensure_group(model.surface_group)
+    assert _sockets(surface, "INPUT") == names[2:]
+    assert model.once is None or model.once in _sockets(surface, "OUTPUT")
+    half = _sockets(groups.ensure_group(model.light_group), "INPUT")
+    assert set(model.switches) <= set(half) and set(_sockets(surface, "OUTPUT")) <= set(half)
+    # a twin of the record: finite, zero light gives only the once-only terms
+    n, v = np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.6, 0.8])
+    from addon.lab.bench import shading as sb
+    lit = sb.twin(model.group, n, v, {"Light Vector": (0.3, 0.0, 1.0), "Light Color": (1.0, 1.0, 1.0)})
+    dark = sb.twin(model.group, n, v, {"Light Vector": (0.3, 0.0, 1.0), "Light Color": (0.0, 0.0, 0.0)})
+    assert np.all(np.isfinite(lit)) and np.all(lit > dark)
 
 
 @pytest.mark.both_versions

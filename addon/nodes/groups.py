@@ -1,4 +1,5 @@
-"""The node groups "IL Phong", "IL Blinn-Phong", "IL Oren-Nayar", "IL Cook-Torrance" and "IL Light".
+"""The node groups of the shading models ("IL Phong", "IL Blinn-Phong", "IL Oren-Nayar", "IL Cook-Torrance":
+one per record of :mod:`.models`, which holds each model's inputs and node builders) and "IL Light".
 
 Each group evaluates, term by term and with the same clamps, the numpy twin in
 ``addon/core/brdf.py`` / ``addon/core/lights.py`` (REFERENCE.md §1-2). Normal and
@@ -22,66 +23,35 @@ import bpy
 
 from ..core import brdf
 from .builder import Graph, is_socket
+from .models import MODELS
+from .models._common import BLACK, C, F, LIGHT_IN as _LIGHT_IN, V, WHITE
 
 #: Bump whenever a group's contents or sockets change: older groups in a file are rebuilt.
 GROUP_VERSION = 10
 
-PHONG, BLINN_PHONG, OREN_NAYAR, COOK_TORRANCE, LIGHT = (
-    "IL Phong", "IL Blinn-Phong", "IL Oren-Nayar", "IL Cook-Torrance", "IL Light")
-MODEL_GROUPS = {"PHONG": PHONG, "BLINN_PHONG": BLINN_PHONG, "OREN_NAYAR": OREN_NAYAR,
-                "COOK_TORRANCE": COOK_TORRANCE}
-
-F, V, C = "NodeSocketFloat", "NodeSocketVector", "NodeSocketColor"
-WHITE, BLACK = (1.0, 1.0, 1.0, 1.0), (0.0, 0.0, 0.0, 1.0)
-
-_LIGHT_IN = [("Light Vector", V, (0.0, 0.0, 1.0), None, "World-space vector from the surface toward the light"),
-             ("Light Color", C, WHITE, None, "Incident intensity I = E_perp / pi")]
-_PHONG_IN = _LIGHT_IN + [
-    ("Ka", F, 0.1, (0.0, 1.0), "Ambient reflection coefficient k_a"),
-    ("Ambient Light", C, (0.2, 0.2, 0.2, 1.0), None, "Ambient intensity I_a"),
-    ("Kd", C, (0.8, 0.8, 0.8, 1.0), None, "Diffuse reflection coefficient k_d"),
-    ("Ks", F, 0.5, (0.0, 1.0), "Specular reflection coefficient k_s"),
-    ("Shininess", F, 32.0, (0.0, 1e5), "Specular exponent n"),
-    ("Emission Color", C, BLACK, None, "Emitted radiance I_e"),
-    ("Normalized", F, 0.0, (0.0, 1.0), "0 classic, 1 energy-normalised lobe")]
+LIGHT = "IL Light"
+#: {model id: public group name}, in the registry's order (nodes/models).
+MODEL_GROUPS = {m.id: m.group for m in MODELS}
 
 #: (name, socket type, default, (min, max) or None, description) per input, per group.
-INPUTS = {
-    PHONG: _PHONG_IN,
-    BLINN_PHONG: _PHONG_IN,
-    OREN_NAYAR: _LIGHT_IN + [
-        ("Albedo", C, (0.8, 0.8, 0.8, 1.0), None, "Diffuse albedo rho"),
-        ("Sigma", F, 0.3, (0.0, 10.0), "Standard deviation of the facet slopes, radians")],
-    COOK_TORRANCE: _LIGHT_IN + [
-        ("Kd", C, (0.2, 0.2, 0.2, 1.0), None, "Lambertian part k_d"),
-        ("Ks", F, 1.0, (0.0, 1.0), "Weight k_s of the microfacet lobe"),
-        ("F0", F, 0.04, (0.0, 1.0), "Fresnel reflectance at normal incidence (Schlick)"),
-        ("Roughness", F, 0.3, (0.0, 1.0), "m (Beckmann) or alpha (GGX) itself, clamped to >= 1e-3"),
-        ("Distribution", F, 1.0, (0.0, 1.0), "0 Beckmann, 1 GGX"),
-        ("Geometry", F, 1.0, (0.0, 1.0), "0 Cook-Torrance 1982, 1 height-correlated Smith")],
-    LIGHT: [
-        ("Type", F, 0.0, (0.0, 3.0), "0 point, 1 spot, 2 sun, 3 hemisphere"),
-        ("Position", V, (0.0, 0.0, 0.0), None, "World position of a point or spot light"),
-        ("Direction", V, (0.0, 0.0, -1.0), None, "Where a spot, sun or hemisphere light points"),
-        ("Color", C, WHITE, None, "Light colour (sky colour for a hemisphere light)"),
-        ("Power", F, 1000.0, (0.0, 1e9), "Watts (point, spot) or W/m^2 (sun, hemisphere)"),
-        ("Physical", F, 1.0, (0.0, 1.0), "1: 1/d^2, 0: min(1/(c1 + c2 d + c3 d^2), 1)"),
-        ("C1", F, 1.0, (0.0, 1e6), "Constant attenuation c1"),
-        ("C2", F, 0.0, (0.0, 1e6), "Linear attenuation c2"),
-        ("C3", F, 1.0, (0.0, 1e6), "Quadratic attenuation c3"),
-        ("Spot Cutoff", F, math.pi / 4, (0.0, math.pi), "Half angle of the spot cone, radians"),
-        ("Spot Exponent", F, 0.0, (0.0, 1e4), "Falloff exponent k of (s.s')^k"),
-        ("Ground Color", C, BLACK, None, "Ground colour of a hemisphere light")],
-}
-OUTPUTS = {name: [("Color", C), ("Emission", "NodeSocketShader")] for name in MODEL_GROUPS.values()}
+INPUTS = {m.group: list(m.inputs) for m in MODELS}
+INPUTS[LIGHT] = [
+    ("Type", F, 0.0, (0.0, 3.0), "0 point, 1 spot, 2 sun, 3 hemisphere"),
+    ("Position", V, (0.0, 0.0, 0.0), None, "World position of a point or spot light"),
+    ("Direction", V, (0.0, 0.0, -1.0), None, "Where a spot, sun or hemisphere light points"),
+    ("Color", C, WHITE, None, "Light colour (sky colour for a hemisphere light)"),
+    ("Power", F, 1000.0, (0.0, 1e9), "Watts (point, spot) or W/m^2 (sun, hemisphere)"),
+    ("Physical", F, 1.0, (0.0, 1.0), "1: 1/d^2, 0: min(1/(c1 + c2 d + c3 d^2), 1)"),
+    ("C1", F, 1.0, (0.0, 1e6), "Constant attenuation c1"),
+    ("C2", F, 0.0, (0.0, 1e6), "Linear attenuation c2"),
+    ("C3", F, 1.0, (0.0, 1e6), "Quadratic attenuation c3"),
+    ("Spot Cutoff", F, math.pi / 4, (0.0, math.pi), "Half angle of the spot cone, radians"),
+    ("Spot Exponent", F, 0.0, (0.0, 1e4), "Falloff exponent k of (s.s')^k"),
+    ("Ground Color", C, BLACK, None, "Ground colour of a hemisphere light")]
+OUTPUTS = {m.group: [("Color", C), ("Emission", "NodeSocketShader")] for m in MODELS}
 OUTPUTS[LIGHT] = [("Light Vector", V), ("Light Color", C)]
-DESCRIPTIONS = {
-    PHONG: "Phong (seed 004): k_a I_a + I (k_d n.l + k_s N (r.v)^n) + I_e",
-    BLINN_PHONG: "Blinn-Phong: k_a I_a + I (k_d n.l + k_s N (n.h)^n) + I_e",
-    OREN_NAYAR: "Oren-Nayar qualitative model, bounded vector form",
-    COOK_TORRANCE: "Cook-Torrance microfacet: I k_d n.l + pi I k_s F D G / (4 n.v)",
-    LIGHT: "One light as Light Vector and Light Color (I = E_perp / pi)",
-}
+DESCRIPTIONS = {m.group: m.group_description for m in MODELS}
+DESCRIPTIONS[LIGHT] = "One light as Light Vector and Light Color (I = E_perp / pi)"
 
 
 # -- interface --------------------------------------------------------------------------------------
@@ -142,24 +112,6 @@ def _io(g):
     return gin.outputs, gout.inputs
 
 
-def _surface_common(g):
-    """n and v (unit vectors as Cycles and EEVEE give them), n.v and the constant registers: what every light
-    shares (computed once)."""
-    with g.block("Surface: n, v, n.v, constants (computed once for all lights)"):
-        geo = g.node("ShaderNodeNewGeometry")
-        g.registers(geo)
-        n, v = geo.outputs["Normal"], geo.outputs["Incoming"]
-        n_v = g.dot(n, v, label="n.v")
-    return {"n": n, "v": v, "n.v": n_v, "0": g.reg(0.0)}
-
-
-def _light_common(g, i, s):
-    with g.block("Light: l, n.l"):
-        l = g.normalize(i["Light Vector"], label="l (toward light)")
-        n_l = g.dot(s["n"], l, label="n.l")
-    return l, n_l
-
-
 def _finish(g, o, color):
     with g.block("Output: radiance and emission"):
         em = g.node("ShaderNodeEmission")
@@ -169,219 +121,9 @@ def _finish(g, o, color):
     g.feed(em.outputs[0], o["Emission"])
 
 
-# -- models -----------------------------------------------------------------------------------------
-#
-# Each model is two halves: ``surface(g, i)`` returns the named terms that depend only on the shading
-# point and the parameters (n, v, n.v, roughness terms, registers), ``light(g, i, s)`` the factor of one
-# light's I from them (radiance = I factor, summed over the lights by one multiply-add each). The public
-# group holds both; a material holds the surface half once (internal group ".IL <model> Surface") and the
-# light half per light (".IL <model> Light"), so Blender converts only the light half for every light at
-# every render (it converts every node reachable from the output, about 13 us each; Cycles folds the
-# switches' unused branches only after that, so materials link the variants built with the switches fixed,
-# :func:`variant`).
-#
-# Cost (Cycles SVM): a switch input left constant (Distribution, Geometry, Normalized, Physical, Type)
-# keeps one branch only, so switches are Mix nodes, never math that evaluates both branches; and the
-# per-light nodes take no constant operands (a constant is loaded before every node that takes it, as
-# costly as the operation): they read "registers" (g.reg), nodes computed once per shading point.
-
-def _phong_surface(g, i, blinn):
-    s = _surface_common(g)
-    R = g.reg
-    s["n (exponent)"] = R(i["Shininess"], "n")
-    if blinn:
-        s[f"{brdf.TINY:g}"] = R(brdf.TINY)
-        with g.block("Surface: (n+2)(n+4) / (8 (2^(-n/2) + n))"):
-            n0 = g.max(i["Shininess"], 0.0, label="max(n, 0)")
-            num = g.mul(g.add(n0, 2.0), g.add(n0, 4.0), label="(n+2)(n+4)")
-            den = g.mul(g.add(g.pow(2.0, g.mul(n0, -0.5)), n0), 8.0, label="8 (2^(-n/2) + n)")
-            s["energy factor"] = R(g.div(num, den), "energy factor")
-    else:
-        with g.block("Surface: (n+2)/2, 2 n.v, -v"):
-            s["energy factor"] = R(g.div(g.add(i["Shininess"], 2.0), 2.0), "energy factor")
-            s["2 n.v"] = g.add(s["n.v"], s["n.v"], label="2 n.v")
-            s["-v"] = g.scale(s["v"], -1.0, label="-v")
-    with g.block("Surface: k_d, k_s, k_a I_a + I_e"):
-        s["k_d"] = g.vreg(i["Kd"], "k_d")
-        s["k_s"] = g.vreg(i["Ks"], "k_s")
-        s["k_a I_a + I_e"] = g.vadd(g.scale(i["Ambient Light"], i["Ka"], label="k_a I_a"), i["Emission Color"],
-                                    label="+ I_e")
-    return s
-
-
-def _phong_light(g, i, s, blinn):
-    l, n_l = _light_common(g, i, s)
-    zero, shin = s["0"], s["n (exponent)"]
-    with g.block("lit: n.l > 0"):
-        lit = g.gt(n_l, zero, label="lit")
-        a = g.mul(n_l, lit, label="max(n.l, 0)")
-    if blinn:
-        with g.block("Lobe: (n.h)^n"):
-            n_h = _half_vector_cosines(g, s, l)[0]
-            lobe = g.pow(g.max(n_h, zero), shin, label="(n.h)^n")
-    else:
-        with g.block("Lobe: (r.v)^n, r.v = 2 (n.l)(n.v) - l.v"):
-            r_v = g.madd(n_l, s["2 n.v"], g.dot(l, s["-v"], label="-l.v"), label="r.v")
-            lobe = g.pow(g.max(r_v, zero), shin, label="(r.v)^n")
-    with g.block("N lit: lit (classic) or factor max(n.l, 0) (energy-normalised)"):
-        norm = g.lerp(lit, g.mul(a, s["energy factor"], label="factor max(n.l, 0)"), i["Normalized"], label="N lit")
-    with g.block("k_d n.l + k_s N lobe"):
-        diff = g.scale(s["k_d"], a, label="k_d n.l")
-        return g.add_scaled(diff, s["k_s"], g.mul(lobe, norm, label="N lobe"), label="k_d n.l + k_s N lobe")
-
-
-def _oren_nayar_surface(g, i):
-    s = _surface_common(g)
-    R = g.reg
-    n_v = s["n.v"]
-    with g.block("Surface: A, B from sigma; n.v terms"):
-        s2 = g.mul(i["Sigma"], i["Sigma"], label="sigma^2")
-        s["A"] = R(g.sub(1.0, g.div(g.mul(s2, 0.5), g.add(s2, 0.33))), "A = 1 - 0.5 s2/(s2+0.33)")
-        s["B"] = R(g.div(g.mul(s2, 0.45), g.add(s2, 0.09)), "B = 0.45 s2/(s2+0.09)")
-        s["-n.v"] = g.mul(n_v, -1.0, label="-n.v")
-        s["max(n.v, 1e-12)"] = g.max(n_v, brdf.TINY, label="max(n.v, 1e-12)")
-        s["2 (n.v > 0)"] = g.mul(g.gt(n_v, 0.0), 2.0, label="2 (n.v > 0)")
-        s["rho"] = g.vreg(i["Albedo"], "rho")
-    return s
-
-
-def _oren_nayar_light(g, i, s):
-    l, n_l = _light_common(g, i, s)
-    with g.block("(n.l)(A + B max(0, cos dphi) sin(alpha) tan(beta)), bounded vector form"):
-        t0 = g.max(g.madd(n_l, s["-n.v"], g.dot(l, s["v"], label="l.v")), s["0"], label="max(0, l.v - (n.l)(n.v))")
-        t = g.div(t0, g.max(n_l, s["max(n.v, 1e-12)"]), label="s / max(n.l, n.v, 1e-12)")
-        a = g.min(g.max(n_l, s["0"]), s["2 (n.v > 0)"], label="max(n.l, 0), 0 unless n.v > 0")
-        factor = g.mul(a, g.madd(t, s["B"], s["A"]), label="n.l (A + B s / max(n.l, n.v))")
-    with g.block("rho factor"):
-        return g.scale(s["rho"], factor, label="rho factor")
-
-
-def _cook_torrance_surface(g, i):
-    s = _surface_common(g)
-    R = g.reg
-    with g.block("Surface: roughness, constants"):
-        r = g.max(i["Roughness"], brdf.MIN_ROUGHNESS, label="m or alpha (>= 1e-3)")
-        r2 = g.mul(r, r, label="r^2 (constant)")
-        # registers of constants (one node evaluated per shading point, no constant loaded per light)
-        s.update({"r^2": R(r2, "r^2"), "1/r": R(g.div(1.0, r), "1/r"),
-                  "r^2/4": R(g.mul(r2, 0.25), "r^2/4"), "(1 - r^2)/4": R(g.mul(g.sub(1.0, r2), 0.25), "(1 - r^2)/4"),
-                  "pi r^2": R(g.mul(r2, math.pi), "pi r^2"), "r^2 - 1": R(g.sub(r2, 1.0), "r^2 - 1")})
-        for value in (1.0, 5.0, brdf.EPS, brdf.TINY, 0.396, -1.259, 2.181, 3.535, 1.6, 0.5, -0.5):
-            s[f"{value:g}"] = R(value)
-    n_v = s["n.v"]
-    with g.block("Surface: n.v terms, Lambda(v), pi k_s / (4 n.v) where n.v > 0, times F0 and 1 - F0"):
-        c = g.max(n_v, brdf.EPS, label="max(n.v, 1e-4)")
-        s["max(n.v, 0)"] = g.max(n_v, s["0"], label="max(n.v, 0)")
-        s["1 + Lambda Beckmann(v)"] = g.add(_lambda_beckmann(g, s, n_v, "v"), 1.0, label="1 + Lambda Beckmann(v)")
-        # (1 + 2 Lambda_GGX(v))/2 = sqrt(a^2 + (1 - a^2) c^2)/(2c) = sqrt(a^2/(4 c^2) + (1 - a^2)/4)
-        s["s GGX(v)/2"] = g.math("SQRT", g.add(g.div(s["r^2/4"], g.mul(c, c)), s["(1 - r^2)/4"]),
-                                 label="(1 + 2 Lambda GGX(v))/2")
-        k = g.mul(g.div(g.mul(i["Ks"], math.pi / 4.0), c), g.gt(n_v, s["0"]),
-                  label="k = pi k_s / (4 n.v), 0 unless n.v > 0")
-        one_minus_f0 = g.sub(1.0, i["F0"], label="1 - F0 (constant)")
-        s["F0 k"] = g.mul(k, i["F0"], label="F0 k")
-        s["(1 - F0) k"] = g.mul(k, one_minus_f0, label="(1 - F0) k")
-        s["F0 k r^2/pi"] = g.mul(k, g.mul(i["F0"], g.div(r2, math.pi)), label="F0 k r^2/pi")
-        s["(1 - F0) k r^2/pi"] = g.mul(k, g.mul(one_minus_f0, g.div(r2, math.pi)), label="(1 - F0) k r^2/pi")
-        s["r^2/pi"] = R(g.div(r2, math.pi), "r^2/pi")
-        s["k_d"] = g.vreg(i["Kd"], "k_d")
-    return s
-
-
-def _lambda_beckmann(g, s, cos_theta, which):
-    """Smith Lambda for Beckmann: Walter's rational fit of a = 1/(m tan theta), 0 for a >= 1.6."""
-    one, eps = s["1"], s[f"{brdf.EPS:g}"]
-    c = g.max(cos_theta, eps)
-    cc = g.mul(c, c)
-    t2 = g.div(g.max(g.sub(one, cc), s["0"]), cc, label=f"tan^2 theta_{which}")
-    a = g.max(g.mul(g.math("INVERSE_SQRT", g.max(t2, s[f"{brdf.TINY:g}"])), s["1/r"]), eps, label=f"a ({which})")
-    fit = g.div(g.madd(a, g.madd(a, s["0.396"], s["-1.259"]), one), g.mul(a, g.madd(a, s["2.181"], s["3.535"])),
-                label=f"Walter fit ({which})")
-    return g.mul(fit, g.math("LESS_THAN", a, s["1.6"]), label=f"Lambda Beckmann ({which})")
-
-
-def _half_vector_cosines(g, s, l):
-    """n.h = n.(l + v)/|l + v| and |l + v|^2 = (l + v).(l + v), kept above 1e-12 (l = -v gives 0), with
-    1/|l + v|: v.h = |l + v|/2 in [0, 1] for unit l and v, without normalizing h."""
-    with g.block("Half vector cosines: n.h = n.(l + v)/|l + v|, v.h = |l + v|/2"):
-        l_v = g.vadd(l, s["v"], label="l + v")
-        lv2 = g.max(g.dot(l_v, l_v), s[f"{brdf.TINY:g}"], label="|l + v|^2")
-        inv_lv = g.math("INVERSE_SQRT", lv2, label="1/|l + v|")
-        n_h = g.mul(g.dot(s["n"], l_v, label="n.(l + v)"), inv_lv, label="n.h")
-    return n_h, lv2, inv_lv
-
-
-def _cook_torrance_light(g, i, s):
-    l, n_l = _light_common(g, i, s)
-    n_h, lv2, inv_lv = _half_vector_cosines(g, s, l)
-    lv = g.mul(lv2, inv_lv, label="|l + v| = 2 v.h")
-    dist, geom = i["Distribution"], i["Geometry"]
-    zero, one, eps = s["0"], s["1"], s[f"{brdf.EPS:g}"]
-    a_l = g.max(n_l, zero, label="max(n.l, 0)")
-    if (dist, geom) == (1.0, 1.0):
-        return _ggx_smith_factor(g, s, n_h, lv, a_l)
-    v_h = g.mul(lv, s["0.5"], label="v.h")
-    # n.h enters D and G unclamped at 0 where the twin clamps it: those points have n.l <= 0 or n.v <= 0
-    # (n.h = (n.l + n.v)/|l + v|), where G or k makes the specular 0 (both stay finite there).
-    with g.block("D: Beckmann"):
-        c = g.max(n_h, eps)
-        c2 = g.mul(c, c, label="cos^2")
-        ex = g.math("EXPONENT", g.div(g.sub(c2, one), g.mul(s["r^2"], c2)), label="exp(-tan^2/m^2)")
-        d_beck = g.div(ex, g.mul(s["pi r^2"], g.mul(c2, c2)), label="D Beckmann")
-    with g.block("D: GGX"):
-        t = g.madd(g.mul(n_h, n_h), s["r^2 - 1"], one, label="cos^2 (a^2-1) + 1")
-        d_ggx = g.div(s["r^2/pi"], g.mul(t, t), label="D GGX")
-    with g.block("D: select (0 Beckmann, 1 GGX)"):
-        D = g.lerp(d_beck, d_ggx, dist, label="D")
-    with g.block("G: Cook-Torrance 1982, min(1, 2 (n.h) min(n.v, n.l) / (v.h))"):
-        q = g.div(g.add(n_h, n_h), g.max(v_h, eps), label="2 (n.h) / (v.h)")
-        g_ct = g.min(g.mul(q, g.min(a_l, s["max(n.v, 0)"])), one, label="G Cook-Torrance")
-    with g.block("G: Smith height-correlated, 1/(1 + Lambda(l) + Lambda(v)); GGX: 2/(s(l) + s(v)), s = 1 + 2 Lambda"):
-        g_beck = g.div(g.gt(n_l, zero, label="n.l > 0"),
-                       g.add(_lambda_beckmann(g, s, n_l, "l"), s["1 + Lambda Beckmann(v)"]), label="G Smith Beckmann")
-        # 2/(s(l) + s(v)) times a_l/a_l: 0 where n.l <= 0 without a mask, finite (the root is >= min(r, 1)/2)
-        half_root = g.math("SQRT", g.madd(g.mul(a_l, a_l), s["(1 - r^2)/4"], s["r^2/4"]),
-                           label="sqrt(a^2 + (1 - a^2) (n.l)^2)/2")
-        g_ggx = g.div(a_l, g.madd(a_l, s["s GGX(v)/2"], half_root), label="G Smith GGX")
-        g_smith = g.lerp(g_beck, g_ggx, dist, label="G Smith")
-    with g.block("G: select (0 Cook-Torrance, 1 Smith)"):
-        G = g.lerp(g_ct, g_smith, geom, label="G")
-    with g.block("F k: Schlick, F0 + (1 - F0)(1 - v.h)^5, times k"):
-        one_minus = g.sub(one, v_h, label="1 - v.h")
-        Fk = g.madd(g.pow(one_minus, s["5"]), s["(1 - F0) k"], s["F0 k"], label="F k")
-    # every G is 0 where n.l <= 0 (G Cook-Torrance through max(n.l, 0)), and k where n.v <= 0
-    with g.block("L = I (k_d n.l + pi k_s F D G / (4 n.v)), specular 0 unless n.l, n.v > 0"):
-        spec = g.mul(g.mul(Fk, D), G, label="specular")
-        return g.vmath("MULTIPLY_ADD", s["k_d"], a_l, spec, label="k_d n.l + specular")
-
-
-def _ggx_smith_factor(g, s, n_h, lv, a_l):
-    """GGX with the height-correlated Smith G (both switches at 1, the default) in fewer nodes than the
-    general form: with t = (n.h)^2 (a^2 - 1) + 1 and G = a_l / (a_l s(v)/2 + sqrt(a^2 + (1 - a^2) a_l^2)/2),
-    D G = (a^2/pi) a_l / (t^2 den), so k_d a_l + F k D G = k_d a_l + a_l F k (a^2/pi) / (t^2 den) (REFERENCE.md
-    sec. 1, Walter et al. 2007 eq. 33 and 34; the same values as the general form)."""
-    with g.block("D G / a_l: (a^2/pi) / (t^2 (a_l s(v)/2 + sqrt(a^2 + (1 - a^2) a_l^2)/2))"):
-        t = g.madd(g.mul(n_h, n_h), s["r^2 - 1"], s["1"], label="t = (n.h)^2 (a^2 - 1) + 1")
-        half_root = g.math("SQRT", g.madd(g.mul(a_l, a_l), s["(1 - r^2)/4"], s["r^2/4"]),
-                           label="sqrt(a^2 + (1 - a^2) (n.l)^2)/2")
-        den = g.mul(g.mul(t, t, label="t^2"), g.madd(a_l, s["s GGX(v)/2"], half_root), label="t^2 den")
-    with g.block("F k a^2/pi: Schlick, F0 + (1 - F0)(1 - v.h)^5, v.h = |l + v|/2"):
-        one_minus = g.madd(lv, s["-0.5"], s["1"], label="1 - v.h")
-        fk = g.madd(g.pow(one_minus, s["5"]), s["(1 - F0) k r^2/pi"], s["F0 k r^2/pi"], label="F k a^2/pi")
-    with g.block("k_d n.l + n.l (F k D G / n.l)"):
-        spec = g.mul(a_l, g.div(fk, den), label="F k D G")
-        return g.vmath("MULTIPLY_ADD", s["k_d"], a_l, spec, label="k_d n.l + specular")
-
-
-#: model group: (surface half, light half, the switch inputs the light half reads, surface term added once).
-HALVES = {
-    PHONG: (lambda g, i: _phong_surface(g, i, False), lambda g, i, s: _phong_light(g, i, s, False),
-            ["Normalized"], "k_a I_a + I_e"),
-    BLINN_PHONG: (lambda g, i: _phong_surface(g, i, True), lambda g, i, s: _phong_light(g, i, s, True),
-                  ["Normalized"], "k_a I_a + I_e"),
-    OREN_NAYAR: (_oren_nayar_surface, _oren_nayar_light, [], None),
-    COOK_TORRANCE: (_cook_torrance_surface, _cook_torrance_light, ["Distribution", "Geometry"], None),
-}
+#: model group: (surface half, light half, the switch inputs the light half reads, surface term added once);
+#: each model's own file in nodes/models holds them (see its docstring for the two halves' contract).
+HALVES = {m.group: (m.surface, m.light, list(m.switches), m.once) for m in MODELS}
 
 
 def _build_model(tree, name):
@@ -438,7 +180,7 @@ def _light_half_inputs(name):
     keys = [(it.name, it.socket_type, None, None, "surface term")
             for it in surface.interface.items_tree if it.item_type == "SOCKET" and it.in_out == "OUTPUT"]
     switches = [x for x in INPUTS[name] if x[0] in HALVES[name][2]]
-    return _LIGHT_IN + [SUM] + switches + keys
+    return list(_LIGHT_IN) + [SUM] + switches + keys
 
 
 def _build_light_half(tree, name, fixed=()):

@@ -35,9 +35,11 @@ from ..blender import compat
 from ..core.errors import InputError
 from ..core.lights import TYPES
 from . import groups, source
+from .models import BY_ID, MODELS
+from .options import ShadingOptions
 
-MODEL_LABELS = {"PHONG": "Phong", "BLINN_PHONG": "Blinn-Phong", "OREN_NAYAR": "Oren-Nayar",
-                "COOK_TORRANCE": "Cook-Torrance"}
+#: {model id: label}, from the registry (nodes/models).
+MODEL_LABELS = {m.id: m.label for m in MODELS}
 ATTENUATION_INPUTS = ("Physical", "C1", "C2", "C3", "Spot Exponent")
 #: Added to a model without it (Oren-Nayar, Cook-Torrance) when the material emits.
 EMISSION = "Emission Color"
@@ -51,8 +53,7 @@ DIRECTION_EXPR = ("-(cos(z)*sin(y)*cos(x) + sin(z)*sin(x))",
 
 def model_parameters(model):
     """[(name, socket type, default)] of the model's parameters (every input but the light's two)."""
-    return [(n, t, d) for n, t, d, *_ in groups.INPUTS[groups.MODEL_GROUPS[model]]
-            if n not in ("Light Vector", "Light Color")]
+    return [(n, t, d) for n, t, d, *_ in BY_ID[model].params]
 
 
 def light_type(obj):
@@ -219,8 +220,8 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
     """(Re)build ``mat``'s tree: parameters, one IL Light + model node per light, their sum. Nodes tagged
     "il_source" (kept from the user's material, :func:`assign_materials`) stay: each one in
     ``mat["il_sources"]`` feeds its parameter times the parameter's hub (a tint)."""
-    if model not in groups.MODEL_GROUPS:
-        raise InputError(f"unknown shading model '{model}' (one of {', '.join(groups.MODEL_GROUPS)})")
+    if model not in BY_ID:
+        raise InputError(f"unknown shading model '{model}' (one of {', '.join(BY_ID)})")
     if attenuation not in ("PHYSICAL", "EMPIRICAL"):
         raise InputError(f"attenuation must be PHYSICAL or EMPIRICAL, got '{attenuation}'")
     params = dict(params or {})
@@ -274,7 +275,7 @@ def build_material(mat, model, light_objects, attenuation="PHYSICAL", coefficien
         for name, *_ in model_parameters(model):
             links.new(feed[name].outputs[0], surface.inputs[name])
         half = groups.ensure_group(groups.light_group_name(model_group.name))
-        switches, once = groups.HALVES[model_group.name][2:]
+        switches, once = BY_ID[model].switches, BY_ID[model].once
         total = surface.outputs[once] if once else None
     for k, obj in enumerate(light_objects or [None]):
         label = obj.name if obj is not None else "no lights (ambient and emission only)"
@@ -529,6 +530,15 @@ def split_shadable(objects):
                     for r, names in by_reason.items()]
 
 
+def shading_options(options, lights="ALL", attenuation="PHYSICAL", coefficients=(1.0, 0.0, 1.0)):
+    """``options`` itself when it is a :class:`.options.ShadingOptions`; else one made from a model id and the
+    other settings (the form scripts and tests call with)."""
+    if isinstance(options, ShadingOptions):
+        return options
+    c1, c2, c3 = coefficients
+    return ShadingOptions(model=options, lights=lights, attenuation=attenuation, c1=c1, c2=c2, c3=c3)
+
+
 def assign_shading_model(scene, objects, model, lights="ALL", attenuation="PHYSICAL",
                          coefficients=(1.0, 0.0, 1.0), params=None, name=None):
     """:func:`assign_materials`, returning (the IL material of the first slot shaded, warnings)."""
@@ -626,7 +636,10 @@ def _put(owner, index, mat):
 
 def assign_materials(scene, objects, model, lights="ALL", attenuation="PHYSICAL",
                      coefficients=(1.0, 0.0, 1.0), params=None, name=None):
-    """Give every slot of the meshes in ``objects`` an IL material summing ``model`` over the lights.
+    """Give every slot of the meshes in ``objects`` an IL material summing the model over the lights.
+
+    ``model``: the :class:`.options.ShadingOptions` (model, lights, attenuation, c1 c2 c3; what the operator
+    passes), or a model id with ``lights``, ``attenuation`` and ``coefficients`` (:func:`shading_options`).
 
     One IL material per material of the slots (one for a material several slots or objects share; one for
     the empty slots and slotless meshes, with the model's defaults): its parameters come from the user's
@@ -636,8 +649,10 @@ def assign_materials(scene, objects, model, lights="ALL", attenuation="PHYSICAL"
     (cameras, curves, empties, meshes without faces, library meshes) are skipped with one warning naming them.
     Returns ([IL materials], warnings). Raises InputError (and changes nothing) when no mesh can be shaded.
     """
-    if model not in groups.MODEL_GROUPS:
-        raise InputError(f"unknown shading model '{model}' (one of {', '.join(groups.MODEL_GROUPS)})")
+    options = shading_options(model, lights, attenuation, coefficients)
+    model, lights, attenuation, coefficients = options.model, options.lights, options.attenuation, options.coefficients
+    if model not in BY_ID:
+        raise InputError(f"unknown shading model '{model}' (one of {', '.join(BY_ID)})")
     if lights not in ("ALL", "SELECTED"):
         raise InputError(f"lights must be ALL or SELECTED, got '{lights}'")
     objects = list(objects)

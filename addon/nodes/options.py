@@ -2,13 +2,10 @@
 import dataclasses
 
 from ..core.options import Options, option
+from .models import MODELS
 
-MODEL_CHOICES = (
-    ("PHONG", "Phong", "k_a I_a + I (k_d n.l + k_s (r.v)^n) + I_e"),
-    ("BLINN_PHONG", "Blinn-Phong", "Phong with (n.h)^n"),
-    ("OREN_NAYAR", "Oren-Nayar", "Rough diffuse, qualitative model"),
-    ("COOK_TORRANCE", "Cook-Torrance", "Microfacet specular: F D G / (4 n.l n.v)"),
-)
+#: (id, label, description) of every shading model, from the registry (nodes/models).
+MODEL_CHOICES = tuple((m.id, m.label, m.description) for m in MODELS)
 LIGHT_CHOICES = (("ALL", "All Lights", "Every renderable light of the scene"),
                  ("SELECTED", "Selected Lights", "Only the lights selected together with the meshes"))
 ATTENUATION_CHOICES = (("PHYSICAL", "Physical (1/d²)", "Inverse-square law, matches Cycles' own lights"),

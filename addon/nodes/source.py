@@ -7,7 +7,7 @@ turns it into one model's inputs (docs/shading.md, "Your materials"). Nothing he
 import dataclasses
 
 from ..blender import compat
-from . import groups
+from .models import BY_ID
 
 GREY = (0.8, 0.8, 0.8)
 
@@ -175,7 +175,7 @@ def model_parameters(model, s):
 
 def lost(model, s):
     """What ``model`` cannot show of ``s`` (names), beside :attr:`Surface.notes`."""
-    names = [n for n, *_ in groups.INPUTS[groups.MODEL_GROUPS[model]]]
+    names = [n for n, *_ in BY_ID[model].inputs]
     out = []
     if model == "OREN_NAYAR" and s.specular and s.metallic > 0.0:
         out.append("Metallic (Oren-Nayar has no specular lobe)")

@@ -44,8 +44,7 @@ class IL_OT_assign_shading_model(JobOperator, bpy.types.Operator):
 
     def job(self, context):
         o = props.options(ShadingOptions, self)
-        mats, warnings = material.assign_materials(context.scene, context.selected_objects, o.model, o.lights,
-                                                   o.attenuation, o.coefficients)
+        mats, warnings = material.assign_materials(context.scene, context.selected_objects, o)
         for w in warnings:
             warn(w)
         names, lights = [m.name for m in mats], list(mats[0]["il_light_names"])

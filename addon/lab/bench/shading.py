@@ -14,6 +14,7 @@ from ...blender import compat
 from ...core import brdf, charts
 from ...core.errors import InputError
 from ...nodes import groups, material
+from ...nodes.models import BY_GROUP, MODELS
 from ...blender.progress import Progress
 from ...blender import materials, scene as sc
 from ...blender import render
@@ -133,36 +134,31 @@ def _rgb(x):
     return np.asarray(x, float)[:3] if np.ndim(x) else float(x)
 
 
-def twin(group_name, n, v, inputs):
-    """The numpy twin of ``group_name`` evaluated with the group's ``inputs`` (missing ones at defaults)."""
-    spec = {name: default for name, _, default, *_ in groups.INPUTS[group_name]}
+def _model(group_name):
+    if group_name not in BY_GROUP:
+        raise InputError(f"no twin for '{group_name}'")
+    return BY_GROUP[group_name]
+
+
+def twin_inputs(group_name, inputs):
+    """{input name: value} of every input of the model group: ``inputs`` over the defaults, colours as RGB."""
+    spec = {name: default for name, _, default, *_ in _model(group_name).inputs}
     spec.update(inputs)
-    p = {k: _rgb(val) for k, val in spec.items()}
-    l, I = p["Light Vector"], p["Light Color"]
-    if group_name in (groups.PHONG, groups.BLINN_PHONG):
-        fn = brdf.phong if group_name == groups.PHONG else brdf.blinn_phong
-        return fn(n, l, v, I, ka=p["Ka"], ambient_light=p["Ambient Light"], kd=p["Kd"], ks=p["Ks"],
-                  shininess=p["Shininess"], emission=p["Emission Color"], normalized=p["Normalized"])
-    if group_name == groups.OREN_NAYAR:
-        return brdf.oren_nayar(n, l, v, I, albedo=p["Albedo"], sigma=p["Sigma"])
-    if group_name == groups.COOK_TORRANCE:
-        return brdf.cook_torrance(n, l, v, I, kd=p["Kd"], ks=p["Ks"], F0=p["F0"], roughness=p["Roughness"],
-                                  distribution=p["Distribution"], geometry=p["Geometry"])
-    raise InputError(f"no twin for '{group_name}'")
+    return {k: _rgb(val) for k, val in spec.items()}
+
+
+def twin(group_name, n, v, inputs):
+    """The numpy twin of ``group_name`` (its record's ``twin``, nodes/models) evaluated with the group's
+    ``inputs`` (missing ones at defaults)."""
+    p = twin_inputs(group_name, inputs)
+    return _model(group_name).twin(n, p["Light Vector"], v, p["Light Color"], p)
 
 
 #: Light vectors of the sweep: frontal, oblique, grazing (l perpendicular to v), behind the sphere.
 SWEEP_LIGHTS = [(0.0, -1.0, 0.0), (2.0, -1.0, 1.5), (1.0, 0.0, 0.0), (-0.3, 1.0, 0.4)]
 
-SWEEP_CASES = {
-    groups.PHONG: [dict(Shininess=20.0, Ks=0.6), dict(Shininess=5.0, Ks=0.4, Normalized=1.0)],
-    groups.BLINN_PHONG: [dict(Shininess=40.0, Ks=0.6), dict(Shininess=10.0, Ks=0.4, Normalized=1.0)],
-    groups.OREN_NAYAR: [dict(Sigma=0.0), dict(Sigma=0.5), dict(Sigma=1.2)],
-    groups.COOK_TORRANCE: [dict(Roughness=0.3, Distribution=0.0, Geometry=0.0, F0=0.2),
-                           dict(Roughness=0.2, Distribution=1.0, Geometry=1.0, F0=0.9),
-                           dict(Roughness=0.5, Distribution=0.0, Geometry=1.0, F0=0.04),
-                           dict(Roughness=0.4, Distribution=1.0, Geometry=0.0, F0=0.5)],
-}
+#: {model group: parameter sets of its sweep} (each record's ``sweep``, nodes/models).
+SWEEP_CASES = {m.group: [dict(case) for case in m.sweep] for m in MODELS}
 
 
 def sweep_cases(group_name):
@@ -189,13 +185,13 @@ def node_vs_twin(group_name, size=96):
 #: (group, inputs, incidence in degrees) of the rendered albedo check: the energy-normalised lobes at
 #: exponents where the old (n+8)/8 factor gained up to 7.5 %, Lambert (sigma 0) and Oren-Nayar.
 ALBEDO_CASES = (
-    [(groups.BLINN_PHONG, {"Shininess": e}, t) for e in (0.0, 1.0, 9.0, 100.0) for t in (0.0, 60.0, 89.9)]
-    + [(groups.PHONG, {"Shininess": e}, t) for e in (1.0, 9.0, 100.0) for t in (0.0, 60.0, 89.9)]
-    + [(groups.OREN_NAYAR, {"Sigma": s}, t) for s in (0.0, 0.2, 1.0) for t in (0.0, 60.0, 89.9)])
+    [("IL Blinn-Phong", {"Shininess": e}, t) for e in (0.0, 1.0, 9.0, 100.0) for t in (0.0, 60.0, 89.9)]
+    + [("IL Phong", {"Shininess": e}, t) for e in (1.0, 9.0, 100.0) for t in (0.0, 60.0, 89.9)]
+    + [("IL Oren-Nayar", {"Sigma": s}, t) for s in (0.0, 0.2, 1.0) for t in (0.0, 60.0, 89.9)])
 #: Inputs that leave only the lobe under test: k_s = 1 (or rho = 1), no diffuse, ambient or emission, I = 1.
-ALBEDO_BASE = {groups.PHONG: {"Ka": 0.0, "Kd": (0, 0, 0), "Ks": 1.0, "Normalized": 1.0, "Emission Color": (0, 0, 0)},
-               groups.OREN_NAYAR: {"Albedo": (1, 1, 1)}}
-ALBEDO_BASE[groups.BLINN_PHONG] = ALBEDO_BASE[groups.PHONG]
+ALBEDO_BASE = {"IL Phong": {"Ka": 0.0, "Kd": (0, 0, 0), "Ks": 1.0, "Normalized": 1.0, "Emission Color": (0, 0, 0)},
+               "IL Oren-Nayar": {"Albedo": (1, 1, 1)}}
+ALBEDO_BASE["IL Blinn-Phong"] = ALBEDO_BASE["IL Phong"]
 
 
 def _albedo_width(inputs):
@@ -254,11 +250,8 @@ def _custom_normal_plane(scene, name, location, normal):
 def _albedo_twin(group_name, inputs, l, v, n=(0.0, 0.0, 1.0)):
     """The twin of an ALBEDO_BASE case for arrays of light directions l (I = 1), in the plane's frame
     (e1, e2, n) of :func:`_albedo_frame`: n = +z, or per-pixel shading normals (N, 3) in that frame."""
-    n = np.asarray(n, float)
-    if group_name == groups.OREN_NAYAR:
-        return brdf.oren_nayar(n, l, v, 1.0, albedo=(1.0, 1.0, 1.0), sigma=inputs["Sigma"])
-    fn = brdf.phong if group_name == groups.PHONG else brdf.blinn_phong
-    return fn(n, l, v, 1.0, kd=(0.0, 0.0, 0.0), ks=1.0, shininess=inputs["Shininess"], normalized=1.0)
+    p = twin_inputs(group_name, dict(ALBEDO_BASE[group_name], **inputs))
+    return _model(group_name).twin(np.asarray(n, float), l, v, 1.0, p)
 
 
 def render_group_albedo(cases=None, size=64):
@@ -454,6 +447,7 @@ def render_cost(configs=COST_CONFIGS, light_counts=(1, 4), repeats=3, models=COS
                     kind = "COOK_TORRANCE" if model.startswith("COOK_TORRANCE") else model
                     mat = material.assign_shading_model(scene, objs, kind, params=COST_PARAMS.get(model),
                                                         name=f"Cost {model}")[0]
+                mat.use_fake_user = True    # the next model assigned to these meshes would free it (unused)
                 mats[(light_count, model)] = mat
                 if model != "PRINCIPLED":
                     key = next(o.name for o in scene.objects if o.type == "LIGHT" and o.data.type == "POINT")
@@ -487,6 +481,8 @@ def render_cost(configs=COST_CONFIGS, light_counts=(1, 4), repeats=3, models=COS
                                  "nodes_once": once,
                                  "ns_per_sample": sec / (size * size * samples) * 1e9})
     finally:
+        for m in mats.values():
+            m.use_fake_user = False
         for scene in scenes.values():
             sc.remove_scene(scene, [m for (lc, _), m in mats.items() if scenes.get(lc) is scene])
     return rows
@@ -604,7 +600,7 @@ def run(output_dir, quick=False):
 
         progress.step(steps[1])
         rows = []
-        for name in (groups.PHONG, groups.BLINN_PHONG, groups.OREN_NAYAR, groups.COOK_TORRANCE):
+        for name in (m.group for m in MODELS):
             t = time.perf_counter()
             row = node_vs_twin(name, size=48 if quick else 96)
             row["seconds"] = time.perf_counter() - t
