@@ -28,7 +28,7 @@ from addon.blender import chatter, interrupt  # noqa: E402  (no bpy)
 if "bpy" not in sys.modules:                   # Blender logs while it starts (e.g. the OCIO config in use)
     with chatter.captured(always=True), contextlib.suppress(ImportError):
         import bpy  # noqa: E402,F401
-from addon.core.errors import ILError, ILWarning, InputError  # noqa: E402
+from addon.core.errors import OUT_OF_MEMORY, ILError, ILWarning, InputError, os_error_message  # noqa: E402
 from addon.core.io import blend  # noqa: E402
 from addon.core.io.files import check_output_dir  # noqa: E402
 from addon.core import options as core_options  # noqa: E402
@@ -212,11 +212,10 @@ def run(p, main, argv=None):
         print(f"{p.prog}: interrupted: stopped, the file and finished outputs are as they were", file=sys.stderr)
         code = INTERRUPTED
     except MemoryError:
-        print(f"{p.prog}: error: out of memory: use smaller sizes or fewer samples", file=sys.stderr)
+        print(f"{p.prog}: error: {OUT_OF_MEMORY}", file=sys.stderr)
         code = 1
     except OSError as e:
-        where = f": {e.filename}" if e.filename else ""
-        print(f"{p.prog}: error: {e.strerror or e}{where}", file=sys.stderr)
+        print(f"{p.prog}: error: {os_error_message(e)}", file=sys.stderr)
         code = 1
     except Exception as e:  # noqa: BLE001 - a bug: one line, the traceback on request
         if os.environ.get("IL_DEBUG"):

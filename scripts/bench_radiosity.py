@@ -33,6 +33,7 @@ def main(args):
     from addon.core import analytic
     from addon.lab import radiosity as L
     from addon.lab.bench import radiosity as B
+    from addon.lab.options import RadiosityOptions
     out = os.path.abspath(args.out)
     os.makedirs(out, exist_ok=True)
     print(f"load average {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} on {os.cpu_count()} cores")
@@ -58,8 +59,8 @@ def main(args):
         for path in paths:
             sc = _imported_cornell(os.path.join(out, "obj"))
             t0 = time.perf_counter()
-            res = L.run(os.path.join(out, f"rad_{path}"), scene=sc, max_edge=0.1, samples=args.samples, chart=False,
-                        **B.PATHS[path])
+            res = L.run(os.path.join(out, f"rad_{path}"), RadiosityOptions(max_edge=0.1, samples=args.samples),
+                        scene=sc, chart=False, **B.PATHS[path])
             rep = res.report
             print(f"imported 0.1 {path}: {rep['patches']} patches, solve {rep['seconds']:.1f} s, Cycles "
                   f"{rep['cycles_samples']} samples {rep['cycles_seconds']:.1f} s, relative RMS vs Cycles "
@@ -118,10 +119,12 @@ def versus(out, ref_samples, edges=(0.25, 0.15, 0.1, 0.06), samples=(4, 8, 16, 3
     returns the rows (:func:`chart`)."""
     import numpy as np
     from addon.lab import radiosity as L
+    from addon.lab.options import RadiosityOptions
     rows = []
     for e in edges:
         sc = _imported_cornell(os.path.join(out, "obj"))
-        res = L.run(os.path.join(out, f"versus_{e}"), scene=sc, max_edge=e, samples=ref_samples, chart=False)
+        res = L.run(os.path.join(out, f"versus_{e}"), RadiosityOptions(max_edge=e, samples=ref_samples), scene=sc,
+                    chart=False)
         a, rep = res.arrays, res.report
         pf = a["patches"].take(a["front"])
         ref = a["cycles"]

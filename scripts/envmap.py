@@ -17,7 +17,7 @@ def main(args):
     if args.env and args.blend:
         raise InputError("give either FILE.blend or --env FILE, not both")
     o = _cli.options_from(EnvmapOptions, args)
-    result = envmap.run(os.path.abspath(args.out), env_file=args.env, method=o.method, width=o.width)
+    result = envmap.run(os.path.abspath(args.out), o, env_file=args.env)
     print(f"envmap: {result['file']} ({o.method}, {result['seconds'] * 1e3:.1f} ms)")
     print(f"  report: {result.path}")
 

@@ -11,7 +11,6 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import _cli  # noqa: E402
 
 
-
 def main(args):
     from addon.core.errors import InputError
     from addon.lab import radiosity
@@ -19,9 +18,7 @@ def main(args):
     if args.scene and args.blend:
         raise InputError("give either FILE.blend or --scene cornell, not both")
     o = _cli.options_from(RadiosityOptions, args)
-    result = radiosity.run(os.path.abspath(args.out), cornell=args.scene == "cornell", solver=o.solver,
-                           max_edge=o.max_edge, adaptive=o.adaptive, samples=o.samples, compare=o.compare, tol=o.tol,
-                           compare_solvers=o.compare_solvers)
+    result = radiosity.run(os.path.abspath(args.out), o, cornell=args.scene == "cornell")
     rep = result.report
     print(f"radiosity: {rep['patches']} patches ({rep['back_patches']} of them back sides), {rep['solver']} "
           f"{rep['iterations']} iterations, {rep['seconds']:.2f} s (estimated at most {rep['estimate']['seconds']:.1f} s)"

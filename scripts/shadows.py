@@ -26,16 +26,14 @@ def main(args):
         print(f"shadows: {len(result.charts)} charts and {len(result.tables)} tables in {out}")
         return
     o = _cli.options_from(ShadowOptions, args)
-    params = dict(resolution=o.resolution, shadowmap_size=o.shadowmap_size, bias=o.bias,
-                  slope_bias=o.slope_bias, pcf=o.pcf, receiver=o.receiver, samples=o.samples)
     if args.scene:
         if args.blend:
             raise InputError("give either FILE.blend or --scene NAME, not both")
-        result = shadows.compare_builtin(args.scene, args.light_type, o.methods, out, keep=False, **params)
+        result = shadows.compare_builtin(args.scene, args.light_type, out, o)
     else:
         if not bpy.data.filepath and not args.blend:
             raise InputError("give a FILE.blend or --scene NAME (one of: " + ", ".join(shadow_scenes.SCENES) + ")")
-        result = shadows.compare(bpy.context.scene, args.light, o.methods, out, **params)
+        result = shadows.compare(bpy.context.scene, args.light, out, o)
     print(f"shadows: report {result.path}")
     if not result["meaningful"]:
         print("  the reference has no lit or no shadowed pixel: the errors below mean nothing")

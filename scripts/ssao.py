@@ -39,6 +39,8 @@ def _validate(args):
 
 def main(args):
     o = _validate(args)
+    if args.blend:
+        o.resolution = args.resolution      # None: the .blend keeps its own frame
     out = os.path.abspath(args.out)
     cache = check_output_dir(os.path.join(out, "cache") if args.cache is None else args.cache)
     if args.sweeps:
@@ -52,13 +54,10 @@ def main(args):
         return
     import bpy
     from addon.lab import ssao as lab
-    kwargs = dict(samples=o.samples, radius=o.radius, reference_samples=o.reference_samples,
-                  cache_dir=cache, blur=o.blur, seed=o.seed)
     if args.blend:
-        result = lab.compare(bpy.context.scene, o.methods, out,
-                             resolution=args.resolution, **kwargs)
+        result = lab.compare(bpy.context.scene, out, o, cache_dir=cache)
     else:
-        result = lab.run_builtin(args.scene or "corner", o.methods, out, resolution=o.resolution, **kwargs)
+        result = lab.run_builtin(args.scene or "corner", out, o, cache_dir=cache)
     print(f"ssao: {result.path}")
     for line in lab.summary_lines(result):
         print(f"  {line}")

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from addon.lab import shadows
-from addon.lab.bench import lightmaps, report
+from addon.lab import report
+from addon.lab.bench import lightmaps
 
 CHARTS = {
     "lightmaps": ["bake_error_vs_seconds.png", "bake_irradiance_error_vs_seconds.png"],

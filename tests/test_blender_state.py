@@ -7,6 +7,7 @@ from addon.blender import compat, render
 from addon.blender import scene as sc
 from addon.blender.state import SavedState
 from addon.lab import ssao as lab
+from addon.lab.options import SSAOOptions
 from addon.lab.ssao import scenes as ssao_scenes
 
 
@@ -94,7 +95,8 @@ def test_ssao_lab_interrupted_in_workbench_leaves_every_setting_and_adds_no_worl
 
     renders = _interrupt_render(monkeypatch, 3)
     with pytest.raises(KeyboardInterrupt):
-        lab.compare(scene, ["workbench"], None, samples=4, radius=1.0, reference_samples=8, resolution=24)
+        lab.compare(scene, None, SSAOOptions(methods=["workbench"], samples=4, radius=1.0, reference_samples=8,
+                                             resolution=24))
     assert renders == [compat.CYCLES, compat.CYCLES, compat.WORKBENCH]
     assert r.engine == compat.EEVEE
     assert (r.film_transparent, r.filter_size, r.filepath, r.use_file_extension) == (False, 2.0, "//mine_", True)
@@ -117,7 +119,7 @@ def test_ssao_lab_interrupted_in_the_reference_keeps_the_users_world_and_its_ao_
     worlds = set(bpy.data.worlds)
     renders = _interrupt_render(monkeypatch, 2)
     with pytest.raises(KeyboardInterrupt):
-        lab.compare(scene, ["gtao"], None, resolution=24, reference_samples=8, radius=0.5)
+        lab.compare(scene, None, SSAOOptions(methods=["gtao"], resolution=24, reference_samples=8, radius=0.5))
     assert len(renders) == 2 and world.light_settings.distance == pytest.approx(4.0)
     assert scene.world == world and set(bpy.data.worlds) == worlds
     sc.remove_scene(scene)

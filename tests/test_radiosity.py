@@ -16,6 +16,7 @@ from addon.core.radiosity import subdivision
 from addon.core.radiosity import visibility as rad_visibility
 from addon.core.errors import InputError
 from addon.lab import radiosity as L
+from addon.lab.options import RadiosityOptions
 from addon.blender import scene as S
 
 
@@ -30,7 +31,7 @@ def test_bvh_visibility_equals_numpy_rays():
 
 
 def test_cornell_run_against_cycles_and_outputs(tmp_path):
-    r = L.run(str(tmp_path), cornell=True, max_edge=0.5, samples=32, solver="gauss_seidel")
+    r = L.run(str(tmp_path), RadiosityOptions(max_edge=0.5, samples=32, solver="gauss_seidel"), cornell=True)
     rep = json.loads((tmp_path / "radiosity_report.json").read_text())
     assert rep["patches"] == len(r.arrays["patches"]) and rep["solver"] == "gauss_seidel" and rep["iterations"] > 1
     # the bake and the solution agree on the area-weighted mean irradiance (∫ H dA / A) within 6 % and patch by
@@ -109,7 +110,7 @@ def test_script_errors_and_help(script, tmp_path):
     for kwargs, option in ((dict(tol=0.0), "tolerance must be greater than 0"),
                            (dict(adaptive=-1), "adaptive rounds must be between 0 and")):
         with pytest.raises(InputError, match=option):     # refused before any scene is built
-            L.run(str(tmp_path), cornell=True, **kwargs)
+            L.run(str(tmp_path), RadiosityOptions(**kwargs), cornell=True)
     assert "IL Cornell" not in bpy.data.scenes
 
 
@@ -162,7 +163,7 @@ def test_triangle_patches_compare_on_the_texels_cycles_bakes(tmp_path):
     em.inputs["Strength"].default_value = 5.0
     nt.links.new(em.outputs[0], nt.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
     lamp.data.materials.append(mat)
-    r = L.run(str(tmp_path), scene=bpy.context.scene, max_edge=0.5, samples=16, chart=False)
+    r = L.run(str(tmp_path), RadiosityOptions(max_edge=0.5, samples=16), scene=bpy.context.scene, chart=False)
     p = r.arrays["patches"].take(r.arrays["front"])
     tri = p.is_tri & (p.owner == p.names.index(floor.name))
     assert tri.sum() >= 8
@@ -206,15 +207,15 @@ def test_adaptive_rounds_are_in_the_up_front_estimate_and_refused_before_any_wor
 def test_chosen_solver_only_by_default_and_all_three_on_request(tmp_path):
     """The convergence chart's other solvers run only with compare_solvers; the report says which ran, the CSV
     holds the solvers that ran, the chosen solver's solution is the same either way (the same F)."""
-    one = L.run(str(tmp_path / "one"), cornell=True, max_edge=0.5, compare=False, solver="gauss_seidel", chart=False)
+    options = RadiosityOptions(max_edge=0.5, compare=False, solver="gauss_seidel")
+    one = L.run(str(tmp_path / "one"), options, cornell=True, chart=False)
     rep = one.report
     assert list(rep["solvers"]) == ["gauss_seidel"] and rep["solvers_compared"] is False
     assert "compare_solvers" not in rep["timings"] and rep["estimate"]["covers"] == "seconds"
     rows = (tmp_path / "one" / "radiosity_convergence.csv").read_text().splitlines()
     assert {r.split(",")[0] for r in rows[1:]} == {"gauss_seidel"}
     assert rep["solvers"]["gauss_seidel"]["iterations"] == rep["iterations"]
-    three = L.run(str(tmp_path / "three"), cornell=True, max_edge=0.5, compare=False, solver="gauss_seidel",
-                  chart=False, compare_solvers=True)
+    three = L.run(str(tmp_path / "three"), options.replace(compare_solvers=True), cornell=True, chart=False)
     rep3 = three.report
     assert list(rep3["solvers"]) == ["jacobi", "gauss_seidel", "progressive"] and rep3["solvers_compared"] is True
     assert all(s["converged"] for s in rep3["solvers"].values()) and rep3["timings"]["compare_solvers"] > 0
@@ -228,7 +229,7 @@ def test_the_estimate_is_made_again_at_the_patch_count_and_stays_below_the_up_fr
     """The report's estimate is the calibrated model (core.radiosity.cost) at the patch count the subdivision
     made, and the up-front bound that refuses work is above it. How close it comes to the measured solve is a
     benchmark figure (README), not a timed test: it moves with the machine's load."""
-    rep = L.run(str(tmp_path), cornell=True, compare=False, chart=False).report
+    rep = L.run(str(tmp_path), RadiosityOptions(compare=False), cornell=True, chart=False).report
     assert rep["estimate"]["patches"] == rep["patches"]
     assert rep["estimate_up_front"]["seconds"] >= rep["estimate"]["seconds"] > 0
 

@@ -18,6 +18,7 @@ from addon.core.radiosity import patches as rad_patches
 from addon.core.radiosity import subdivision as rad_subdivision
 from addon.core.errors import ILWarning, InputError
 from addon.lab import radiosity as L
+from addon.lab.options import RadiosityOptions
 from addon.lab.bench.cornell_obj import LIGHT_DOWN, LIGHT_UP, import_cornell
 
 # The solver's own relative RMS on the imported box at 0.1 m patches: its RMS against a 512-sample Cycles bake,
@@ -58,7 +59,7 @@ def test_imported_cornell_box_against_cycles_and_against_bake_py(tmp_path):
     from addon.core.io import exr
     sc = import_cornell(str(tmp_path / "obj"))
     sc.world = L.scn.black_world()
-    r = L.run(str(tmp_path / "rad"), scene=sc, max_edge=0.1, samples=32)
+    r = L.run(str(tmp_path / "rad"), RadiosityOptions(max_edge=0.1, samples=32), scene=sc)
     rep = r.report
     H, Hc = r.arrays["H_front"], r.arrays["cycles"]
     assert np.isfinite(Hc).all() and H.min() >= 0

@@ -17,6 +17,7 @@ from addon.core.io import hdr as io_hdr
 from addon.core.io import png
 from addon.core.io import exr
 from addon.lab import ssao as ssao_lab
+from addon.lab.options import ShadowOptions, SSAOOptions
 from addon.lab.ssao import scenes as ssao_scenes
 from addon.blender import compat
 from addon.blender.scene import remove_scene
@@ -272,14 +273,16 @@ def test_ctrl_c_during_the_cycles_reference_stops_with_130_and_leaves_nothing(tm
 def test_comparisons_leave_no_render_result_but_keep_the_users(tmp_path):
     from addon.lab import shadows
     scene = ssao_scenes.build_scene("plane", 16, 1.0)
-    ssao_lab.compare(scene, ["gtao"], None, samples=4, reference_samples=4)
+    options = SSAOOptions(methods=["gtao"], samples=4, reference_samples=4, resolution=None)
+    ssao_lab.compare(scene, None, options)
     assert not [im for im in bpy.data.images if im.type == "RENDER_RESULT"]
-    shadows.compare_builtin("sphere", "sun", "raytraced,shadowmap", tmp_path, resolution=16, shadowmap_size=32)
+    shadows.compare_builtin("sphere", "sun", tmp_path, ShadowOptions(methods="raytraced,shadowmap", resolution=16,
+                                                                     shadowmap_size=32))
     assert not [im for im in bpy.data.images if im.type == "RENDER_RESULT"]
     scene.render.engine = "BLENDER_WORKBENCH"
     bpy.ops.render.render(scene=scene.name)                       # the user's own render
     before = [im.name for im in bpy.data.images if im.type == "RENDER_RESULT"]
-    ssao_lab.compare(scene, ["gtao"], None, samples=4, reference_samples=4)
+    ssao_lab.compare(scene, None, options)
     assert before and [im.name for im in bpy.data.images if im.type == "RENDER_RESULT"] == before
     remove_scene(scene)
 

@@ -13,6 +13,7 @@ from addon.core.io import png
 from addon.core.shadow import metrics
 from addon.core.errors import InputError
 from addon.lab import shadows
+from addon.lab.options import ShadowOptions
 from addon.lab.shadows import scenes as shadow_scenes
 from addon.lab.shadows.frame import ShadowFrame
 
@@ -44,8 +45,8 @@ def _assert_on_the_reference_grid(out, method, margin=0.005):
 
 @pytest.mark.both_versions
 def test_sphere_scene_volumes_and_planar_match_the_reference_and_masks_are_pixel_aligned(tmp_path):
-    rep = shadows.compare_builtin("sphere", "sun", "raytraced,planar,volume_zfail,volume_zpass", tmp_path,
-                                  resolution=RES)
+    rep = shadows.compare_builtin("sphere", "sun", tmp_path, ShadowOptions(
+        methods="raytraced,planar,volume_zfail,volume_zpass", resolution=RES))
     m = rep["methods"]
     assert rep["reference"]["shadowed_fraction"] > 0.03          # the floor shadow and the dark side exist
     assert m["volume_zfail"]["error"] <= 0.005
@@ -65,8 +66,8 @@ def test_sphere_scene_volumes_and_planar_match_the_reference_and_masks_are_pixel
 
 
 def test_spot_light_perspective_map_volumes_and_planar_match_the_reference(tmp_path):
-    rep = shadows.compare_builtin("sphere", "spot", "raytraced,planar,shadowmap,volume_zfail", tmp_path,
-                                  resolution=48, shadowmap_size=512)
+    rep = shadows.compare_builtin("sphere", "spot", tmp_path, ShadowOptions(
+        methods="raytraced,planar,shadowmap,volume_zfail", resolution=48, shadowmap_size=512))
     m = rep["methods"]
     assert rep["reference"]["light_type"] == "spot" and rep["reference"]["shadowed_fraction"] > 0.05
     assert m["shadowmap"]["params"]["projection"] == "perspective"
@@ -139,17 +140,17 @@ def test_volumes_skip_open_meshes_and_fail_without_a_closed_one():
 @pytest.mark.both_versions
 def test_workbench_sun_shadows_match_the_reference(tmp_path):
     for name in ("sphere", "acne"):                               # acne: a grazing sun (floor n.l = 0.26)
-        rep = shadows.compare_builtin(name, "sun", "raytraced,workbench", tmp_path / name, resolution=64)
+        rep = shadows.compare_builtin(name, "sun", tmp_path / name, ShadowOptions(methods="raytraced,workbench", resolution=64))
         assert rep["reference"]["shadowed_fraction"] > 0.05
         assert rep["methods"]["workbench"]["error"] <= 0.005, name   # stencil volumes are exact
         _assert_on_the_reference_grid(tmp_path / name, "workbench")
     with pytest.raises(InputError, match="sun"):
-        shadows.compare_builtin("sphere", "point", "workbench", tmp_path, resolution=32)
+        shadows.compare_builtin("sphere", "point", tmp_path, ShadowOptions(methods="workbench", resolution=32))
 
 
 @pytest.mark.eevee
 def test_eevee_virtual_shadow_maps_match_the_reference(tmp_path):
-    rep = shadows.compare_builtin("sphere", "point", "raytraced,eevee", tmp_path, resolution=64)
+    rep = shadows.compare_builtin("sphere", "point", tmp_path, ShadowOptions(methods="raytraced,eevee", resolution=64))
     assert rep["methods"]["eevee"]["error"] < 0.01
     _assert_on_the_reference_grid(tmp_path, "eevee")
 
@@ -174,11 +175,11 @@ def test_panel_operators_build_a_scene_and_write_the_report(tmp_path):
 
 def test_script_errors_are_clear(script, tmp_path):
     with pytest.raises(InputError, match="unknown shadow method 'magic'"):
-        shadows.compare_builtin("sphere", "sun", "raytraced,magic", tmp_path)
+        shadows.compare_builtin("sphere", "sun", tmp_path, ShadowOptions(methods="raytraced,magic"))
     with pytest.raises(InputError, match="unknown shadow scene 'teapot'"):
-        shadows.compare_builtin("teapot", "sun", "raytraced", tmp_path)
+        shadows.compare_builtin("teapot", "sun", tmp_path, ShadowOptions(methods="raytraced"))
     with pytest.raises(InputError, match="unknown light kind 'area'"):
-        shadows.compare_builtin("sphere", "area", "raytraced", tmp_path)
+        shadows.compare_builtin("sphere", "area", tmp_path, ShadowOptions(methods="raytraced"))
     assert list(bpy.data.scenes) == [bpy.context.scene]              # nothing was left behind
     # a .blend without the named light, through the script as a pipeline runs it: exit 2, one line
     scene = shadow_scenes.build("sphere", "sun", (32, 32))
@@ -209,10 +210,11 @@ def test_the_light_gets_its_settings_back_after_a_run_and_an_error(tmp_path):
     scene = shadow_scenes.build("sphere", "spot", (32, 32))
     data = scene.objects[scene["il_shadow_light"]].data
     data.shadow_soft_size, data.spot_blend, data.use_shadow = 0.3, 0.4, False
-    shadows.compare(scene, scene["il_shadow_light"], "raytraced,planar", tmp_path, resolution=32)
+    shadows.compare(scene, scene["il_shadow_light"], tmp_path, ShadowOptions(methods="raytraced,planar", resolution=32))
     assert (data.shadow_soft_size, data.spot_blend, data.use_shadow) == (pytest.approx(0.3), pytest.approx(0.4), False)
     with pytest.raises(InputError, match="sun"):                   # refused after the light was set up
-        shadows.compare(scene, scene["il_shadow_light"], "raytraced,workbench", tmp_path, resolution=32)
+        shadows.compare(scene, scene["il_shadow_light"], tmp_path,
+                        ShadowOptions(methods="raytraced,workbench", resolution=32))
     assert (data.shadow_soft_size, data.spot_blend, data.use_shadow) == (pytest.approx(0.3), pytest.approx(0.4), False)
     assert set(bpy.data.scenes) == {bpy.context.scene, scene}     # the private scene is gone
 
@@ -222,7 +224,7 @@ def test_eevee_gives_the_light_its_shadow_jitter_back(tmp_path):
     scene = shadow_scenes.build("sphere", "point", (32, 32))
     data = scene.objects[scene["il_shadow_light"]].data
     data.use_shadow_jitter, data.shadow_soft_size = True, 0.2
-    shadows.compare(scene, scene["il_shadow_light"], "raytraced,eevee", tmp_path, resolution=32)
+    shadows.compare(scene, scene["il_shadow_light"], tmp_path, ShadowOptions(methods="raytraced,eevee", resolution=32))
     assert data.use_shadow_jitter and data.shadow_soft_size == pytest.approx(0.2)
 
 
@@ -380,7 +382,8 @@ def test_every_method_sees_instances_as_the_same_objects_made_real(light, tmp_pa
         if tag == "real":
             _make_real(scene)
         out = tmp_path / tag
-        reports[tag] = shadows.compare(scene, "Lamp", methods, out, resolution=64, shadowmap_size=1024)["methods"]
+        reports[tag] = shadows.compare(scene, "Lamp", out, ShadowOptions(methods=methods, resolution=64,
+                                                                            shadowmap_size=1024))["methods"]
         masks[tag] = {m: png.decode_png((out / f"{m}_mask.png").read_bytes()) for m in methods.split(",")}
     for m in methods.split(","):
         np.testing.assert_array_equal(masks["instanced"][m], masks["real"][m], err_msg=m)
@@ -424,7 +427,7 @@ def test_a_receiver_drawn_only_through_collection_instances_gets_planar_shadows(
             _make_real(scene, scatter=False)
             methods = "raytraced,volume_zfail"
         out = tmp_path / tag
-        reports[tag] = shadows.compare(scene, "Lamp", methods, out, resolution=64)["methods"]
+        reports[tag] = shadows.compare(scene, "Lamp", out, ShadowOptions(methods=methods, resolution=64))["methods"]
         masks[tag] = {m: png.decode_png((out / f"{m}_mask.png").read_bytes()) for m in methods.split(",")}
     planar = reports["instanced"]["planar"]
     assert planar["params"]["copies"] == 2
@@ -452,8 +455,9 @@ def test_objects_without_shadow_visibility_cast_in_no_method(tmp_path):
             instancer.visible_shadow = False
         for source in ("raster", "cycles"):
             out = tmp_path / f"{tag} {source}"
-            rep = shadows.compare(scene, "Lamp", methods if source == "raster" else "raytraced,shadowmap", out,
-                                  resolution=64, shadowmap_size=1024, depth_source=source)["methods"]
+            options = ShadowOptions(methods=methods if source == "raster" else "raytraced,shadowmap",
+                                    resolution=64, shadowmap_size=1024)
+            rep = shadows.compare(scene, "Lamp", out, options, depth_source=source)["methods"]
             reports[(tag, source)] = rep
     assert scene.objects["Cylinder"].visible_camera                 # the Cycles depth maps' change is undone
     for tag in ("casting", "not casting"):
@@ -481,11 +485,11 @@ def test_shadow_map_budget_on_this_machine_follows_the_raster(script, tmp_path):
     if size > depth_map.MAX_SIZE:
         pytest.skip(f"{budget.format_bytes(memory)} usable: every shadow-map size fits a Cycles render too")
     with pytest.raises(InputError, match=f"shadow-map size {size} .* the largest shadow-map size that fits is"):
-        shadows.compare_builtin("sphere", "sun", "raytraced,shadowmap", tmp_path / "c", depth_source="cycles",
-                                resolution=32, shadowmap_size=size)
+        shadows.compare_builtin("sphere", "sun", tmp_path / "c", ShadowOptions(
+            methods="raytraced,shadowmap", resolution=32, shadowmap_size=size), depth_source="cycles")
     assert list(bpy.data.scenes) == [bpy.context.scene] and not (tmp_path / "c").exists()
-    rep = shadows.compare_builtin("sphere", "sun", "raytraced,shadowmap", tmp_path / "r", resolution=32,
-                                  shadowmap_size=size)
+    rep = shadows.compare_builtin("sphere", "sun", tmp_path / "r", ShadowOptions(
+        methods="raytraced,shadowmap", resolution=32, shadowmap_size=size))
     assert rep["methods"]["shadowmap"]["params"]["size"] == size
     assert rep["methods"]["shadowmap"]["error"] <= 0.01
     faces = 6 * 16384 ** 2 * depth_map.BYTES_PER_TEXEL_KEPT

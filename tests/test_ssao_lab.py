@@ -10,6 +10,8 @@ from addon.core.ssao import limits
 from addon.core.io import exr
 from addon.core.errors import ILError, InputError
 from addon.lab import ssao as lab
+from addon.lab.options import SSAOOptions
+from addon.lab.ssao import renders as ssao_renders
 from addon.lab.ssao import scenes as ssao_scenes
 from addon.blender.scene import remove_scene
 
@@ -57,7 +59,7 @@ def test_reference_without_closures_is_the_same_bit_for_bit_and_leaves_no_overri
         assert scene.view_layers[0].material_override is None
         assert not [m for m in bpy.data.materials if m.name.startswith("IL SSAO geometry only")]
         with monkeypatch.context() as m:
-            m.setattr(lab, "_geometry_only", lambda s: contextlib.nullcontext())
+            m.setattr(ssao_renders, "_geometry_only", lambda s: contextlib.nullcontext())
             plain = reference()
         assert 0.2 < fast["k"][fast["alpha"] > 0].mean() < 0.99
         np.testing.assert_array_equal(fast["k"], plain["k"])
@@ -65,8 +67,8 @@ def test_reference_without_closures_is_the_same_bit_for_bit_and_leaves_no_overri
         mat = materials.white_lambert("T SSAO material")
         scene.objects["Ball"].data.materials.append(mat)
         seen = []
-        real_render = lab.render.render_layers
-        monkeypatch.setattr(lab.render, "render_layers",
+        real_render = ssao_renders.render.render_layers
+        monkeypatch.setattr(ssao_renders.render, "render_layers",
                             lambda sc_: seen.append(sc_.view_layers[0].material_override) or real_render(sc_))
         reference()
         assert seen == [None]
@@ -77,8 +79,8 @@ def test_reference_without_closures_is_the_same_bit_for_bit_and_leaves_no_overri
 
 
 def test_corner_against_cycles_gtao_beats_hemisphere_beats_sphere_kernel(tmp_path):
-    report = lab.run_builtin("corner", ["crytek", "hemisphere", "gtao", "hbao"], str(tmp_path), resolution=64,
-                             samples=32, radius=1.0, reference_samples=256)
+    report = lab.run_builtin("corner", str(tmp_path), SSAOOptions(
+        methods=["crytek", "hemisphere", "gtao", "hbao"], resolution=64, samples=32, radius=1.0, reference_samples=256))
     r = {m: v["rmse"] for m, v in report["methods"].items()}
     noise = report["reference"]["noise_rms"]
     assert noise < 0.03
@@ -111,8 +113,8 @@ def test_workbench_cavity_and_settings_restored(tmp_path):
     scene.render.resolution_x = scene.render.resolution_y = 200
     scene.view_layers[0].use_pass_z = False
     scene.world.light_settings.distance = 3.5
-    report = lab.compare(scene, ["workbench", "crytek"], str(tmp_path), samples=16, radius=1.0,
-                         reference_samples=64, resolution=48)
+    report = lab.compare(scene, str(tmp_path), SSAOOptions(methods=["workbench", "crytek"], samples=16, radius=1.0,
+                                                           reference_samples=64, resolution=48))
     wb = report["methods"]["workbench"]
     assert wb["rmse"] < report["methods"]["crytek"]["rmse"]
     assert 0.5 < wb["mean"] <= 1.0
@@ -147,13 +149,13 @@ def test_failure_restores_settings_and_reports_clearly(tmp_path):
     scene.camera.location = (0.0, 0.0, 1.0)
     samples = scene.cycles.samples
     with pytest.raises(ILError, match="sees no geometry"):
-        lab.compare(scene, ["gtao"], str(tmp_path), resolution=32, reference_samples=16)
+        lab.compare(scene, str(tmp_path), SSAOOptions(methods=["gtao"], resolution=32, reference_samples=16))
     assert scene.cycles.samples == samples and scene.render.resolution_x == 32
     for bad in (dict(methods=["ssdo"]), dict(radius=0.0), dict(samples=0), dict(reference_samples=0)):
         kw = dict(methods=["gtao"], radius=1.0, samples=8, reference_samples=16)
         kw.update(bad)
         with pytest.raises(InputError):
-            lab.compare(scene, kw.pop("methods"), None, **kw)
+            lab.compare(scene, None, SSAOOptions(**kw))
     with pytest.raises(InputError, match="unknown SSAO scene"):
         ssao_scenes.build_scene("attic")
 
@@ -189,8 +191,8 @@ def test_every_builtin_scene_renders_a_gbuffer():
 
 @pytest.mark.eevee
 def test_eevee_ao_pass_on_the_corner(tmp_path):
-    report = lab.run_builtin("corner", ["eevee", "crytek"], str(tmp_path), resolution=48, samples=4,
-                             radius=1.0, reference_samples=128)
+    report = lab.run_builtin("corner", str(tmp_path), SSAOOptions(methods=["eevee", "crytek"], resolution=48, samples=4,
+                                                                 radius=1.0, reference_samples=128))
     ev = report["methods"]["eevee"]
     assert ev["rmse"] < report["methods"]["crytek"]["rmse"]
     assert ev["rmse"] < 0.2 and abs(ev["bias"]) < 0.1

@@ -73,8 +73,9 @@ def check_value(name, kind, spec, value):
     """``value`` converted to ``kind`` and checked against ``spec``; InputError naming the label otherwise."""
     if value is None:
         return None
-    if spec.multiple:
-        return choices.parse_choices(list(value), choice_ids(spec), spec.item or spec.label.lower())
+    if spec.multiple:                       # a list, or one string joined by commas
+        return choices.parse_choices(value if isinstance(value, str) else list(value), choice_ids(spec),
+                                     spec.item or spec.label.lower())
     if kind is bool:
         return bool(value)
     if kind in (int, float):

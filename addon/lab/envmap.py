@@ -113,14 +113,16 @@ def write_outputs(out, emap, coeffs, method, seconds, source):
     return path, report
 
 
-def run(out, scene=None, env_file=None, method=EnvmapOptions.method, width=EnvmapOptions.width):
-    """Environment from ``env_file`` or the scene's world -> files in ``out``; returns a core.result.JobResult
-    (reads as envmap_report.json plus "file", the EXR; ``arrays`` holds "map" and "sh9").
+def run(out, options=None, scene=None, env_file=None):
+    """Environment from ``env_file`` or the scene's world -> E(n) by ``options`` (lab.options.EnvmapOptions:
+    method, width; None: its defaults) -> files in ``out``; returns a core.result.JobResult (reads as
+    envmap_report.json plus "file", the EXR; ``arrays`` holds "map" and "sh9").
 
     Refused before any work: an odd or too large ``width`` (memory, and for ``brute`` time), negative
     radiance, and an environment so bright that E(n) leaves the EXR's float range.
     """
-    EnvmapOptions(method=method, width=width).validate()
+    o = (EnvmapOptions() if options is None else options.replace()).validate()
+    method, width = o.method, o.width
     env_irradiance.check_cost(width, "sh9")
     if env_file:
         env, source = latlong.read_latlong(env_file), os.path.abspath(env_file)

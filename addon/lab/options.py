@@ -4,6 +4,7 @@ built from these classes (scripts/_cli.add_options, ui/props.py); ``validate()``
 No bpy here, so ``--help`` starts fast.
 """
 import dataclasses
+from typing import ClassVar
 
 from ..core.errors import InputError
 from ..core.options import Options, option
@@ -73,7 +74,13 @@ MAX_SSAO_RADIUS = 1e6
 
 @dataclasses.dataclass
 class SSAOOptions(Options):
-    """One SSAO comparison: methods, frame, samples, radius (= the reference's AO distance)."""
+    """One SSAO comparison: methods, frame, samples, radius (= the reference's AO distance).
+
+    ``resolution`` None keeps a .blend's own frame; ``radius`` None is derived from the scene
+    (core.ssao.gbuffer.default_radius; a built-in scene: BUILTIN_RADIUS)."""
+    #: The built-in scenes' radius when none is given (they are built around it, in metres); not an option.
+    BUILTIN_RADIUS: ClassVar[float] = 1.0
+
     methods: list = option(list(ssao_methods.METHODS), "Methods", "comma-separated methods "
                            "compared with Cycles' ray-traced AO", kind=str, choices=SSAO_METHOD_CHOICES,
                            multiple=True, separator=",", item="SSAO method")
@@ -86,7 +93,7 @@ class SSAOOptions(Options):
                            "the methods' float32 squares of radius and depth stay finite); default: a tenth of "
                            "the frame's width at the median depth of the visible geometry (a built-in scene: 1 m)",
                            kind=float, above=0, maximum=MAX_SSAO_RADIUS, soft_max=10.0, unit="LENGTH",
-                           ui_default=1.0)
+                           ui_default=BUILTIN_RADIUS)
     reference_samples: int = option(1024, "Reference Samples", "Cycles AO samples per pixel of the reference "
                                     "(1024: noise <= 0.016)", minimum=1, maximum=ssao_limits.MAX_REFERENCE_SAMPLES)
     blur: bool = option(False, "Depth-Aware Blur", "depth-aware blur after each numpy method")

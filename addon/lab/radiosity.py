@@ -839,12 +839,6 @@ def compare_with_cycles(patches, H_texels, Hf, Hc, Hc_texels):
     return out, Hx, Hx_mean
 
 
-def check_options(solver=RadiosityOptions.solver, max_edge=RadiosityOptions.max_edge,
-                  adaptive=RadiosityOptions.adaptive, samples=RadiosityOptions.samples, tol=RadiosityOptions.tol):
-    """InputError for options out of range (lab.options.RadiosityOptions, the script's parser checks the same)."""
-    RadiosityOptions(solver=solver, max_edge=max_edge, adaptive=adaptive, samples=samples, tol=tol).validate()
-
-
 def estimate(scene, max_edge, solver=RadiosityOptions.solver, compare_solvers=RadiosityOptions.compare_solvers):
     """(Cost, smallest max_edge that fits the available memory) of a solve of ``scene`` (the panel's
     figures: the same check as :func:`run`'s, at the planned patch count's upper bound). Warnings about the
@@ -860,12 +854,11 @@ def estimate(scene, max_edge, solver=RadiosityOptions.solver, compare_solvers=Ra
     return cost, best
 
 
-def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge=RadiosityOptions.max_edge,
-        adaptive=RadiosityOptions.adaptive, samples=RadiosityOptions.samples, compare=RadiosityOptions.compare,
-        tol=RadiosityOptions.tol, chart=True, memory=None, visibility="auto", reciprocal=True,
-        compare_solvers=RadiosityOptions.compare_solvers):
-    """The whole job of scripts/radiosity.py; returns a core.result.JobResult (reads as the report written to
-    ``out``; ``arrays`` holds the solve: patches, F, solution, H, front, H_front and the comparison's arrays).
+def run(out, options=None, scene=None, cornell=False, chart=True, memory=None, visibility="auto", reciprocal=True):
+    """The whole job of scripts/radiosity.py with ``options`` (lab.options.RadiosityOptions; None: its
+    defaults) on ``scene`` (default: the context's) or, with ``cornell``, on a new Cornell box; returns a
+    core.result.JobResult (reads as the report written to ``out``; ``arrays`` holds the solve: patches, F,
+    solution, H, front, H_front and the comparison's arrays).
 
     Order: options, output folder, scene, emitters and the cost estimate are all checked before the
     folder is created or anything big is allocated. Only ``solver`` runs unless ``compare_solvers``: then the
@@ -878,7 +871,9 @@ def run(out, scene=None, cornell=False, solver=RadiosityOptions.solver, max_edge
     (the side its normal points to, what a light-map bake of it measures). ``visibility`` and ``reciprocal``
     as in :func:`solve_scene` (the benchmark's before/after).
     """
-    check_options(solver, max_edge, adaptive, samples, tol)
+    o = (RadiosityOptions() if options is None else options.replace()).validate()
+    solver, max_edge, adaptive, samples, tol = o.solver, o.max_edge, o.adaptive, o.samples, o.tol
+    compare, compare_solvers = o.compare, o.compare_solvers
     out = check_output_dir(out)
     steps = 4 + bool(compare) + bool(compare_solvers)
     with Progress("radiosity", steps) as p:

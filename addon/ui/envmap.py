@@ -46,9 +46,8 @@ class IL_OT_envmap_irradiance(JobOperator, bpy.types.Operator):
         _output_folder_ok(self.output_dir)
         o = props.options(EnvmapOptions, self, width=self.width + self.width % 2)
         try:
-            result = envmap.run(bpy.path.abspath(self.output_dir), scene=context.scene,
-                                env_file=bpy.path.abspath(self.env_file) if self.env_file else None,
-                                method=o.method, width=o.width)
+            result = envmap.run(bpy.path.abspath(self.output_dir), o, scene=context.scene,
+                                env_file=bpy.path.abspath(self.env_file) if self.env_file else None)
         except InputError as e:
             if self.env_file:
                 raise
@@ -92,9 +91,7 @@ class IL_OT_radiosity(JobOperator, bpy.types.Operator):
         chart = charts.available()
         if not chart:
             warn(charts.MISSING)
-        return radiosity.run(bpy.path.abspath(self.output_dir), scene=context.scene, solver=o.solver,
-                             max_edge=o.max_edge, adaptive=o.adaptive, samples=o.samples, compare=o.compare,
-                             chart=chart, compare_solvers=o.compare_solvers)
+        return radiosity.run(bpy.path.abspath(self.output_dir), o, scene=context.scene, chart=chart)
 
 
 _ESTIMATES = {}

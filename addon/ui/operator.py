@@ -7,7 +7,7 @@ core.result.JobResult, whose ``summary`` is reported) and may implement ``finish
 """
 import warnings
 
-from ..core.errors import ILError, ILWarning
+from ..core.errors import OUT_OF_MEMORY, ILError, ILWarning, os_error_message
 
 
 def open_built_scene(op, context, build):
@@ -102,9 +102,9 @@ def run_job(op, job):
         except ILError as e:
             message = str(e)
         except MemoryError:
-            message = "out of memory: use smaller sizes or fewer samples"
+            message = OUT_OF_MEMORY
         except OSError as e:
-            message = f"{e.strerror or e}" + (f": {e.filename}" if e.filename else "")
+            message = os_error_message(e)
     for w in caught:
         if issubclass(w.category, ILWarning):
             op.report({"WARNING"}, str(w.message))

@@ -65,10 +65,7 @@ class IL_OT_run_shadow_comparison(JobOperator, bpy.types.Operator):
         if not light:
             raise InputError(f"scene '{scene.name}' has no light: add one (or Build Shadow Scene)")
         o = props.options(ShadowOptions, st, methods=["raytraced", *sorted(st.methods)])
-        result = shadows.compare(scene, light, o.methods, bpy.path.abspath(st.output_dir), resolution=o.resolution,
-                                 shadowmap_size=o.shadowmap_size, bias=o.bias, slope_bias=o.slope_bias, pcf=o.pcf,
-                                 receiver=o.receiver, samples=o.samples)
-        return result
+        return shadows.compare(scene, light, bpy.path.abspath(st.output_dir), o)
 
     def finished(self, context, result):
         st = context.scene.illumination.shadows

@@ -62,8 +62,7 @@ class IL_OT_ssao_compare(JobOperator, bpy.types.Operator):
         s = context.scene.illumination.ssao
         o = props.options(SSAOOptions, s, radius=None if s.radius_auto else s.radius)
         out = bpy.path.abspath(s.output_dir)
-        result = lab.compare(context.scene, o.methods, out, samples=o.samples, radius=o.radius,
-                             reference_samples=o.reference_samples, resolution=o.resolution, blur=o.blur, seed=o.seed)
+        result = lab.compare(context.scene, out, o)
         result.summary = f"SSAO report written to {out}"
         return result
 

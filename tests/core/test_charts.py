@@ -2,6 +2,7 @@
 import csv
 
 import numpy as np
+import pytest
 
 from addon.core import charts
 
@@ -15,6 +16,7 @@ def test_pareto_front_matches_brute_force():
 
 
 def test_charts_and_csv_are_written(tmp_path):
+    pytest.importorskip("matplotlib")
     p = charts.line_chart(tmp_path / "l.png", {"a": ([1, 2, 4], [1.0, 0.5, 0.25])}, "t", "x", "y",
                           logx=True, logy=True, marks={"best": (2, 0.5)})
     q = charts.scatter_chart(tmp_path / "s.png", {"m1": (1.0, 2.0), "m2": (2.0, 1.0), "m3": (3.0, 3.0)}, "t", "s", "e")

@@ -1,5 +1,5 @@
 """The benchmarks: one module per area, each with ``KEY``, ``TITLE`` and ``run(output_dir, quick=False) -> BenchResult``.
 
-``report`` holds the registry (``report.AREAS``, a tuple of these modules), the cross-area
+``lab/report.py`` holds the registry (``report.AREAS``, a tuple of these modules), the cross-area
 stability table and the report.md writer.
 """

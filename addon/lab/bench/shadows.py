@@ -18,6 +18,7 @@ from ...core.io.files import write_json
 from ...blender.progress import Progress
 from ...blender import scene as sc
 from .. import shadows as lab
+from ..options import ShadowOptions
 from ..shadows import scenes as shadow_scenes
 from ..shadows.frame import ShadowFrame
 from .result import BenchResult
@@ -167,9 +168,9 @@ def methods_pareto(output_dir, quick):
     96² EEVEE method after this warm-up, 4.79 s after a whole EEVEE comparison, which itself took 4.7 s)."""
     res = 96 if quick else 256
     with tempfile.TemporaryDirectory(prefix="il_warmup_") as tmp:
-        lab.compare_builtin("sphere", "sun", ["raytraced", "workbench"], tmp, resolution=32)
-    rep = lab.compare_builtin("sphere", "sun", list(lab.METHODS), os.path.join(output_dir, "methods"),
-                              resolution=res, shadowmap_size=1024 if quick else 2048)
+        lab.compare_builtin("sphere", "sun", tmp, ShadowOptions(methods=["raytraced", "workbench"], resolution=32))
+    rep = lab.compare_builtin("sphere", "sun", os.path.join(output_dir, "methods"), ShadowOptions(
+        methods=list(lab.METHODS), resolution=res, shadowmap_size=1024 if quick else 2048))
     rows = [{"method": m, "error": e["error"], "false_shadow": e["false_shadow"], "false_light": e["false_light"],
              "seconds": e["seconds"]} for m, e in rep["methods"].items()]
     points = {r["method"]: (max(r["seconds"], 1e-4), max(r["error"], 1e-5)) for r in rows if r["method"] != "raytraced"}
@@ -225,8 +226,8 @@ def speed(resolution=512, map_size=2048, repeats=3):
     finally:
         sc.remove_scene(scene)
     with tempfile.TemporaryDirectory() as tmp:
-        rep = lab.compare_builtin("sphere", "sun", "raytraced,planar,shadowmap,volume_zpass,volume_zfail", tmp,
-                                  resolution=256, shadowmap_size=2048)
+        rep = lab.compare_builtin("sphere", "sun", tmp, ShadowOptions(
+            methods="raytraced,planar,shadowmap,volume_zpass,volume_zfail", resolution=256, shadowmap_size=2048))
     for m, e in rep["methods"].items():
         rows.append((f"comparison 256^2, {m} (error {e['error']:.4f})", e["seconds"], None))
     return rows

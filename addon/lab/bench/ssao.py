@@ -22,9 +22,12 @@ from ...blender.progress import Progress
 from .. import ssao as lab
 from ...blender import scene as sc
 from ..ssao import scenes as ssao_scenes
+from ..options import SSAOOptions
 from .result import BenchResult
 
 KEY = "ssao"
+#: The radius of every sweep = the reference's AO distance: the built-in scenes' own (SSAOOptions).
+RADIUS = SSAOOptions.BUILTIN_RADIUS
 TITLE = "Screen-space AO against ray-traced AO"
 
 #: Per failure scene: the methods shown and the one whose failure the scene is about.
@@ -42,7 +45,7 @@ def _settings(quick):
                 radii=(0.125, 0.25, 0.5, 1.0, 2.0, 4.0), blender=("workbench", "eevee"))
 
 
-def run(output_dir, quick=False, radius=1.0, samples=16):
+def run(output_dir, quick=False, radius=RADIUS, samples=SSAOOptions.samples):
     """Run every sweep; write charts (PNG) and tables (CSV) to ``output_dir``.
 
     Returns {"tables": {name: [row dicts]}, "charts": [png paths], "figures": {...}}.
@@ -264,7 +267,7 @@ def count_passes(gb, method, samples):
     _Counted.tally = {"elements": 0, "bytes": 0}
     ssao._sample_major = lambda u: tracked(u).view(_Counted)
     try:
-        ssao.run_method(method, counted, 1.0, samples)
+        ssao.run_method(method, counted, RADIUS, samples)
         tally = dict(_Counted.tally)
     finally:
         ssao._sample_major = tracked
@@ -292,10 +295,10 @@ def speed(output_dir, resolution=512, samples=16, repeats=3, reference_samples=2
     base_methods, base_gbuffer = load_baseline(baseline) if baseline else (None, None)
     ssao_limits.check_cost(resolution, resolution, samples, reference_samples,
                            len(ssao.METHODS) * 2 * (repeats + 1) * (2 if baseline else 1))
-    scene = ssao_scenes.build_scene("corner", resolution, 1.0)
+    scene = ssao_scenes.build_scene("corner", resolution, RADIUS)
     cache = os.path.abspath(os.path.join(output_dir, "cache"))
     try:
-        gb, _, ref = lab.frame(scene, 1.0, reference_samples, resolution, cache)
+        gb, _, ref = lab.frame(scene, RADIUS, reference_samples, resolution, cache)
         base_gb = (base_gbuffer.GBuffer(gb.position, gb.normal, gb.depth, gb.mask, gb.proj)
                    if baseline else None)
         pixel_samples = int(gb.mask.sum()) * samples
@@ -309,13 +312,13 @@ def speed(output_dir, resolution=512, samples=16, repeats=3, reference_samples=2
                 images = {}
                 for _ in range(repeats):
                     for prefix, module, frame_gb in runs:
-                        (k, _, _), wall, cpu = _timed(module.run_method, m, frame_gb, 1.0, samples, blur=blur)
+                        (k, _, _), wall, cpu = _timed(module.run_method, m, frame_gb, RADIUS, samples, blur=blur)
                         best[prefix] = (min(best[prefix][0], wall), min(best[prefix][1], cpu))
                         images[prefix] = k
                 for prefix, module, frame_gb in runs:
                     row[prefix + "seconds"], row[prefix + "cpu_seconds"] = best[prefix]
                     row[prefix + "rmse"] = metrics.error_metrics(images[prefix], ref["k"], gb.mask)["rmse"]
-                    row[prefix + "peak_bytes"] = _peak_bytes(module.run_method, m, frame_gb, 1.0, samples,
+                    row[prefix + "peak_bytes"] = _peak_bytes(module.run_method, m, frame_gb, RADIUS, samples,
                                                              blur=blur)
                 if not blur:
                     row.update(count_passes(gb, m, samples))
@@ -327,11 +330,11 @@ def speed(output_dir, resolution=512, samples=16, repeats=3, reference_samples=2
                 rows.append(row)
         for m in ("workbench",) + (("eevee",) if eevee else ()):
             if m == "eevee":
-                lab.blender_method(scene, "eevee", 1.0, 1, 32)           # compile shaders first
+                lab.blender_method(scene, "eevee", RADIUS, 1, 32)           # compile shaders first
             for spp in sorted({1, samples}):
                 best, k = float("inf"), None
                 for _ in range(repeats):
-                    k, sec, _ = lab.blender_method(scene, m, 1.0, spp, resolution)
+                    k, sec, _ = lab.blender_method(scene, m, RADIUS, spp, resolution)
                     best = min(best, sec)
                 rows.append({"method": f"{m} ({spp} spp)", "seconds": best,
                              "rmse": metrics.error_metrics(k, ref["k"], gb.mask)["rmse"],

@@ -17,7 +17,8 @@ from ...nodes import groups, material
 from ...blender.progress import Progress
 from ...blender import render
 from .. import shadows, ssao as ssao_lab
-from ..bench import report as bench_report
+from ..options import ShadowOptions, SSAOOptions
+from .. import report as lab_report
 from . import scene as demo
 
 
@@ -88,8 +89,8 @@ def lightmaps_step(scene, output_dir, quick=False):
 def shadows_step(output_dir, quick=True):
     """The shadow step: the sphere scene under a sun, a few methods; returns figures for the demo report."""
     methods = ["raytraced", "planar", "shadowmap", "volume_zpass", "volume_zfail"]
-    rep = shadows.compare_builtin("sphere", "sun", methods, os.path.join(output_dir, "shadows"),
-                                  resolution=96 if quick else 256, shadowmap_size=512 if quick else 2048)
+    rep = shadows.compare_builtin("sphere", "sun", os.path.join(output_dir, "shadows"), ShadowOptions(
+        methods=methods, resolution=96 if quick else 256, shadowmap_size=512 if quick else 2048))
     return {"report": rep.path, "files": [rep.path],
             "methods": {m: {"error": e["error"], "seconds": e["seconds"]} for m, e in rep["methods"].items()}}
 
@@ -100,8 +101,9 @@ def ssao_step(output_dir, quick=False):
     Returns {"report": path of ssao_report.json, "figures": {method: {"rmse", "bias", "seconds"}},
     "reference": {...}, "lines": [summary lines]}.
     """
-    report = ssao_lab.run_builtin("corner", list(ssao_methods.METHODS), output_dir, resolution=64 if quick else 128,
-                                  samples=16, radius=1.0, reference_samples=256 if quick else 1024)
+    options = SSAOOptions(methods=list(ssao_methods.METHODS), resolution=64 if quick else 128,
+                          radius=SSAOOptions.BUILTIN_RADIUS, reference_samples=256 if quick else 1024)
+    report = ssao_lab.run_builtin("corner", output_dir, options)
     path = report.path
     return {"report": path, "files": [path],
             "figures": {m: {k: r[k] for k in ("rmse", "bias", "seconds")} for m, r in report["methods"].items()},
@@ -110,7 +112,7 @@ def ssao_step(output_dir, quick=False):
 
 
 def _report(output_dir):
-    result = bench_report.run(os.path.join(output_dir, "report"), quick=True)
+    result = lab_report.run(os.path.join(output_dir, "report"), quick=True)
     return {"report": result["report"], "files": [result["report"]],
             "stability_rows": len(result["stability"])}
 

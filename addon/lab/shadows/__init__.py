@@ -1,6 +1,6 @@
 """The shadow lab: every method's mask on the ray-traced reference's pixel grid, scored and written.
 
-    report = compare(scene, "Light", ["raytraced", "shadowmap", "volume_zfail"], out)
+    report = compare(scene, "Light", out, ShadowOptions(methods=["raytraced", "shadowmap", "volume_zfail"]))
 
 writes ``<out>/<method>_mask.png`` (white lit, black shadow), ``<out>/<method>_error.png`` (greys
 agree, red false shadow, blue false light; see core.shadow.metrics.COLOURS) and
@@ -42,6 +42,11 @@ def check_params(params):
     """``params`` (None: the default) over lab.options.ShadowOptions, validated; returned as a dict."""
     o = ShadowOptions(**{k: v for k, v in params.items() if v is not None and k != "methods"}).validate()
     return dataclasses.asdict(o)
+
+
+def _validated(options):
+    """A validated copy of ``options`` (lab.options.ShadowOptions; None: its defaults)."""
+    return (ShadowOptions() if options is None else options.replace()).validate()
 
 
 def check_cost(frame, methods, p):
@@ -243,18 +248,18 @@ def run_method(s, method, p):
 
 
 # -- the comparison ---------------------------------------------------------------------------------
-def compare(scene, light, methods, out, depth_source=DEPTH_SOURCE, **params):
-    """Run ``methods`` on ``scene`` lit by the light named ``light``; write images and the report; return it.
-
-    ``depth_source`` is where the shadow map's depth comes from (core.shadow.depth_map.DEPTH_SOURCES), the rest are
-    lab.options.ShadowOptions.
+def compare(scene, light, out, options=None, depth_source=DEPTH_SOURCE):
+    """Run ``options`` (lab.options.ShadowOptions: the methods and their settings; None: its defaults) on
+    ``scene`` lit by the light named ``light``; write images and the report to ``out``; return it (a
+    core.result.JobResult). ``depth_source`` is where the shadow map's depth comes from
+    (core.shadow.depth_map.DEPTH_SOURCES).
 
     Everything is computed before the first file is written (an error or Ctrl-C leaves no partial set);
     the output folder is made only then. A reference with no lit or no shadowed receiver pixel scores
     nothing: it is reported with ``"meaningful": false`` and a warning.
     """
-    methods = parse_methods(methods)
-    p = check_params(params)
+    o = _validated(options)
+    methods, p = o.methods, dataclasses.asdict(o)
     p["depth_source"] = depth_map.check_source(depth_source)
     report = {"scene": scene.name, "light": light, "reference": {}, "methods": {}}
     images = {}
@@ -307,15 +312,15 @@ def compare(scene, light, methods, out, depth_source=DEPTH_SOURCE, **params):
         f"{m} {e['error']:.2%}" for m, e in report["methods"].items() if m != "raytraced"))
 
 
-def compare_builtin(name, light_kind, methods, out, keep=False, depth_source=DEPTH_SOURCE, **params):
-    """Build the built-in scene ``name`` with a ``light_kind`` light, compare, remove it unless ``keep``."""
-    methods = parse_methods(methods)
-    p = check_params(params)
-    depth_map.check_cost(p["resolution"], p["resolution"], p["shadowmap_size"] if "shadowmap" in methods else None,
+def compare_builtin(name, light_kind, out, options=None, keep=False, depth_source=DEPTH_SOURCE):
+    """Build the built-in scene ``name`` with a ``light_kind`` light (square frame of ``options.resolution``),
+    :func:`compare` with ``options``, remove the scene unless ``keep``."""
+    o = _validated(options)
+    depth_map.check_cost(o.resolution, o.resolution, o.shadowmap_size if "shadowmap" in o.methods else None,
                           6 if light_kind == "point" else 1, depth_source)
-    scene = scenes.build(name, light_kind, (p["resolution"], p["resolution"]))
+    scene = scenes.build(name, light_kind, (o.resolution, o.resolution))
     try:
-        return compare(scene, scene["il_shadow_light"], methods, out, depth_source, **params)
+        return compare(scene, scene["il_shadow_light"], out, o, depth_source)
     finally:
         if not keep:
             sc.remove_scene(scene)

@@ -24,6 +24,7 @@ from ...core.ssao import limits
 from ...core.ssao import metrics
 from ...core.ssao.limits import SCENES
 from ...blender import scene as sc
+from ..options import SSAOOptions
 
 #: Geometry of the corner scene (metres): floor [0, ROOM]², walls x = 0 and y = 0 of height WALL.
 ROOM, WALL = 8.0, 3.0
@@ -85,7 +86,7 @@ _BUILDERS = {"plane": _plane_scene, "corner": _corner_scene, "thin": _thin_scene
 assert tuple(_BUILDERS) == SCENES
 
 
-def build_scene(name, resolution=128, radius=1.0):
+def build_scene(name, resolution=SSAOOptions.resolution, radius=SSAOOptions.BUILTIN_RADIUS):
     """A new scene ``SSAO <name>`` (square ``resolution``), world AO distance = ``radius``."""
     limits.check_scene(name)
     if radius <= 0:

@@ -1,6 +1,7 @@
 """The speed-versus-accuracy report: every area's benchmark, their charts and CSV tables, one report.md.
 
-Each area's module (the registry :data:`AREAS`) has ``KEY``, ``TITLE`` and
+Used by scripts/bench.py and the demo (lab/demo/job.py); it sits beside bench/ and demo/ so that both
+import it and the demo does not reach into bench/. Each area's module (the registry :data:`AREAS`) has ``KEY``, ``TITLE`` and
 ``run(output_dir, quick=False) -> BenchResult``; this module runs them, adds what needs more
 than one area (the stability table, the shading twins at their edge inputs) and writes the report.
 """
@@ -12,11 +13,11 @@ import time
 import bpy
 import numpy as np
 
-from ...core import brdf, charts
-from ...core.errors import ILError
-from ...core.io.files import atomic_path, write_json
-from ...blender.progress import Progress
-from . import envmap, lightmaps, shading, shadows, ssao
+from ..core import brdf, charts
+from ..core.errors import InputError
+from ..core.io.files import atomic_path, write_json
+from ..blender.progress import Progress
+from .bench import envmap, lightmaps, shading, shadows, ssao
 
 #: The registry, in report order (radiosity is part of the envmap section).
 AREAS = (shading, lightmaps, shadows, ssao, envmap)
@@ -174,7 +175,7 @@ def run(output_dir, quick=False, areas=None):
     chosen = [a for a in AREAS if areas is None or a.KEY in areas]
     unknown = set(areas or ()) - {a.KEY for a in AREAS}
     if unknown:
-        raise ILError(f"unknown area(s): {', '.join(sorted(unknown))}; choose from {', '.join(a.KEY for a in AREAS)}")
+        raise InputError(f"unknown area(s): {', '.join(sorted(unknown))}; choose from {', '.join(a.KEY for a in AREAS)}")
     os.makedirs(output_dir, exist_ok=True)
     t_all = time.perf_counter()
     results, seconds, cpu_seconds = {}, {}, {}
