@@ -22,7 +22,7 @@ import _cli  # noqa: E402
 def main(args):
     from addon.core.errors import InputError
     if args.merge:
-        from addon.bake.pipeline import merge_reports
+        from addon.bake.report import merge_reports
         result = merge_reports(os.path.abspath(args.merge))
         print(result.summary)
         print(f"report: {result.path}")
@@ -101,7 +101,7 @@ def save_copy(path):
 def run_jobs(args):
     """Run ``--jobs J`` shard processes of this script at once (shards 1/J .. J/J), then merge their reports."""
     import bpy
-    from addon.bake.pipeline import merge_reports
+    from addon.bake.report import merge_reports
     from addon.core.errors import ILError
     argv = _cli.script_argv()
     rest, skip = [], False

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from addon.bake import BakeOptions, bake_lightmaps
-from addon.bake import pipeline
+from addon.bake import batch as batching, cycles, report as reporting, write
+from addon.core.errors import ILError
 from addon.core.io import exr
 from tests.conftest import ROOT
 
@@ -58,17 +59,17 @@ def test_batched_bake_gives_the_per_object_images(tmp_path, monkeypatch):
     (1/sqrt(2 M) relative over M texel channels) on top."""
     objects = small_level()
     calls = []
-    real = pipeline._call_bake
-    monkeypatch.setattr(pipeline, "_call_bake", lambda *a, **k: calls.append([o.name for o in a[1]]) or real(*a, **k))
+    real = cycles.call_bake
+    monkeypatch.setattr(cycles, "call_bake", lambda *a, **k: calls.append([o.name for o in a[1]]) or real(*a, **k))
     kinds = ["ao", "irradiance"]
     opts = dict(texel_density=12, samples=8, bounces=2, keep_products=False)
     reports = [bake_lightmaps(objects, kinds, str(tmp_path / "one"), BakeOptions(batch=False, **opts))]
     assert len(calls) == 6 * 3                           # AO once, irradiance two halves, per object
     calls.clear()
     reports.append(bake_lightmaps(objects, kinds, str(tmp_path / "batch"), BakeOptions(**opts)))
-    proxies = [c for c in calls if c[0] == pipeline.PROXY]
+    proxies = [c for c in calls if c[0] == batching.PROXY]
     assert len(proxies) == 3 and len(calls) == 6         # batch: AO once, irradiance twice; the cylinder alone
-    assert [c[0] for c in calls if c[0] != pipeline.PROXY] == ["Cylinder"] * 3
+    assert [c[0] for c in calls if c[0] != batching.PROXY] == ["Cylinder"] * 3
     one, batch = maps(tmp_path / "one", objects, kinds), maps(tmp_path / "batch", objects, kinds)
     for (name, kind), a in one.items():
         b = batch[(name, kind)]
@@ -85,7 +86,7 @@ def test_batched_bake_gives_the_per_object_images(tmp_path, monkeypatch):
             e1, e2 = (r["objects"][name][kind]["estimated_error"] for r in reports)
             bound = np.hypot(e1, e2) * (1 + 3 / np.sqrt(2 * x.size))
             assert np.sqrt(np.mean((x - y) ** 2)) <= bound, (name, np.sqrt(np.mean((x - y) ** 2)), bound)
-    assert bpy.data.objects.get(pipeline.PROXY) is None and bpy.data.meshes.get(pipeline.PROXY) is None
+    assert bpy.data.objects.get(batching.PROXY) is None and bpy.data.meshes.get(batching.PROXY) is None
     assert all(not o.hide_render for o in objects)
 
 
@@ -152,7 +153,7 @@ def test_two_shards_merged_give_the_files_of_one_run(tmp_path):
     assert names[0] and names[1] and not names[0] & names[1] and names[0] | names[1] == set(one["objects"])
     assert names[0] == {"Floor"}                              # 8² × 36 m² of floor against 5 small props
     assert not (tmp_path / "sharded" / "bake_report.json").exists()
-    merged = pipeline.merge_reports(str(tmp_path / "sharded"))
+    merged = reporting.merge_reports(str(tmp_path / "sharded"))
     assert set(merged["objects"]) == set(one["objects"]) and len(merged["shards"]) == 2
     a, b = maps(tmp_path / "one", objects, ["ao", "irradiance"]), maps(tmp_path / "sharded", objects,
                                                                          ["ao", "irradiance"])
@@ -204,14 +205,14 @@ def test_a_broken_object_fails_alone_and_the_script_exits_1(tmp_path, script):
 
 def test_a_map_that_fails_in_a_batch_leaves_the_others(tmp_path, monkeypatch):
     objects = small_level()[:4]
-    real = pipeline._check_covered
+    real = write.check_covered
 
     def broken(name, *a):
         if name == "Sphere":
-            raise pipeline.ILError("'Sphere' ao: injected failure")
+            raise ILError("'Sphere' ao: injected failure")
         return real(name, *a)
 
-    monkeypatch.setattr(pipeline, "_check_covered", broken)
+    monkeypatch.setattr(write, "check_covered", broken)
     result = bake_lightmaps(objects, ["ao"], str(tmp_path), BakeOptions(texel_density=6, samples=2))
     assert set(result["objects"]) == {"Floor", "Suzanne", "Cube"}
     assert result["failed"] == {"Sphere": "'Sphere' ao: injected failure"} and "FAILED 1" in result.summary
@@ -221,8 +222,8 @@ def test_a_map_that_fails_in_a_batch_leaves_the_others(tmp_path, monkeypatch):
 def test_an_atlas_is_one_call_with_the_same_image(tmp_path, monkeypatch):
     objects = small_level()[:4]
     calls = []
-    real = pipeline._call_bake
-    monkeypatch.setattr(pipeline, "_call_bake", lambda *a, **k: calls.append(len(a[1])) or real(*a, **k))
+    real = cycles.call_bake
+    monkeypatch.setattr(cycles, "call_bake", lambda *a, **k: calls.append(len(a[1])) or real(*a, **k))
     opts = dict(texel_density=6, samples=4, atlas=True, keep_products=False)
     bake_lightmaps(objects, ["ao"], str(tmp_path / "one"), BakeOptions(batch=False, **opts))
     bake_lightmaps(objects, ["ao"], str(tmp_path / "batch"), BakeOptions(**opts))
@@ -249,14 +250,14 @@ def test_a_bake_killed_right_after_a_map_file_resumes_with_every_map_in_the_repo
     opts = BakeOptions(texel_density=6, samples=2, bounces=1, keep_products=False)
     whole = bake_lightmaps(objects, kinds, str(tmp_path / "whole"), opts)
     out = tmp_path / "maps"
-    real = pipeline.io_png.write_png
+    real = write.io_png.write_png
 
     def killed(path, pixels):
         if str(path).endswith("Floor_irradiance.png"):
             raise KeyboardInterrupt                         # stands for SIGKILL: nothing after the EXR runs
         real(path, pixels)
 
-    monkeypatch.setattr(pipeline.io_png, "write_png", killed)
+    monkeypatch.setattr(write.io_png, "write_png", killed)
     with pytest.raises(KeyboardInterrupt):
         bake_lightmaps(objects, kinds, str(out), opts)
     monkeypatch.undo()
@@ -310,7 +311,7 @@ def test_shard_parts_are_written_when_nothing_is_baked_and_merge_joins_the_lates
         written = report_of(tmp_path, f"bake_report.shard-{k}-of-2.json")
         assert set(written["objects"]) == set(part["unchanged"])
     with pytest.warns(ILWarning, match=r"earlier split .*bake_report\.shard-1-of-3\.json"):
-        merged = pipeline.merge_reports(str(tmp_path))
+        merged = reporting.merge_reports(str(tmp_path))
     assert merged["shards"] == ["bake_report.shard-1-of-2.json", "bake_report.shard-2-of-2.json"]
     assert set(report_of(tmp_path)["objects"]) == {"Floor", "Sphere", "Suzanne"}
     assert sum(len(m) for m in merged["unchanged"].values()) == 3
@@ -323,7 +324,7 @@ def test_merge_keeps_the_entries_already_in_the_report(tmp_path):
     plain = bake_lightmaps([floor], ["ao"], str(tmp_path), opts)
     for k in (1, 2):
         bake_lightmaps([sphere, cube], ["ao"], str(tmp_path), opts.replace(shard=f"{k}/2"))
-    merged = pipeline.merge_reports(str(tmp_path))
+    merged = reporting.merge_reports(str(tmp_path))
     report = report_of(tmp_path)
     assert set(merged["objects"]) == set(report["objects"]) == {"Floor", "Sphere", "Cube"}
     assert report["objects"]["Floor"]["ao"] == plain["objects"]["Floor"]["ao"]
@@ -341,7 +342,7 @@ def test_damaged_shard_parts_are_set_aside_and_the_rest_merged(tmp_path, script)
     damaged.write_text('{"objects": {"Sph')
     with pytest.warns(ILWarning, match=r"bake_report\.shard-2-of-2\.json could not be read .* kept as "
                                        r".*bake_report\.shard-2-of-2\.unreadable-1\.json"):
-        merged = pipeline.merge_reports(str(tmp_path))
+        merged = reporting.merge_reports(str(tmp_path))
     assert merged["shards"] == ["bake_report.shard-1-of-2.json"] and merged["objects"]
     assert (tmp_path / "bake_report.shard-2-of-2.unreadable-1.json").read_text() == '{"objects": {"Sph'
     damaged.write_text("[1, 2]")

@@ -229,7 +229,7 @@ def test_operator_with_everything_selected_bakes_the_meshes_and_warns(tmp_path):
 
 def test_operator_reports_a_full_disk_instead_of_a_traceback(tmp_path, monkeypatch):
     import errno
-    from addon.bake import pipeline
+    from addon.bake import write
     scene = bpy.context.scene
     p = sc.plane(scene, "P", 2.0)
     s = scene.illumination.lightmaps
@@ -240,7 +240,7 @@ def test_operator_reports_a_full_disk_instead_of_a_traceback(tmp_path, monkeypat
     def full(*a, **k):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(tmp_path / "P_ao.exr"))
 
-    monkeypatch.setattr(pipeline.exr, "write_exr", full)
+    monkeypatch.setattr(write.exr, "write_exr", full)
     with pytest.raises(RuntimeError, match="No space left on device") as info:
         bpy.ops.illumination.bake_lightmaps()
     assert "Traceback" not in str(info.value)
@@ -382,10 +382,10 @@ def test_bad_numbers_are_refused_at_parse_time(tmp_path, script, args, message):
 @pytest.mark.parametrize("target", ["image", "vertex"])
 def test_a_non_finite_map_is_an_error_not_a_file(tmp_path, monkeypatch, target):
     """A texel that comes back Inf from Cycles (as a light of 3e38 W would give) stops the map before any file."""
-    from addon.bake import pipeline
+    from addon.bake import cycles
     scene = bpy.context.scene
     floor = sc.plane(scene, "Floor", 2.0)
-    real = pipeline._bake_once
+    real = cycles._bake_once
 
     def overflowing(*args, **kw):
         values, mask, seconds = real(*args, **kw)
@@ -396,7 +396,7 @@ def test_a_non_finite_map_is_an_error_not_a_file(tmp_path, monkeypatch, target):
             values = np.where(mask, np.inf, values) if values.ndim == 2 else np.where(mask[..., None], np.inf, values)
         return values, mask, seconds
 
-    monkeypatch.setattr(pipeline, "_bake_once", overflowing)
+    monkeypatch.setattr(cycles, "_bake_once", overflowing)
     with pytest.raises(ILError, match="not finite"):
         bake_lightmaps([floor], ["irradiance"], tmp_path, BakeOptions(resolution=8, samples=2, bounces=0,
                                                                      target=target), scene=scene)
@@ -478,7 +478,7 @@ def test_ctrl_c_stops_a_long_bake_between_its_passes_and_the_finished_maps_resum
     baked in passes of cost.PASS_SECONDS by the (pessimistic) estimate: SIGINT during a pass stops it within the
     10 s a user may wait, exit 130, the small map baked before it stays (resumable), nothing of the long map is
     written."""
-    from addon.bake import pipeline
+    from addon.bake import passes as sampling
     scene = bpy.context.scene
     sc.plane(scene, "Floor", 40.0)
     sc.box(scene, "Box", 0.25, location=(0, 0, 0.125))
@@ -487,7 +487,7 @@ def test_ctrl_c_stops_a_long_bake_between_its_passes_and_the_finished_maps_resum
     out = tmp_path / "maps"
     args = [str(blend), "--objects", "Box", "Floor", "--maps", "irradiance", "--texel-density", "26",
             "--max-resolution", "1024", "--samples", "1024", "--out", str(out)]
-    passes = pipeline._passes("irradiance", 512, 0, 1024 ** 2)
+    passes = sampling.sample_passes("irradiance", 512, 0, 1024 ** 2)
     assert len(passes) > 50 and max(cost.seconds(1024, 1024, ["irradiance"], n) for n, _ in passes) <= cost.PASS_SECONDS
     assert len({s for _, s in passes}) == len(passes) and sum(n for n, _ in passes) == 512
     p = subprocess.Popen([sys.executable, os.path.join(ROOT, "scripts", "bake.py"), *args],
@@ -516,15 +516,16 @@ def test_ctrl_c_stops_a_long_bake_between_its_passes_and_the_finished_maps_resum
 def test_passes_keep_small_bakes_as_they_were_and_combine_by_samples(tmp_path):
     """Bakes estimated within cost.PASS_SECONDS keep their one call (bit for bit as before); a longer one is
     passes of distinct seeds whose sample-weighted mean is the map, with AO's binomial bound still its error."""
-    from addon.bake import pipeline
-    assert pipeline._passes("ao", 64, 7, 256 ** 2) == [(64, 7)]
-    assert pipeline._passes("irradiance", 32, 8, 256 ** 2) == [(32, 8)]
-    many = pipeline._passes("ao", 100, 3, 1024 ** 2)
+    import dataclasses
+    from addon.bake import kinds, passes
+    assert passes.sample_passes("ao", 64, 7, 256 ** 2) == [(64, 7)]
+    assert passes.sample_passes("irradiance", 32, 8, 256 ** 2) == [(32, 8)]
+    many = passes.sample_passes("ao", 100, 3, 1024 ** 2)
     most = cost.pass_samples(1024 ** 2, "ao")                       # 8 at 0.9 us a texel-sample within 8 s
     sizes = [n for n, _ in many]
     assert len(sizes) == math.ceil(100 / most) and sum(sizes) == 100 and max(sizes) - min(sizes) <= 1
     assert max(sizes) <= most and [s for _, s in many] == [3 + 8 * j for j in range(len(many))]
-    total = pipeline._PassSum(4)
+    total = passes.PassSum(4)
     total.add(np.full((2, 2), 1.0, np.float32), np.ones((2, 2), bool), 1)
     total.add(np.full((2, 2), 0.0, np.float32), np.zeros((2, 2), bool), 3)
     values, mask = total.result()
@@ -532,12 +533,12 @@ def test_passes_keep_small_bakes_as_they_were_and_combine_by_samples(tmp_path):
     scene = bpy.context.scene
     floor = sc.plane(scene, "Floor", 4.0)
     sc.box(scene, "Box", 1.0, location=(0, 0, 0.5))
-    cost_ = cost.SECONDS_PER_TEXEL_SAMPLE["ao"]
+    ao = kinds.KINDS["ao"]
     try:                                    # the same 32² AO map as one call and as 8 passes of 8 samples
-        cost.SECONDS_PER_TEXEL_SAMPLE["ao"] = cost.PASS_SECONDS / (32 * 32 * 8)
+        kinds.KINDS["ao"] = dataclasses.replace(ao, seconds_per_texel_sample=cost.PASS_SECONDS / (32 * 32 * 8))
         split = bake_lightmaps([floor], ["ao"], tmp_path / "p", BakeOptions(resolution=32, samples=64), scene=scene)
     finally:
-        cost.SECONDS_PER_TEXEL_SAMPLE["ao"] = cost_
+        kinds.KINDS["ao"] = ao
     one = bake_lightmaps([floor], ["ao"], tmp_path / "o", BakeOptions(resolution=32, samples=64), scene=scene)
     a, _ = exr.read_exr(tmp_path / "p" / "Floor_ao.exr")
     b, _ = exr.read_exr(tmp_path / "o" / "Floor_ao.exr")
@@ -592,11 +593,11 @@ def test_the_estimate_counts_an_image_textured_world(tmp_path):
     scene = bpy.context.scene
     bpy.ops.mesh.primitive_plane_add(size=4)
     world = sc.world(scene, strength=1.0)
-    from addon.bake import pipeline
+    from addon.bake import plan
     plain = {}
     for kind, res, samples in (("ao", 32, 4), ("irradiance", 64, 8)):
         options = BakeOptions(maps=[kind], resolution=res, samples=samples, bounces=3)
-        pace = pipeline.speed(scene, options)
+        pace = plan.speed(scene, options)
         assert pace.world_pixels == 0
         plain[kind] = cost.seconds(res, res, [kind], samples, pace)
     tex = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
@@ -604,7 +605,7 @@ def test_the_estimate_counts_an_image_textured_world(tmp_path):
     world.node_tree.links.new(tex.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
     for kind, res, samples in (("ao", 32, 4), ("irradiance", 64, 8)):
         options = BakeOptions(maps=[kind], resolution=res, samples=samples, bounces=3)
-        pace = pipeline.speed(scene, options)
+        pace = plan.speed(scene, options)
         assert pace.world_pixels == 1024 * 512
         hdr = cost.seconds(res, res, [kind], samples, pace)
         assert hdr >= 1.0 and hdr > 100 * plain[kind], (kind, plain[kind], hdr)
@@ -706,10 +707,10 @@ def test_an_image_textured_world_keeps_long_bakes_in_few_passes():
     """A world image is loaded at every Cycles call (6 s for 1024x512 by the model, 96 s for 4096x2048): a pass
     holds at least as much sampling as that fixed cost, so a 512² AO map at 128 samples is a few calls, not one
     call per sample (which cost 3.6-5.1 s of load each), and a 4K sky does not turn a bake into days."""
-    from addon.bake import pipeline
+    from addon.bake import passes as sampling
     for pixels in (1024 * 512, 4096 * 2048):
         pace = cost.Speed(world_pixels=pixels)
-        passes = pipeline._passes("ao", 128, 0, 512 ** 2, pace)
+        passes = sampling.sample_passes("ao", 128, 0, 512 ** 2, pace)
         per_sample, total = 512 ** 2 * pace.rate("ao"), 128 * 512 ** 2 * pace.rate("ao")
         least = min(n for n, _ in passes) * per_sample          # the sampling of the smallest pass
         assert least >= 0.5 * min(pace.call("ao"), total), (pixels, least)   # near-equal passes of the budget

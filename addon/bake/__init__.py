@@ -13,4 +13,7 @@ and ``<out>/bake_report.json`` (see DESIGN.md). Read a map back with
 ``addon.core.io.exr.read_exr`` (row 0 = top = v 1).
 """
 from .options import MAPS, BakeOptions  # noqa: F401
-from .pipeline import REPORT, BakeResult, bake_lightmaps, output_files, summary, validate  # noqa: F401
+from .passes import BakeResult  # noqa: F401
+from .pipeline import bake_lightmaps  # noqa: F401
+from .plan import output_files, validate  # noqa: F401
+from .report import REPORT, summary  # noqa: F401

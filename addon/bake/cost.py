@@ -10,16 +10,18 @@ measured peak RSS growth of a bake divided by its texels (scripts/bake.py, 2048�
 import os
 
 from ..core import budget
+from .kinds import KINDS
 from .options import article
 
-BYTES_PER_TEXEL = {"ao": 240, "irradiance": 300}
-"""Peak bytes per texel of one map: measured peak RSS growth over a 16² bake, bpy 5.0.1, 1024² and 2048²:
-AO 181-185, irradiance 222-230 (two half bakes); ×1.3 margin."""
+BYTES_PER_TEXEL = {k.id: k.bytes_per_texel for k in KINDS.values()}
+"""Peak bytes per texel of one map (each kind's ``bytes_per_texel``): measured peak RSS growth over a 16² bake,
+bpy 5.0.1, 1024² and 2048²: AO 181-185, irradiance 222-230 (two half bakes); ×1.3 margin."""
 DENOISE_BYTES_PER_TEXEL = 620
 """Extra peak bytes per texel with the denoiser (compositor images and OpenImageDenoise buffers): measured
 AO 661-667 and irradiance 665-674 in all, so about 475 more; ×1.3."""
-SECONDS_PER_TEXEL_SAMPLE = {"ao": 9e-7, "irradiance": 1.6e-6}
-"""Rough Cycles CPU seconds per covered texel and sample on this project's 2-core machine under a plain-colour
+SECONDS_PER_TEXEL_SAMPLE = {k.id: k.seconds_per_texel_sample for k in KINDS.values()}
+"""Each kind's ``seconds_per_texel_sample``: rough Cycles CPU seconds per covered texel and sample on this
+project's 2-core machine under a plain-colour
 world without lights (a fully covered 1024² plane beside a cube, 16 samples: AO 14.4 s, irradiance with 3
 bounces 26.3 s); :class:`Speed` scales them for what makes Cycles slower. An upper bound of a map's time, as
 every texel is counted covered."""
@@ -55,13 +57,13 @@ class Speed:
         self.world_pixels, self.lights, self.bounces = int(world_pixels), int(lights), int(bounces)
 
     def rate(self, kind):
-        base = SECONDS_PER_TEXEL_SAMPLE[kind]
+        base = KINDS[kind].seconds_per_texel_sample
         factor = WORLD_IMAGE_FACTOR if self.world_pixels else 1.0
-        if kind == "irradiance":
+        if KINDS[kind].bounces:
             base *= 1.0 + BOUNCE_FACTOR * max(0, self.bounces - 3)
-            if self.lights:
-                a, b, most = LIGHT_FACTOR
-                factor = max(factor, a + b * min(self.lights, most))
+        if KINDS[kind].lit and self.lights:
+            a, b, most = LIGHT_FACTOR
+            factor = max(factor, a + b * min(self.lights, most))
         return base * factor
 
     def call(self, kind):
@@ -94,7 +96,7 @@ def total_memory():
 
 def per_texel(maps, denoise=False):
     """Peak bytes per texel of the most expensive of ``maps``."""
-    return max(BYTES_PER_TEXEL[m] for m in maps) + (DENOISE_BYTES_PER_TEXEL if denoise else 0)
+    return max(KINDS[m].bytes_per_texel for m in maps) + (DENOISE_BYTES_PER_TEXEL if denoise else 0)
 
 
 def peak_bytes(width, height, maps, denoise=False):
@@ -112,9 +114,9 @@ def seconds(width, height, maps, samples, speed=None):
 
 
 def calls(texels, kind, samples, speed=None):
-    """How many Cycles calls a fixed-sample bake of ``samples`` makes: two halves for irradiance (at 2 samples
-    or more), each in passes of :func:`pass_samples`."""
-    halves = [int(samples) // 2, int(samples) - int(samples) // 2] if kind == "irradiance" and samples >= 2 \
+    """How many Cycles calls a fixed-sample bake of ``samples`` makes: two halves for a kind baked in ``halves``
+    (irradiance, at 2 samples or more), each in passes of :func:`pass_samples`."""
+    halves = [int(samples) // 2, int(samples) - int(samples) // 2] if KINDS[kind].halves and samples >= 2 \
         else [int(samples)]
     most = pass_samples(texels, kind, speed)
     return sum(-(-n // most) for n in halves if n > 0)
@@ -158,7 +160,7 @@ def check_time(sizes, maps, samples, option="samples", side_option="resolution",
     budget.check(side_option, side, lambda r: at(samples, r), 1, f"with {samples} samples {what}")
 
 
-def largest_side(memory, maps=("ao", "irradiance"), denoise=False):
+def largest_side(memory, maps=tuple(KINDS), denoise=False):
     """The largest square side whose bake fits in RESERVE × ``memory`` bytes."""
     return int((RESERVE * memory / per_texel(maps, denoise)) ** 0.5)
 

@@ -3,11 +3,12 @@ import dataclasses
 
 from ..core.errors import InputError
 from ..core.io.files import check_output_dir as check_out_dir  # noqa: F401  (one home: core.io.files)
-from ..core.lightmap import MAX_RESOLUTION, smallest_target_error
+from ..core.lightmap import MAX_RESOLUTION, SMALLEST_TARGET_ERROR
 from ..core.options import Options, option
+from .kinds import KINDS
 
-MAP_CHOICES = (("ao", "Ambient Occlusion", "k_A (1 = open)"), ("irradiance", "Irradiance", "E in W/m² (RGB)"))
-MAPS = tuple(m[0] for m in MAP_CHOICES)
+MAP_CHOICES = tuple((k.id, k.label, k.description) for k in KINDS.values())
+MAPS = tuple(KINDS)
 TARGET_CHOICES = (("image", "Image", "EXR map + PNG preview per object"),
                   ("vertex", "Vertex Colors", "A colour attribute per map"))
 TARGETS = tuple(t[0] for t in TARGET_CHOICES)
@@ -19,7 +20,7 @@ class BakeOptions(Options):
 
     The side of a map is ``resolution`` unless ``texel_density`` is set: then T √(area / UV coverage),
     capped at ``max_resolution``. With ``target_error`` the samples come from a pilot pair of bakes
-    (pipeline._bake_to_error) of ``pilot_samples``, at most ``max_samples``. ``sizes`` is
+    (passes.bake_to_error) of ``pilot_samples``, at most ``max_samples``. ``sizes`` is
     {object name: (width, height)} overriding the side for that object (a UV layout made for a given
     image size, e.g. a radiosity patch atlas; image target without atlas only).
     """
@@ -85,15 +86,16 @@ class BakeOptions(Options):
 
     def check_target(self, maps):
         """Refuse a ``target_error`` below the float32 maps' resolution, or one that one of ``maps`` cannot reach
-        within ``max_samples``, before any bake, naming the smallest that can
-        (:func:`core.lightmap.smallest_target_error`)."""
+        within ``max_samples``, before any bake, naming the smallest that can (each kind's
+        ``smallest_target_error``, :mod:`.kinds`)."""
         if self.target_error is None:
             return
         target = float(self.target_error)
-        for m in ("irradiance", *maps):
-            least = smallest_target_error(m, self.max_samples)
+        limits = [(SMALLEST_TARGET_ERROR, "in float32 maps")]
+        limits += [(KINDS[m].smallest_target_error(self.max_samples),
+                    KINDS[m].target_limit.format(max_samples=int(self.max_samples))) for m in maps]
+        for least, why in limits:
             if not target >= least:
-                why = f"for ao within {int(self.max_samples)} samples" if m == "ao" else "in float32 maps"
                 raise InputError(f"target error {target:g} cannot be reached {why}: the smallest target error is "
                                  f"{least:.3g}")
 
@@ -126,7 +128,7 @@ def article(word):
 def validate_maps(maps):
     maps = [m.lower() for m in maps]
     if not maps:
-        raise InputError("no maps asked for: choose ao and/or irradiance")
+        raise InputError(f"no maps asked for: choose {', '.join(MAPS[:-1])} and/or {MAPS[-1]}")
     for m in maps:
         if m not in MAPS:
             raise InputError(f"unknown map {m!r}: choose from {', '.join(MAPS)}")

@@ -278,7 +278,7 @@ def rms(values, reference, mask=None):
 
 
 def per_sample_variance_ao(k_a, mask):
-    """Mean over covered texels of k_A(1 - k_A): the variance of one binary AO sample."""
+    """Mean over covered texels of k_A(1 - k_A): the variance of one binary AO sample (the binomial bound's σ²)."""
     k = np.clip(np.asarray(k_a, float)[np.asarray(mask, bool)], 0.0, 1.0)
     return float(np.mean(k * (1.0 - k))) if k.size else 0.0
 
@@ -314,17 +314,21 @@ SMALLEST_TARGET_ERROR = float(np.finfo(np.float32).tiny)
 """No target error below the smallest normal float32 (the maps' type): its square stays a normal float64."""
 
 
-def smallest_target_error(kind, max_samples):
-    """The smallest RMS error a target-error bake of ``kind`` ("ao" or "irradiance") may ask for, before any bake.
+def smallest_target_error_binary(max_samples):
+    """The smallest RMS error a target-error bake of a binary quantity (k_A) may ask for, before any bake.
 
-    AO: one binary sample has variance k_A(1 - k_A) ≤ 1/4, so err(1) ≤ 1/2, and stratified sampling improves it
+    One binary sample has variance k_A(1 - k_A) ≤ 1/4, so err(1) ≤ 1/2, and stratified sampling improves it
     at most as N^-1 (:func:`convergence_exponent`'s upper clamp; Cycles measures N^-0.7): below 0.5 / max_samples
     no map but one of k_A = 0 or 1 everywhere reaches the target. The binomial bound of one bake,
     0.5 / √max_samples, is what max_samples guarantees; targets between the two are tried and reported capped
-    when missed. Irradiance has no a-priori bound on its variance: SMALLEST_TARGET_ERROR (the pilot says the rest).
+    when missed.
     """
-    if kind == "ao":
-        return max(0.5 / max(int(max_samples), 1), SMALLEST_TARGET_ERROR)
+    return max(0.5 / max(int(max_samples), 1), SMALLEST_TARGET_ERROR)
+
+
+def smallest_target_error_unbounded(max_samples):
+    """The smallest RMS error of a quantity without an a-priori bound on its variance (irradiance):
+    SMALLEST_TARGET_ERROR (the pilot says the rest)."""
     return SMALLEST_TARGET_ERROR
 
 

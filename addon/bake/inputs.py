@@ -1,0 +1,149 @@
+"""Resume: the input hash of a map (what determines it) and the maps on disk whose inputs are unchanged."""
+import hashlib
+import os
+
+import bpy
+import numpy as np
+
+from ..blender import compat
+from ..core.io import exr
+from .kinds import KINDS
+from .plan import map_file
+
+
+HASH_KEY = "il:input_hash"
+
+
+def _rna_digest(h, struct):
+    """A modifier's type and every setting (objects and node groups it uses by name, a node group's tree)."""
+    h.update(struct.bl_rna.identifier.encode())
+    for prop in struct.bl_rna.properties:
+        if prop.identifier in ("rna_type", "name", "is_override_data_editable", "show_expanded", "is_active",
+                               "show_viewport", "show_in_editmode", "show_on_cage", "persistent_uid"):
+            continue
+        value = getattr(struct, prop.identifier, None)
+        if hasattr(value, "name") and hasattr(value, "bl_rna"):
+            h.update(f"{prop.identifier}={value.name}".encode())
+            if isinstance(value, bpy.types.NodeTree):
+                _node_tree_digest(h, value)
+        elif isinstance(value, (int, float, str, bool)) or value is None:
+            h.update(f"{prop.identifier}={value!r}".encode())
+        elif hasattr(value, "__len__") and not hasattr(value, "bl_rna"):
+            try:
+                h.update(f"{prop.identifier}={tuple(value)!r}".encode())
+            except TypeError:
+                pass
+
+
+_HASHED_OPTIONS = ("resolution", "texel_density", "max_resolution", "samples", "target_error", "pilot_samples",
+                   "max_samples", "ao_distance", "margin", "denoise", "uv_layer", "target", "atlas", "seed")
+
+
+def _node_tree_digest(h, tree):
+    """Node types, their unlinked input values and the links of a node tree (what shades, not where nodes sit)."""
+    if tree is None:
+        h.update(b"-")
+        return
+    for n in sorted(tree.nodes, key=lambda n: n.name):
+        h.update(f"{n.name}:{n.bl_idname}".encode())
+        if getattr(n, "image", None) is not None:
+            h.update(n.image.name.encode())
+        for sock in n.inputs:
+            value = getattr(sock, "default_value", None)
+            if value is not None and not sock.is_linked:
+                h.update(repr(tuple(value) if hasattr(value, "__len__") else value).encode())
+    for link in tree.links:
+        h.update(f"{link.from_node.name}.{link.from_socket.identifier}>{link.to_node.name}.{link.to_socket.identifier}"
+                 .encode())
+
+
+def lighting_digest(scene):
+    """Digest of what lights the scene: every renderable light (type, colour, power, size, transform) and the world's
+    node tree."""
+    h = hashlib.blake2b(digest_size=16)
+    for o in sorted(scene.objects, key=lambda o: o.name):
+        if o.type == "LIGHT" and not o.hide_render:
+            d = o.data
+            h.update(f"{o.name}:{d.type}:{tuple(d.color)}:{d.energy}:{getattr(d, 'shadow_soft_size', 0)}:"
+                     f"{getattr(d, 'angle', 0)}:{getattr(d, 'spot_size', 0)}:{getattr(d, 'size', 0)}".encode())
+            h.update(np.array(o.matrix_world, np.float64).tobytes())
+            _node_tree_digest(h, d.node_tree if compat.uses_nodes(d) else None)
+    world = scene.world
+    h.update(b"world" if world is not None else b"no world")
+    if world is not None:
+        _node_tree_digest(h, world.node_tree)
+    return h.hexdigest()
+
+
+def input_hash(scene, group, kind, options, lighting):
+    """Hash of what determines map ``kind`` of ``group``: each object's evaluated mesh, as its base mesh (positions
+    and triangles, exact), its modifiers' settings and the evaluated counts (the evaluated positions themselves
+    change in their last bit when a UV layer is added under a Subdivision; the UVs of ``options.uv_layer`` when
+    given), its transform and its materials' node trees, the
+    lights and world (``lighting``, :func:`lighting_digest`; a ``lit`` kind only: irradiance) and the options that
+    change the map.
+    Other objects are not in it: moving an occluder leaves its neighbours' maps as they are (``force`` bakes them)."""
+    h = hashlib.blake2b(digest_size=16)
+    h.update(f"{kind}:{bpy.app.version_string}".encode())
+    for name in _HASHED_OPTIONS:
+        h.update(f"{name}={getattr(options, name)!r};".encode())
+    if KINDS[kind].lit:
+        h.update(f"bounces={options.bounces};{lighting}".encode())
+    depsgraph = scene.view_layers[0].depsgraph
+    for o in group:
+        h.update(o.name.encode())
+        if options.sizes and o.name in options.sizes:
+            h.update(repr(tuple(options.sizes[o.name])).encode())
+        h.update(np.array(o.matrix_world, np.float64).tobytes())
+        me = o.data
+        co = np.zeros(len(me.vertices) * 3, np.float32)
+        me.vertices.foreach_get("co", co)
+        me.calc_loop_triangles()
+        tris = np.zeros(len(me.loop_triangles) * 3, np.int32)
+        me.loop_triangles.foreach_get("vertices", tris)
+        h.update(co.tobytes())
+        h.update(tris.tobytes())
+        for mod in o.modifiers:
+            if mod.show_render:
+                _rna_digest(h, mod)
+        ev = o.evaluated_get(depsgraph).data
+        h.update(f"{len(ev.vertices)}:{len(ev.polygons)}".encode())
+        if options.uv_layer and options.uv_layer in me.uv_layers:
+            uv = np.zeros(len(me.loops) * 2, np.float32)
+            me.uv_layers[options.uv_layer].data.foreach_get("uv", uv)
+            h.update(uv.tobytes())
+        for slot in o.material_slots:
+            mat = slot.material
+            h.update((mat.name if mat else "-").encode())
+            if KINDS[kind].lit and mat is not None:
+                h.update(repr(tuple(mat.diffuse_color)).encode())
+                _node_tree_digest(h, mat.node_tree)
+    return h.hexdigest()
+
+
+def stored_hash(path):
+    """The input hash in the header of a map file this pipeline wrote, or None."""
+    stored = stored_map(path)
+    return None if stored is None else header_text(stored[0].get(HASH_KEY))
+
+
+def stored_map(path):
+    """(header, (width, height)) of a map file on disk, or None when it is missing or cannot be read."""
+    if not os.path.exists(path):
+        return None
+    try:
+        channels, header = exr.read_exr(path)
+    except (OSError, RuntimeError, ValueError):
+        return None
+    shape = next(iter(channels.values())).shape if channels else (0, 0)
+    return header, (int(shape[1]), int(shape[0]))
+
+
+def header_text(value):
+    return value.decode() if isinstance(value, bytes) else value
+
+
+def group_map_file(name, kind, out, options, group, stems):
+    if options.target == "image":
+        return map_file(out, stems, name, kind)
+    return map_file(out, stems, group[0].name, kind, "_vertex.exr")
