@@ -227,7 +227,7 @@ def bake_batch(scene, batch, kind, options, layers, temporary, state):
     return ``{name: BakeResult}``.
 
     Same texels, samples and seeds as the groups' own calls: Cycles seeds a bake sample by its pixel in its
-    image, so each image comes out as its own call makes it (tests/test_bake_level.py). The call's seconds
+    image, so each image comes out as its own call makes it (tests/bake/test_bake_level.py). The call's seconds
     are shared among the groups by texels."""
     t0 = time.perf_counter()
     for o in state.render_hidden:               # hidden for render: seen by Cycles only for its own map

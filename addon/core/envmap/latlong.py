@@ -3,7 +3,7 @@
 Directions are unit vectors in Blender's world frame (Z up). A lat-long map is
 an (H, W, C) array with row 0 at the TOP, laid out as Blender's Environment
 Texture (equirectangular) reads it, verified against Cycles renders
-(tests/test_envmap.py)::
+(tests/lab/test_envmap.py)::
 
     u = (pi - atan2(y, x)) / (2 pi)      (column, left -> right)
     v = 1/2 + asin(z) / pi               (v = 1 at the top row: straight up)

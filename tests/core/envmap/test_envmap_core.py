@@ -85,7 +85,7 @@ def test_solid_angles_sum_to_four_pi():
 
 def test_blender_equirectangular_convention():
     """Top row is straight up, the centre column looks along +X, u = 1/4 along +Y (Cycles' formula;
-    checked against a Cycles render in tests/test_envmap.py)."""
+    checked against a Cycles render in tests/lab/test_envmap.py)."""
     u, v = latlong.direction_to_latlong_uv(np.array([[0, 0, 1.0], [1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, -1]]))
     assert v[0] == pytest.approx(1) and v[4] == pytest.approx(0)
     assert u[1] == pytest.approx(0.5) and u[2] == pytest.approx(0.25) and u[3] == pytest.approx(0.75)

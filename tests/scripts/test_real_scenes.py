@@ -22,7 +22,7 @@ import pytest
 from addon.core.io import exr
 from tests.support.corpus import SUN_ROTATION, SUN_STRENGTH
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from tests.conftest import ROOT  # noqa: E402
 RES, SAMPLES = 32, 4
 MIN_COVERAGE = 0.5          # covered texels / (side^2 x the charts' UV area): the bake's stated minimum
 MIN_MAP_COVERAGE = 0.02     # and never an (almost) empty map, whatever the charts

@@ -6,6 +6,8 @@ import os
 import numpy as np
 import pytest
 
+from tests.conftest import ROOT
+
 from addon.core.io import exr
 from addon.core.errors import InputError
 
@@ -36,7 +38,7 @@ def test_script_writes_report_and_pixel_aligned_images(script, tmp_path):
 
 def _script_module(name):
     """scripts/<name>.py imported in this process (its bpy-free argument checks run without a subprocess)."""
-    path = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "scripts", f"{name}.py")
+    path = os.path.join(ROOT, "scripts", f"{name}.py")
     spec = importlib.util.spec_from_file_location(f"il_script_{name}", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

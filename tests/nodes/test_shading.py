@@ -555,7 +555,7 @@ def test_bad_input_reports_and_changes_nothing():
         bpy.ops.illumination.assign_shading_model(model="OREN_NAYAR")
     assert len(bpy.data.materials) == mats and len(cube.data.materials) == 0
     cube.select_set(True)
-    # the camera skipped with a warning (tests/test_selection_habits.py); no lights: a valid material
+    # the camera skipped with a warning (tests/ui/test_selection_habits.py); no lights: a valid material
     # with ambient and emission only, and a warning
     res = bpy.ops.illumination.assign_shading_model(model="PHONG")
     assert res == {"FINISHED"} and cube.active_material.get("il_model") == "PHONG"

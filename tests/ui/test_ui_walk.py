@@ -36,7 +36,7 @@ ID_COLLECTIONS = ("materials", "images", "meshes", "objects", "node_groups", "wo
                   "cameras", "lights", "textures")
 #: Reported to the lead (addon/bake is not this walk's to fix); test_bake_keeps_the_face_selection tracks it.
 KNOWN_BAKE_ISSUES = ("face_select",)
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from tests.conftest import ROOT  # noqa: E402
 LONG = {"bake_lightmaps", "run_shadow_comparison", "ssao_compare", "radiosity"}
 
 

@@ -11,6 +11,8 @@ import bpy
 import numpy as np
 import pytest
 
+from tests.conftest import ROOT
+
 from addon.blender import compat
 from addon.core import analytic
 from addon.core.radiosity import cost as rad_cost
@@ -269,7 +271,7 @@ def test_ctrl_c_during_the_solve_stops_with_130(tmp_path):
     proc = subprocess.Popen([sys.executable, os.path.join("scripts", "radiosity.py"), "--scene", "cornell",
                              "--max-edge", "0.1", "--no-compare", "--out", str(out)],
                             stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
-                            cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+                            cwd=ROOT)
     lines = []
     for line in proc.stderr:
         lines.append(line)
