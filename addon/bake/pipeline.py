@@ -43,7 +43,8 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     "seconds" (the map's bakes, denoising and files) and "estimated_error" (RMS over covered texels,
     None when not estimated), plus "error_estimate" (which estimate that is, see passes.ESTIMATES),
     "cycles_seconds" (inside the Cycles bake calls), "pilot_samples" (target_error runs) and, for
-    images, "preview", "uv_layer", "coverage", "denoised".
+    images, "preview", "uv_layer", "coverage", "denoised", and "low_fill" (the warning line of a generated layout
+    covering under uv.FILL of its map).
     """
     options = options or BakeOptions()
     scene = scene or bpy.context.scene
@@ -89,6 +90,7 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
                        options, run.fail)
         if not targets:
             raise run.errors[0]
+        run.check_fill(targets)
         if options.texel_density is not None and not options.sizes:
             check_time([t.size for t in targets if t.size], maps, options, "max resolution", speed(scene, options))
         batched, singles = batching.batches(scene, targets, run.layers, state, options, maps)
@@ -134,6 +136,7 @@ class _Run:
     layers: dict = dataclasses.field(default_factory=dict)
     sides: dict = dataclasses.field(default_factory=dict)
     margins: dict = dataclasses.field(default_factory=dict)
+    fills: dict = dataclasses.field(default_factory=dict)
     errors: list = dataclasses.field(default_factory=list)
     tracker: Tracker = None
     pace: cost.Speed = None
@@ -159,7 +162,10 @@ class _Run:
             self.layers, self.sides, self.margins = uvmod.prepare(self.scene, objects, self.state, self.options,
                                                                   together=True)
             return
-        for name, group in groups:
+        t0, todo = time.perf_counter(), sum(len(g) for _, g in groups)
+        for i, (name, group) in enumerate(groups):
+            if i:
+                self.uv_progress(i, len(groups), time.perf_counter() - t0, todo)
             try:
                 made = uvmod.prepare(self.scene, group, self.state, self.options)
             except (InputError, ILError) as e:
@@ -167,6 +173,24 @@ class _Run:
                 continue
             for have, new in zip((self.layers, self.sides, self.margins), made):
                 have.update(new)
+
+    def check_fill(self, targets):
+        """uv.low_fill of each generated layout at its map's final size (the plan may enlarge the side the layout
+        was made for; its margin grows with it); the lines go to ``fills``."""
+        for t in targets:
+            first = t.group[0].name
+            if t.size and first in self.sides:
+                side = t.size[0]
+                margin = self.margins[first] * side / self.sides[first]
+                line = uvmod.low_fill(t.group, side, margin, self.options)
+                if line:
+                    self.fills.update((o.name, line) for o in t.group)
+
+    def uv_progress(self, done, total, seconds, objects):
+        """A progress line of the UV step on stderr in batch: groups done, elapsed, ETA (seconds per group so far)."""
+        eta = seconds / done * (total - done)
+        message = f"light-map UVs: {done}/{total} ({objects} objects), elapsed {seconds:.1f} s, ETA {eta:.0f} s"
+        self.progress.note(message)
 
     def bake_batch(self, batch, kind):
         """Bake and write map ``kind`` of the pending targets of ``batch`` in shared Cycles calls; return the
@@ -222,7 +246,7 @@ class _Run:
         t_files = time.perf_counter()
         result.seconds += t_files - t_map     # the header's il:seconds: bakes and checks, not the files
         entries = write.write_map(name, group, kind, result, self.out, self.options, self.layers, margin,
-                                  target.overlap, self.digests[(name, kind)], self.stems)
+                                  target.overlap, self.digests[(name, kind)], self.stems, self.fills)
         part = {"objects": {}, "skipped": self.report["skipped"], "unchanged": self.report["unchanged"]}
         for o in group:
             entries[o.name]["seconds"] = round(result.seconds + time.perf_counter() - t_files, 4)  # files included

@@ -52,8 +52,9 @@ def _kept_entries(name, group, kind, out, options, stems, stored, old_reports):
             io_png.write_png(png, write.preview(kind, values, np.ones(values.shape[:2], bool)))
         try:
             per = json.loads(header_text(header.get("il:objects")) or "{}")
+            lines = json.loads(header_text(header.get("il:low_fill")) or "{}")
         except ValueError:
-            per = {}
+            per, lines = {}, {}
         whole = {"coverage": number("il:coverage"), "chart_area": number("il:chart_area")}
         if header.get("il:overlap") is not None:
             whole["overlap"] = number("il:overlap")
@@ -68,6 +69,8 @@ def _kept_entries(name, group, kind, out, options, stems, stored, old_reports):
                               "denoised": header_text(header.get("il:denoised")) == "1"}
             if "overlap" in own:
                 extras[o.name]["overlap"] = own["overlap"]
+            if isinstance(lines, dict) and isinstance(lines.get(o.name), str):
+                extras[o.name]["low_fill"] = lines[o.name]
     entries = {}
     for o in group:
         fresh = write.entry(path, res, result, extras[o.name])

@@ -11,7 +11,7 @@ import pytest
 from addon.bake import BakeOptions, bake_lightmaps
 from addon.core.io import exr
 from addon.core.errors import ILError, ILWarning
-from addon.blender import scene as sc
+from addon.blender import compat, scene as sc
 
 
 def added(op, **kw):
@@ -203,3 +203,47 @@ def test_skipped_objects_are_named_with_the_right_article(tmp_path):
                                  "16x16", "1024x1024", "8192x8192", "11000x11000")] == [
         "an empty", "an armature", "a light", "an 8x8", "an 11x11", "an 18x18", "an 80x80", "an 800x800",
         "a 16x16", "a 1024x1024", "an 8192x8192", "an 11000x11000"]
+
+
+# ------------------------------------------------------------------ fill of generated layouts (issue 27)
+
+def _fill(obj, side):
+    from addon.bake import uv as uvmod
+    from addon.core import lightmap
+    return float(lightmap.coverage_mask(uvmod.triangles_uv(obj, "Lightmap"), side, side).mean())
+
+
+@pytest.mark.both_versions
+def test_a_map_its_charts_cannot_fill_gets_one_line_with_the_cause_and_the_side_that_fills(tmp_path):
+    """A triangle soup (a split ico sphere) at 64²: one line naming the coverage, the texels per triangle and a
+    side; the report carries it and its coverage is the fill measured from the UVs (5.2 and 4.5: Cycles' own
+    rasteriser decides texels whose centre lies on an edge, within 1 %). A cylinder at the side a
+    low-fill line suggests fills what the line says."""
+    scene = bpy.context.scene
+    soup = added(bpy.ops.mesh.primitive_ico_sphere_add, subdivisions=3)
+    soup.name = "Soup"
+    bm = bmesh.new()
+    bm.from_mesh(soup.data)
+    bmesh.ops.split_edges(bm, edges=bm.edges[:])
+    bm.to_mesh(soup.data)
+    bm.free()
+    cyl = added(bpy.ops.mesh.primitive_cylinder_add, location=(3, 0, 0))
+    opts = BakeOptions(resolution=64, samples=1, margin=2)
+    with pytest.warns(ILWarning) as caught:
+        rep = bake_lightmaps([soup, cyl], ["ao"], tmp_path / "a", opts, scene=scene)
+    lines = [str(w.message) for w in caught if "light-map charts cover only" in str(w.message)]
+    entry = rep["objects"]["Soup"]["ao"]
+    fill = _fill(soup, 64)
+    assert fill < 0.55 and entry["coverage"] == pytest.approx(fill, abs=1e-6 if compat.BAKE_TOUCHED_TEXELS else 0.01)
+    soup_line = next(m for m in lines if m.startswith("'Soup'"))
+    assert f"{100 * fill:.1f} %" in soup_line and "texels per triangle" in soup_line
+    assert entry["low_fill"] == soup_line
+    assert __import__("json").loads(exr.read_exr(tmp_path / "a" / "Soup_ao.exr")[1]["il:low_fill"])["Soup"] == soup_line
+    cyl_lines = [m for m in lines if m.startswith("'Cylinder'")]
+    if cyl_lines:                          # the suggested side reaches the fill it names
+        side = int(cyl_lines[0].split("a resolution of about ")[1].split()[0])
+        goal = float(cyl_lines[0].split(" fills ")[1].split()[0]) / 100
+        bake_lightmaps([cyl], ["ao"], tmp_path / "b", opts.replace(resolution=side), scene=scene)
+        assert _fill(cyl, side) >= goal - 0.02
+    else:
+        assert _fill(cyl, 64) >= 0.55

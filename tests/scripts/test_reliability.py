@@ -447,7 +447,7 @@ def test_a_full_disk_is_one_line_and_keeps_what_was_finished(tmp_path, small_dis
     r = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "bake.py"), str(blend), "--objects", "Small",
                         "Big", "--maps", "ao", "--texel-density", "16", "--samples", "4", "--out", str(out)],
                        capture_output=True, text=True, cwd=ROOT, timeout=300)
-    lines = _errors(r.stderr)
+    lines = [ln for ln in _errors(r.stderr) if not ln.startswith("bake.py: warning: ")]   # the planes' low fill
     assert r.returncode == 1 and len(lines) == 1, r.stderr
     assert lines[0] == f"bake.py: error: No space left on device: {out / 'Big_ao.exr'}"
     assert sorted(os.listdir(out)) == ["Small_ao.exr", "Small_ao.png", "bake_report.json"]

@@ -1,0 +1,43 @@
+"""Charts of a UV layout: how many there are, and the side at which they fill a map (issue 27's fill warning)."""
+import math
+
+import numpy as np
+
+
+def chart_count(me, layer):
+    """Charts (faces joined through corners of one vertex with equal UVs) of ``layer`` in mesh ``me``."""
+    n = len(me.loops)
+    if not n:
+        return 0
+    vert, poly = np.zeros(n, np.int64), np.zeros(len(me.polygons), np.int64)
+    me.loops.foreach_get("vertex_index", vert)
+    me.polygons.foreach_get("loop_start", poly)
+    face = np.repeat(np.arange(len(poly)), np.diff(np.append(poly, n)))
+    uv = np.zeros(n * 2, np.float32)
+    me.uv_layers[layer].data.foreach_get("uv", uv)
+    key = np.column_stack([vert, uv.view(np.int32).reshape(-1, 2)])
+    _, corner = np.unique(key, axis=0, return_inverse=True)
+    corner = corner.ravel()
+    label = np.arange(len(poly))
+    while True:
+        low = np.full(corner.max() + 1, len(poly))
+        np.minimum.at(low, corner, label[face])
+        new = label.copy()
+        np.minimum.at(new, face, low[corner])
+        new = new[new]
+        if np.array_equal(new, label):
+            return len(np.unique(label))
+        label = new
+
+
+def side_for_fill(have, side, per_chart, margin, asked, goal):
+    """Side at which a layout filling ``have`` of a ``side``² map (``per_chart`` covered texels a chart, ``margin``
+    texels around each) fills ``goal`` with the ``asked`` margin, or None: each chart of s texels takes (s + 2m)²,
+    so the packing's fill without margins is e = have (s + 2m)² / s²; charts grow with the side, margins stay."""
+    s = math.sqrt(max(per_chart, 1e-9))
+    e = have * (s + 2 * margin) ** 2 / s ** 2
+    if e <= goal:
+        return None
+    r = math.sqrt(goal / e)
+    want = 2 * max(asked, 0.5) * r / (1 - r)
+    return max(side + 1, math.ceil(side * want / s))
