@@ -4,7 +4,10 @@ from bpy.props import EnumProperty
 
 from ..bake.cost import panel_max_side
 from ..bake.options import BakeOptions
+from ..core.errors import warn
 from ..core.lightmap import MAX_RESOLUTION
+from ..core.result import JobResult
+from ..nodes import lightmap_preview
 from .panel import Sidebar
 from . import polls, props
 from .operator import JobOperator
@@ -66,6 +69,57 @@ class IL_OT_bake_lightmaps(JobOperator, bpy.types.Operator):
         return result
 
 
+class IL_OT_apply_lightmaps(JobOperator, bpy.types.Operator):
+    """Show the baked light maps of the output folder on the selected objects' materials: base colour x E/pi
+    (irradiance) or x k_A (AO) as emission, seen in EEVEE and Cycles without lights (Remove Preview undoes it)"""
+
+    bl_idname = "illumination.apply_lightmaps"
+    bl_label = "Preview Light Maps"
+    bl_options = {"REGISTER", "UNDO"}
+
+    source: EnumProperty(name="Map", default="IRRADIANCE",
+                         items=(("IRRADIANCE", "Irradiance", "Base colour x E/pi: the lit diffuse surface's radiance"),
+                                ("AO", "AO", "Base colour x k_A: the surface under a white sky of radiance 1")))
+
+    @classmethod
+    def poll(cls, context):
+        return (polls.has_scene(cls, context) and polls.object_mode(cls, context)
+                and polls.selected_meshes(cls, context)
+                and polls.saved_or_absolute(cls, context.scene.illumination.lightmaps.output_dir))
+
+    def job(self, context):
+        folder = bpy.path.abspath(context.scene.illumination.lightmaps.output_dir)
+        report, warnings = lightmap_preview.apply_lightmaps(context.selected_objects, folder, self.source)
+        for w in warnings:
+            warn(w)
+        objects = report["objects"]
+        return JobResult(report, summary=f"{report['source'].lower()} shown on {len(objects)} object(s): "
+                                         f"{', '.join(objects)}")
+
+
+def _previewed(cls, context):
+    if lightmap_preview.previewed(context.selected_objects):
+        return True
+    cls.poll_message_set("Nothing to remove: no selected object shows a light-map preview")
+    return False
+
+
+class IL_OT_remove_lightmaps(JobOperator, bpy.types.Operator):
+    """Give the selected objects back the materials Preview Light Maps replaced"""
+
+    bl_idname = "illumination.remove_lightmaps"
+    bl_label = "Remove Preview"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return polls.has_scene(cls, context) and polls.object_mode(cls, context) and _previewed(cls, context)
+
+    def job(self, context):
+        count = lightmap_preview.remove_lightmaps(context.selected_objects)
+        return JobResult({"slots": count}, summary=f"restored {count} material slot(s)")
+
+
 class IL_PT_lightmaps(Sidebar, bpy.types.Panel):
     bl_idname = "IL_PT_lightmaps"
     bl_label = "Light maps"
@@ -97,7 +151,13 @@ class IL_PT_lightmaps(Sidebar, bpy.types.Panel):
         col.prop(s, "bounces")
         layout.prop(s, "overwrite")
         layout.operator(IL_OT_bake_lightmaps.bl_idname, text="Bake", icon="RENDER_STILL")
+        col = layout.column(align=True)
+        col.label(text="Preview on the materials:")
+        row = col.row(align=True)
+        row.operator(IL_OT_apply_lightmaps.bl_idname, text="Irradiance", icon="SHADING_RENDERED").source = "IRRADIANCE"
+        row.operator(IL_OT_apply_lightmaps.bl_idname, text="AO", icon="SHADING_SOLID").source = "AO"
+        col.operator(IL_OT_remove_lightmaps.bl_idname, icon="LOOP_BACK")
 
 
-classes = (IL_PG_lightmaps, IL_OT_bake_lightmaps, IL_PT_lightmaps)
+classes = (IL_PG_lightmaps, IL_OT_bake_lightmaps, IL_OT_apply_lightmaps, IL_OT_remove_lightmaps, IL_PT_lightmaps)
 register, unregister = bpy.utils.register_classes_factory(classes)

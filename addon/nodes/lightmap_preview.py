@@ -1,0 +1,273 @@
+"""Light maps shown on the user's materials (Preview / Remove Preview in the Light maps panel).
+
+:func:`apply_lightmaps` gives every material slot of each baked mesh a preview material: an Emission shader of
+colour base × map and strength 1/π (irradiance E: the radiance ρE/π of the lit Lambertian surface) or 1 (AO k_A:
+the radiance ρ k_A of the surface under a white sky of radiance 1), so EEVEE and Cycles show the baked light
+without scene lights (world black: nothing else is added). The base colour ρ is the material's Principled (or
+Diffuse) Base Color, value or the nodes that feed it (:mod:`.source`); the map is the EXR named in the folder's
+bake_report.json, read through the object's light-map UV layer (the report's "uv_layer"; a vertex-target map
+through its colour attribute). Metallic, specular, normal maps and alpha are not shown.
+
+The preview goes into the object's own slot (the slot is switched to link to the object, so meshes that share data
+show their own maps; the mesh's materials are not touched); the preview material keeps what the slot had
+(``il_lightmap_original``, ``il_lightmap_link``, ``il_lightmap_hidden``: ID properties, so the originals are saved
+with the file) and :func:`remove_lightmaps` puts it back, per slot.
+"""
+import math
+import os
+
+import bpy
+
+from ..bake.report import REPORT, read_objects
+from ..blender import compat
+from ..core.errors import InputError
+from . import source
+from .material import split_shadable
+
+#: operator source -> (report map kind, Emission Strength)
+SOURCES = {"IRRADIANCE": ("irradiance", 1.0 / math.pi), "AO": ("ao", 1.0)}
+TAG = "il_lightmap"
+ADDED_SLOT = "il_lightmap_added_slot"
+
+
+def read_report(folder):
+    """{object name: {map kind: entry}} of ``folder``/bake_report.json; InputError when there is none."""
+    path = os.path.join(folder, REPORT)
+    if not os.path.isfile(path):
+        raise InputError(f"no {REPORT} in {folder}: bake the light maps there first (Bake), or choose the "
+                         "folder they were baked to")
+    return read_objects(path)
+
+
+def map_file(folder, entry):
+    """The map file of a report entry: its "file", else a file of that name in ``folder`` (a moved folder)."""
+    name = entry.get("file") or ""
+    if name and os.path.isabs(name) and os.path.isfile(name):
+        return name
+    moved = os.path.join(folder, os.path.basename(name))
+    return moved if name and os.path.isfile(moved) else None
+
+
+def _plan(meshes, maps, kind, folder):
+    """([(object, entry, file)], warnings) of ``meshes`` that can show their ``kind`` map."""
+    todo, none, missing = [], [], []
+    for obj in meshes:
+        entry = maps.get(obj.name, {}).get(kind)
+        if entry is None:
+            none.append(obj.name)
+            continue
+        uv, attr = entry.get("uv_layer"), entry.get("attribute")
+        path = map_file(folder, entry) if attr is None else None
+        if attr is not None and obj.data.color_attributes.get(attr) is None:
+            missing.append(f"'{obj.name}': no colour attribute '{attr}' (its vertex {kind} map); a batch bake does "
+                           "not save the .blend: bake in this file or open the copy the bake saved")
+        elif attr is None and (not uv or obj.data.uv_layers.get(uv) is None):
+            missing.append(f"'{obj.name}': no UV layer '{uv}' (the layout of its {kind} map); a batch bake does not "
+                           "save the .blend: bake in this file or open the copy the bake saved (--save-as)")
+        elif attr is None and path is None:
+            missing.append(f"'{obj.name}': its {kind} map {entry.get('file')} is missing")
+        else:
+            todo.append((obj, entry, path))
+    warnings = [f"no {kind} map in {os.path.join(folder, REPORT)} for: {', '.join(none)}"] if none else []
+    return todo, warnings + [f"{m}; skipped" for m in missing]
+
+
+def _image(path):
+    """The preview's image of ``path`` (one per file, reloaded so a new bake shows): linear, colour not
+    multiplied by the coverage alpha, full float precision."""
+    image = next((im for im in bpy.data.images if im.get(TAG) == path), None)
+    if image is None:
+        image = bpy.data.images.load(path, check_existing=False)
+        image[TAG] = path
+    else:
+        image.reload()
+    image.colorspace_settings.name = "Non-Color"
+    image.alpha_mode = "CHANNEL_PACKED"
+    if hasattr(image, "use_half_precision"):
+        image.use_half_precision = False
+    return image
+
+
+def _upstream(node):
+    seen, todo = set(), [node]
+    while todo:
+        n = todo.pop()
+        if n.name not in seen:
+            seen.add(n.name)
+            todo += [lk.from_node for i in n.inputs for lk in i.links]
+    return seen
+
+
+def _base_material(mat):
+    """The material whose base colour is shown: an IL shading material's original, else ``mat``."""
+    if mat is not None and mat.get("il_model"):
+        return None if mat.get("il_empty") else mat.get("il_original")
+    return mat
+
+
+def build_preview(orig, obj, entry, path, source_id):
+    """A new preview material for a slot holding ``orig`` (None: empty) of ``obj``; see the module docstring."""
+    kind, strength = SOURCES[source_id]
+    base_mat = _base_material(orig)
+    surface = source.read_surface(base_mat)
+    label = f"IL {kind} {obj.name}: {orig.name if orig is not None else 'empty'}"
+    if surface.base_source is not None:
+        mat = base_mat.copy()       # keeps the nodes (textures, their UVs) that feed Base Color, nothing else
+        for key in [k for k in mat.keys() if k.startswith("il_")]:
+            del mat[key]
+        tree = mat.node_tree
+        keep = _upstream(surface.base_source.node)
+        ad = tree.animation_data
+        for fc in list(ad.drivers) if ad is not None else []:
+            if not any(fc.data_path.startswith(f'nodes["{k}"]') for k in keep):
+                ad.drivers.remove(fc)
+        for node in list(tree.nodes):
+            if node.name not in keep:
+                tree.nodes.remove(node)
+        base = tree.nodes[surface.base_source.node.name].outputs[surface.base_source.identifier]
+    else:
+        mat = bpy.data.materials.new(label)
+        compat.ensure_use_nodes(mat)
+        mat.node_tree.nodes.clear()
+        base = None
+    mat.name = label
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    attr = entry.get("attribute")
+    if attr is not None:
+        lookup = nodes.new("ShaderNodeVertexColor")
+        lookup.layer_name = attr
+    else:
+        uv = nodes.new("ShaderNodeUVMap")
+        uv.uv_map = entry["uv_layer"]
+        lookup = nodes.new("ShaderNodeTexImage")
+        lookup.image, lookup.interpolation, lookup.extension = _image(path), "Linear", "EXTEND"
+        links.new(uv.outputs["UV"], lookup.inputs["Vector"])
+    lookup.name = lookup.label = f"IL light map ({kind})"
+    times = nodes.new("ShaderNodeVectorMath")
+    times.operation, times.name, times.label = "MULTIPLY", "IL base x map", "IL base x map"
+    if base is not None:
+        links.new(base, times.inputs[0])
+    else:
+        times.inputs[0].default_value = surface.base
+    links.new(lookup.outputs["Color"], times.inputs[1])
+    emit = nodes.new("ShaderNodeEmission")
+    emit.name = emit.label = "IL light-map radiance"
+    emit.inputs["Strength"].default_value = strength
+    links.new(times.outputs["Vector"], emit.inputs["Color"])
+    out = nodes.new("ShaderNodeOutputMaterial")
+    out.target, out.is_active_output = "ALL", True
+    links.new(emit.outputs["Emission"], out.inputs["Surface"])
+    for i, node in enumerate((lookup, times, emit, out)):
+        node.location = (300 + 250 * i, 0)
+    if hasattr(mat, "cycles"):
+        mat.cycles.emission_sampling = "NONE"   # the map is the light: other surfaces need not sample it
+    mat[TAG] = kind
+    mat["il_lightmap_file"] = path or attr
+    return mat
+
+
+def is_preview(mat):
+    return mat is not None and bool(mat.get(TAG)) and "il_lightmap_link" in mat
+
+
+def previewed(objects):
+    """Whether a slot of ``objects`` shows a preview material."""
+    return any(is_preview(s.material) for o in objects for s in getattr(o, "material_slots", ()))
+
+
+def _apply_object(obj, entry, path, source_id, made):
+    data = obj.data
+    if len(obj.material_slots) == 0:
+        data.materials.append(None)
+        data[ADDED_SLOT] = True
+    for slot in obj.material_slots:
+        _restore_slot(slot)
+        link, orig = slot.link, slot.material
+        mat = build_preview(orig, obj, entry, path, source_id)     # first: a failure leaves the slot as it was
+        made.append(mat)
+        slot.link = "OBJECT"
+        hidden = slot.material if link == "DATA" else None
+        mat["il_lightmap_link"] = link
+        if orig is not None:
+            mat["il_lightmap_original"] = orig
+        if hidden is not None:
+            mat["il_lightmap_hidden"] = hidden
+        slot.material = mat
+
+
+def _restore_slot(slot):
+    """Give ``slot`` back what the preview replaced; True when it held one."""
+    mat = slot.material
+    if not is_preview(mat):
+        return False
+    if mat["il_lightmap_link"] == "DATA":
+        slot.material = mat.get("il_lightmap_hidden")
+        slot.link = "DATA"
+    else:
+        slot.material = mat.get("il_lightmap_original")
+    return True
+
+
+def _restore_object(obj):
+    count = sum(_restore_slot(slot) for slot in obj.material_slots)
+    data = obj.data
+    if data is not None and ADDED_SLOT in data and not previewed([obj]):
+        if len(data.materials) == 1 and data.materials[0] is None:
+            data.materials.clear()
+        del data[ADDED_SLOT]
+    return count
+
+
+def _drop_unused(mats):
+    """Remove preview materials nothing uses any more, and their map images nothing else uses."""
+    images = set()
+    for mat in mats:
+        if mat.users == 0:
+            images |= {n.image for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage"
+                       and n.image is not None and n.image.get(TAG)}
+            bpy.data.materials.remove(mat)
+    for image in images:
+        if image.users == 0:
+            bpy.data.images.remove(image)
+
+
+def apply_lightmaps(objects, folder, source_id="IRRADIANCE"):
+    """Show the ``source_id`` map ("IRRADIANCE" or "AO") of ``folder``'s bake_report.json on the meshes of
+    ``objects``. Returns (report {"objects": {name: {"map", "file", "uv_layer", "slots"}}}, warnings naming the
+    skipped objects: not meshes, no map, no light-map UV layer, missing file). A second apply replaces the
+    preview. Raises InputError (changing nothing) when no object can show a map; on any error the objects
+    already done get their materials back."""
+    if source_id not in SOURCES:
+        raise InputError(f"unknown light-map source '{source_id}' (one of {', '.join(SOURCES)})")
+    kind = SOURCES[source_id][0]
+    meshes, skipped = split_shadable(list(objects))
+    warnings = [f"skipped {'; '.join(skipped)}"] if skipped else []
+    if not meshes:
+        raise InputError(f"nothing to preview: select a baked mesh ({'; '.join(skipped) or 'nothing is selected'})")
+    todo, why = _plan(meshes, read_report(folder), kind, folder)
+    warnings += why
+    if not todo:
+        raise InputError(f"no {kind} map to show: {'; '.join(why)}")
+    made, done, replaced = [], [], []
+    try:
+        for obj, entry, path in todo:
+            replaced += [s.material for s in obj.material_slots if is_preview(s.material)]
+            done.append(obj)
+            _apply_object(obj, entry, path, source_id, made)
+    except Exception:
+        for obj in done:
+            _restore_object(obj)
+        _drop_unused(made)
+        raise
+    _drop_unused(set(replaced))
+    report = {"objects": {o.name: {"map": kind, "file": p or e.get("attribute"), "uv_layer": e.get("uv_layer"),
+                                   "slots": len(o.material_slots)} for o, e, p in todo},
+              "source": source_id, "folder": folder}
+    return report, warnings
+
+
+def remove_lightmaps(objects):
+    """Give the slots of ``objects`` back what :func:`apply_lightmaps` replaced (slots it added removed). As
+    Remove Shading Model, the preview materials and map images left unused stay until the file is saved (Blender
+    drops them then; Undo finds them). Returns the number of slots restored."""
+    return sum(_restore_object(o) for o in objects if getattr(o, "material_slots", None) is not None)
