@@ -139,3 +139,64 @@ class RadiosityOptions(Options):
     compare_solvers: bool = option(False, "Compare Solvers", "also run the other two solvers on the same form "
                                    "factors for the convergence chart and CSV (progressive refinement alone can "
                                    "take longer than the solve)")
+
+
+RAYTRACE_METHOD_CHOICES = (("raycast", "Ray casting", "primary ray, local model at the first hit, shadow rays"),
+                           ("whitted", "Whitted", "ray casting plus recursive mirror and refraction rays (seed 004 eq. 2)"))
+RAYTRACE_SCENE_CHOICES = (
+    ("diffuse", "Diffuse", "A diffuse plane and sphere under a point light"),
+    ("mirror", "Mirror Sphere", "A perfect mirror sphere on a diffuse plane"),
+    ("glass", "Glass Sphere", "A clear glass sphere (IOR 1.5) on a diffuse plane"),
+    ("walls", "Two Walls", "Two diffuse walls facing each other (interreflection Whitted leaves out)"),
+    ("area", "Area Light", "A diffuse plane and sphere under an area light and a grey sky (left out by Whitted)"),
+    ("grazing", "Grazing", "A mirror plane seen at grazing angles"),
+    ("ior1", "IOR 1", "A glass sphere of IOR 1 (invisible to Cycles; Whitted's shadow ray still stops at it)"),
+    ("tir", "TIR", "A glass sphere of IOR 2.4: total internal reflection"))
+MAX_RAYTRACE_DEPTH = 64
+RAYTRACE_ENGINE_CHOICES = (("numpy", "numpy BVH", "the add-on's numpy BVH, all rays of a bounce at once (measured "
+                                                   "faster or equal on most scenes, docs/raytrace.md)"),
+                           ("bvhtree", "Blender BVHTree", "mathutils BVHTree, one call per ray (faster on glass)"))
+
+
+@dataclasses.dataclass
+class RaytraceOptions(Options):
+    """One ray-casting or Whitted render of the scene camera and its Cycles comparison."""
+    method: str = option("whitted", "Method", "ray casting or Whitted ray tracing", choices=RAYTRACE_METHOD_CHOICES)
+    max_depth: int = option(4, "Max Depth", "reflection and refraction bounces (Whitted; Cycles' glossy and "
+                            "transmission bounces of the comparison)", minimum=0, maximum=MAX_RAYTRACE_DEPTH)
+    resolution: int = option(64, "Resolution", "image width in pixels (height keeps the scene's aspect)",
+                             minimum=8, maximum=2048)
+    engine: str = option("numpy", "Engine", "ray-triangle intersection engine", choices=RAYTRACE_ENGINE_CHOICES)
+    samples: int = option(16, "Cycles Samples", "Cycles samples per pixel of each of the two comparison renders",
+                          minimum=1, maximum=4096)
+    compare: bool = option(True, "Compare with Cycles", "render the same camera with Cycles and report the "
+                           "difference", flag="--no-compare")
+
+
+REFLECTION_METHOD_CHOICES = (
+    ("latlong", "Lat-long", "Lookup of r in the lat-long map captured at the capture point"),
+    ("cube", "Cube map", "Lookup of r in a cube map with as many texels as the lat-long map"),
+    ("sphere", "Sphere map", "Lookup of r in a sphere map with as many texels as the lat-long map"),
+    ("raytraced", "Ray traced", "Cycles' mirror (Glossy, roughness 0): the reference"))
+REFLECTION_SCENE_CHOICES = (
+    ("sphere", "Sphere", "A mirror sphere under a sky: the maps' filtering error only"),
+    ("nearby", "Nearby geometry", "A mirror sphere between emissive boxes, moved away from the capture point"),
+    ("flat", "Flat mirror", "A flat mirror facing an emissive box"),
+    ("concave", "Concave", "A mirror bowl that reflects itself"))
+
+
+@dataclasses.dataclass
+class ReflectionOptions(Options):
+    """One reflection-mapping comparison: the map types against Cycles' mirror on the same pixels."""
+    methods: list = option(["latlong", "cube", "sphere", "raytraced"], "Methods", "comma-separated methods "
+                           "compared with Cycles' mirror", kind=str, choices=REFLECTION_METHOD_CHOICES,
+                           multiple=True, separator=",", item="reflection method")
+    resolution: int = option(64, "Resolution", "render width in pixels (height keeps the scene's aspect)",
+                             minimum=8, maximum=2048)
+    map_size: int = option(64, "Map Size", "lat-long map height H (2H x H texels, captured at 4H x 2H: about "
+                           "400 H^2 bytes); the cube and sphere maps get as many texels (faces of H/sqrt(3), a "
+                           "sphere of H sqrt(2))", minimum=4, maximum=1024)
+    object: str = option(None, "Object", "the mirror mesh (default: the object named Mirror)", kind=str)
+    samples: int = option(1, "Samples", "Cycles samples of the reference and the capture (1 is exact for "
+                          "emissive surroundings and a world; lit diffuse surroundings need more)",
+                          minimum=1, maximum=4096)

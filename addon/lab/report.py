@@ -18,9 +18,11 @@ from ..core.errors import InputError
 from ..core.io.files import atomic_path, write_json
 from ..blender.progress import Progress
 from .bench import envmap, lightmaps, shading, shadows, ssao
+from .bench import raytrace as raytrace_bench
+from .bench import reflections as reflections_bench
 
 #: The registry, in report order (radiosity is part of the envmap section).
-AREAS = (shading, lightmaps, shadows, ssao, envmap)
+AREAS = (shading, lightmaps, shadows, ssao, envmap, reflections_bench, raytrace_bench)
 SSAO_REMEDY = {
     "plane": "normal-oriented methods (hemisphere, HBAO, GTAO) read 1 on open surfaces",
     "edge": "reported, not hidden: render a guard band beyond the frame to avoid it",
@@ -150,6 +152,8 @@ def stability_table(results, shading_rows):
         rows.append({"method": "SSAO", "fails at": failure,
                      "measured": "mean error in the affected region: " + ", ".join(biases),
                      "what the project does": SSAO_REMEDY.get(scene, "reported")})
+    rows += reflections_bench.stability_rows(results.get("reflections"))
+    rows += raytrace_bench.stability_rows(results.get("raytrace"))
     return rows
 
 

@@ -613,7 +613,7 @@ def _convert(orig, model, linked, attenuation, coefficients, params, base_name):
     return mat, warnings
 
 
-def _slots(meshes):
+def material_slots_of(meshes):
     """(owner, index, material) of every slot of ``meshes``; owner is the mesh (a slot linked to the data, each
     shared mesh once) or the object slot (linked to the object)."""
     seen = set()
@@ -627,7 +627,8 @@ def _slots(meshes):
                 yield obj.data, i, obj.data.materials[i]
 
 
-def _put(owner, index, mat):
+def put_material(owner, index, mat):
+    """Set the slot :func:`material_slots_of` yielded as (owner, index) to ``mat``."""
     if index is None:
         owner.material = mat
     else:
@@ -676,7 +677,7 @@ def assign_materials(scene, objects, model, lights="ALL", attenuation="PHYSICAL"
             obj.data.materials.append(None)
             obj.data["il_added_slot"] = True
     made, replaced = {}, set()
-    for owner, index, cur in list(_slots(meshes)):
+    for owner, index, cur in list(material_slots_of(meshes)):
         orig = _origin(cur)
         key = orig.as_pointer() if orig is not None else None
         if key not in made:
@@ -687,7 +688,7 @@ def assign_materials(scene, objects, model, lights="ALL", attenuation="PHYSICAL"
             warnings += w
         if cur is not None and cur.get("il_model") and cur != made[key]:
             replaced.add(cur)
-        _put(owner, index, made[key])
+        put_material(owner, index, made[key])
     for old in replaced:
         if old.users == 0 and (old.get("il_original") is not None or old.get("il_empty")):
             bpy.data.materials.remove(old)      # an IL material of an earlier assignment nothing uses

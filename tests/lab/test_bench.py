@@ -17,6 +17,7 @@ CHARTS = {
                 "volume_cost.png", "planar_receivers.png", "zpass_zfail.png"],
     "shading": ["oren_nayar_vs_diffuse.png", "cook_torrance_vs_glossy.png"],
     "envmap": ["envmap_sh9_accuracy.png", "radiosity_convergence.png"],
+    "reflections": ["reflections_error_seconds.png", "reflections_map_types.png"],
 }
 TABLES = {
     "lightmaps": ["bake_time_to_error", "bake_irradiance_time_to_error", "bake_overhead"],
@@ -24,6 +25,7 @@ TABLES = {
     "shadows": ["shadow_methods", "shadowmap_resolution", "shadowmap_bias"],
     "shading": ["shading_node_vs_twin", "shading_oren_nayar_vs_diffuse", "shading_cook_torrance_vs_glossy"],
     "envmap": ["radiosity_solvers"],
+    "reflections": ["reflections_methods", "reflections_distance", "reflections_map_types"],
 }
 
 

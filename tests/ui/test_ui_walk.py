@@ -27,8 +27,8 @@ from addon.lab.demo import scene as demo
 UI_FUNCS = bpy.types.UILayout.bl_rna.functions
 UI_PROPS = {p.identifier for p in bpy.types.UILayout.bl_rna.properties}
 ICONS = {i.identifier for i in UI_FUNCS["prop"].parameters["icon"].enum_items}
-PANELS = ("IL_PT_main", "IL_PT_shading", "IL_PT_lightmaps", "IL_PT_envmap", "IL_PT_comparisons", "IL_PT_shadows",
-          "IL_PT_ssao")
+PANELS = ("IL_PT_main", "IL_PT_shading", "IL_PT_environment", "IL_PT_lightmaps", "IL_PT_envmap",
+          "IL_PT_comparisons", "IL_PT_shadows", "IL_PT_ssao")
 SUBLAYOUTS = {"row", "column", "box", "split", "column_flow", "grid_flow", "menu_pie"}
 PROP_CALLS = {"prop", "prop_enum", "prop_menu_enum", "props_enum", "prop_tabs_enum", "prop_search",
               "prop_with_menu", "prop_with_popover", "prop_decorator", "template_ID", "template_list"}
@@ -453,11 +453,17 @@ def test_walk_every_button_on_the_demo_scene(tmp_path, no_matplotlib_no_scipy, p
         ("add_node_groups", {}, "FINISHED", "", ()),
         ("relink_lights", {}, "FINISHED", "", ()),
         ("bake_lightmaps", {}, "FINISHED", "", ()),
+        ("apply_lightmaps", {"source": "IRRADIANCE"}, "ERROR", "no irradiance map", ()),
+        ("apply_lightmaps", {"source": "AO"}, "FINISHED", "", (box, sphere)),
+        ("remove_lightmaps", {}, "FINISHED", "", (box, sphere)),
         ("run_shadow_comparison", {}, "FINISHED", "", ()),
         ("ssao_compare", {}, "FINISHED", "", ()),
         ("envmap_irradiance", {"output_dir": str(tmp_path / "env")}, "ERROR", "Environment Texture", ()),
         ("envmap_irradiance", {"output_dir": str(tmp_path / "env"), "env_file": env}, "FINISHED", "", ()),
         ("radiosity", {"output_dir": str(tmp_path / "rad"), "compare": False}, "ERROR", "emits light", ()),
+        ("assign_environment_mapping", {}, "ERROR", "Environment Texture", ()),
+        ("remove_environment_mapping", {}, "POLL", "Nothing to restore", ()),
+        ("add_environment_group", {}, "FINISHED", "", ()),
         ("assign_shading_model", {"model": "OREN_NAYAR"}, "FINISHED", "", (box, sphere)),
         ("relink_lights", {}, "FINISHED", "", ()),
         ("remove_shading_model", {}, "FINISHED", "", (box, sphere)),
