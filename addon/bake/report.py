@@ -194,6 +194,16 @@ def _load_report(path, then):
         return None
 
 
+def entry_file(folder, entry):
+    """The map file of a report entry: its "file", else a file of that name in ``folder`` (a moved folder); None
+    when neither exists."""
+    name = entry.get("file") or ""
+    if name and os.path.isabs(name) and os.path.isfile(name):
+        return name
+    moved = os.path.join(folder, os.path.basename(name))
+    return moved if name and os.path.isfile(moved) else None
+
+
 def read_objects(path):
     """The "objects" of the report in ``path`` as it is; {} when it is missing or unreadable (nothing moved)."""
     try:

@@ -18,7 +18,7 @@ import os
 
 import bpy
 
-from ..bake.report import REPORT, read_objects
+from ..bake.report import REPORT, entry_file, read_objects
 from ..blender import compat
 from ..core.errors import InputError
 from . import source
@@ -39,13 +39,8 @@ def read_report(folder):
     return read_objects(path)
 
 
-def map_file(folder, entry):
-    """The map file of a report entry: its "file", else a file of that name in ``folder`` (a moved folder)."""
-    name = entry.get("file") or ""
-    if name and os.path.isabs(name) and os.path.isfile(name):
-        return name
-    moved = os.path.join(folder, os.path.basename(name))
-    return moved if name and os.path.isfile(moved) else None
+#: The map file of a report entry (its "file", else that name in the folder: a moved folder), or None.
+map_file = entry_file
 
 
 def _plan(meshes, maps, kind, folder):

@@ -1,0 +1,295 @@
+"""Baked light maps in a glTF binary (.glb) written by Blender's own glTF exporter (issue 28, item 2).
+
+:func:`export_glb` writes the scene with ``bpy.ops.export_scene.gltf`` and adds the light-map parts through the
+exporter's user-extension hooks (``glTF2ExportUserExtension`` on an add-on entry that exists only during the
+call, then removed):
+
+- each baked mesh carries its light-map UV layer (the report's "uv_layer") as ``TEXCOORD_1``: the exporter writes
+  every UV layer of a mesh as ``TEXCOORD_<its index>``, so the export runs on a temporary copy of each baked mesh
+  whose layers are ordered [the render layer, the light-map layer, the others] (a mesh whose only layer is the
+  light-map layer gets a copy of it as ``TEXCOORD_0``);
+- AO is the material's ``occlusionTexture`` with ``texCoord: 1``: an 8-bit PNG of k_A (R = G = B, linear);
+- irradiance is the material extension ``MOZ_lightmap`` {"index", "texCoord": 1, "intensity"}: an 8-bit RGB PNG of
+  E / max(E) (linear, not sRGB: the loader must read it as linear data), ``intensity`` = max(E) in W/m², the largest
+  channel value of the map; decoded texel / 255 × intensity = E within half a step, intensity / 510.
+
+Maps are per object, so each baked object gets temporary copies of its materials (named as the originals in the
+glTF); objects without a material get a plain one. Objects of an atlas each carry their part through their own
+light-map UVs; texels of one map file are encoded once. Everything temporary (mesh and material copies, the add-on
+entry) is removed after the export, also on errors; the session's objects get their meshes and slots back.
+"""
+import contextlib
+import os
+import sys
+
+import bpy
+import numpy as np
+
+from ..blender import interrupt
+from ..core.errors import ILError, InputError
+from ..core.io import exr
+from ..core.io.png import encode_png
+from .kinds import KINDS
+from .report import REPORT, entry_file, read_objects
+
+EXTENSION = "MOZ_lightmap"
+LEVELS = 255
+TAG, NAME = "il_gltf_lightmap", "il_gltf_name"
+LINEAR, CLAMP = 9729, 33071          # glTF sampler LINEAR, CLAMP_TO_EDGE
+
+
+def encode_irradiance(values):
+    """(H, W, 3) E in W/m² -> (uint8 (H, W, 3) of round(255 E / max E), intensity = max E); an all-zero map gets
+    intensity 1. Negative values (a denoiser's undershoot) are clipped to 0."""
+    e = np.clip(np.asarray(values, np.float64), 0.0, None)
+    peak = float(e.max()) if e.size else 0.0
+    intensity = peak if peak > 0.0 else 1.0
+    return np.rint(e / intensity * LEVELS).clip(0, LEVELS).astype(np.uint8), intensity
+
+
+def encode_ao(values):
+    """(H, W) k_A in [0, 1] -> uint8 (H, W, 3), R = G = B = round(255 k_A) (glTF reads occlusion from R)."""
+    q = np.rint(np.clip(np.asarray(values, np.float64), 0.0, 1.0) * LEVELS).astype(np.uint8)
+    return np.repeat(q[..., None], 3, axis=-1)
+
+
+def encoding_error(intensity):
+    """The largest |decoded - E| of :func:`encode_irradiance` (half an 8-bit step of ``intensity``)."""
+    return intensity / (2 * LEVELS)
+
+
+class Plan:
+    """What the export carries: {object name: {kind: (entry, file)}} of the baked meshes that can carry it, the
+    light-map UV layer of each, and the lines naming objects left out."""
+
+    def __init__(self, folder, scene):
+        path = os.path.join(folder, REPORT)
+        if not os.path.isfile(path):
+            raise InputError(f"no {REPORT} in {folder}: give the folder the light maps were baked to")
+        report = read_objects(path)
+        if not report:
+            raise InputError(f"{path} is unreadable or lists no baked objects")
+        self.maps, self.layers, self.notes = {}, {}, []
+        vertex, no_uv, no_file, absent = [], [], [], []
+        for name, entries in sorted(report.items()):
+            obj = scene.objects.get(name)
+            if obj is None or obj.type != "MESH":
+                absent.append(name)
+                continue
+            found = {}
+            for kind in ("irradiance", "ao"):
+                entry = entries.get(kind)
+                if entry is None:
+                    continue
+                if entry.get("attribute") is not None:
+                    vertex.append(f"{name} ({kind})")
+                    continue
+                layer = entry.get("uv_layer")
+                if not layer or obj.data.uv_layers.get(layer) is None:
+                    no_uv.append(f"{name} ('{layer}')")
+                    break
+                file = entry_file(folder, entry)
+                if file is None:
+                    no_file.append(f"{name} ({kind}: {entry.get('file')})")
+                    continue
+                if found and self.layers[name] != layer:
+                    no_uv.append(f"{name} ({kind} on '{layer}', not '{self.layers[name]}')")
+                    continue
+                self.layers[name] = layer
+                found[kind] = (entry, file)
+            else:
+                if found:
+                    self.maps[name] = found
+                continue
+            self.maps.pop(name, None)
+            self.layers.pop(name, None)
+        if no_uv:
+            self.notes.append("skipped, the light-map UV layer is not in the .blend (a batch bake does not save it: "
+                              "bake with --save-as and export that copy): " + ", ".join(sorted(set(no_uv))))
+        if vertex:
+            self.notes.append("skipped, vertex-colour maps are not exported: " + ", ".join(vertex))
+        if no_file:
+            self.notes.append("skipped, map file missing: " + ", ".join(no_file))
+        if absent:
+            self.notes.append("in the report but not a mesh in the scene: " + ", ".join(absent))
+
+
+def _reorder_uvs(me, layer):
+    """Put ``layer`` at index 1 of mesh ``me`` (a temporary copy): [render layer, ``layer``, others]."""
+    n = len(me.loops)
+    data = {}
+    for lay in me.uv_layers:
+        a = np.empty(2 * n, np.float32)
+        lay.data.foreach_get("uv", a)
+        data[lay.name] = a
+    render = next((lay.name for lay in me.uv_layers if lay.active_render), layer)
+    active = me.uv_layers.active.name if me.uv_layers.active else render
+    others = [k for k in data if k != layer]
+    first = render if render != layer else (others[0] if others else None)
+    if first is None:
+        first = "UVMap" if layer != "UVMap" else "UVMap.base"
+        data[first] = data[layer]
+    order = [first, layer] + [k for k in others if k != first]
+    while len(me.uv_layers):
+        me.uv_layers.remove(me.uv_layers[0])
+    for k in order:
+        new = me.uv_layers.new(name=k, do_init=False)
+        new.data.foreach_set("uv", data[k])
+    me.uv_layers.active = me.uv_layers[active]
+    me.uv_layers[render].active_render = True
+    if [lay.name for lay in me.uv_layers].index(layer) != 1:
+        raise ILError(f"could not put UV layer '{layer}' of mesh '{me.name}' at TEXCOORD_1")
+
+
+@contextlib.contextmanager
+def _prepared(scene, plan):
+    """Temporary mesh copies (light-map layer at index 1) and per-object material copies tagged with the object."""
+    saved, meshes, materials = [], [], []
+    try:
+        for name in plan.maps:
+            obj = scene.objects[name]
+            slots = [(s.link, s.material) for s in obj.material_slots]
+            saved.append((obj, obj.data, slots))
+            me = obj.data.copy()
+            meshes.append(me)
+            me[NAME] = obj.data.name
+            obj.data = me
+            _reorder_uvs(me, plan.layers[name])
+            if not obj.material_slots:
+                mat = bpy.data.materials.new(f"{name} light map")
+                materials.append(mat)
+                mat[NAME] = f"{name} light map"
+                mat[TAG] = name
+                me.materials.append(mat)
+                continue
+            for i, slot in enumerate(obj.material_slots):
+                orig = slot.material
+                mat = orig.copy() if orig is not None else bpy.data.materials.new(f"{name} light map")
+                materials.append(mat)
+                mat[NAME] = orig.name if orig is not None else f"{name} light map"
+                mat[TAG] = name
+                if slot.link == "OBJECT":
+                    slot.material = mat
+                else:
+                    me.materials[i] = mat
+        yield
+    finally:
+        for obj, data, slots in saved:
+            for slot, (link, mat) in zip(obj.material_slots, slots):
+                if slot.link == "OBJECT":
+                    slot.material = mat
+            obj.data = data
+        for me in meshes:
+            bpy.data.meshes.remove(me)
+        for mat in materials:
+            bpy.data.materials.remove(mat)
+
+
+def _extension_class(plan, state):
+    """The exporter's user extension for ``plan``; ``state`` collects textures (one per map file), intensities
+    and errors (the exporter logs and swallows a hook's exceptions)."""
+    from io_scene_gltf2.io.com import gltf2_io
+    from io_scene_gltf2.io.com.gltf2_io_extensions import Extension
+    from io_scene_gltf2.io.exp.binary_data import BinaryData
+
+    def texture(kind, path):
+        key = (kind, path)
+        if key not in state["textures"]:
+            chans, _ = exr.read_exr(path)
+            values = KINDS[kind].from_exr(chans)
+            if kind == "irradiance":
+                pixels, intensity = encode_irradiance(values)
+            else:
+                pixels, intensity = encode_ao(values), 1.0
+            name = os.path.splitext(os.path.basename(path))[0]
+            image = gltf2_io.Image(buffer_view=BinaryData(data=encode_png(pixels)), extensions=None, extras=None,
+                                   mime_type="image/png", name=name, uri=None)
+            if "sampler" not in state:
+                state["sampler"] = gltf2_io.Sampler(extensions=None, extras=None, mag_filter=LINEAR,
+                                                    min_filter=LINEAR, name=None, wrap_s=CLAMP, wrap_t=CLAMP)
+            tex = gltf2_io.Texture(extensions=None, extras=None, name=name, sampler=state["sampler"], source=image)
+            state["textures"][key] = (tex, intensity)
+        return state["textures"][key]
+
+    class LightmapExtension:
+        def gather_mesh_hook(self, gltf2_mesh, blender_mesh, *rest):
+            """(mesh, blender mesh, object, vertex groups, modifiers, materials, settings) in 4.5-5.3: the
+            temporary copy's glTF mesh gets the original mesh's name."""
+            try:
+                if blender_mesh is not None and blender_mesh.get(NAME):
+                    gltf2_mesh.name = blender_mesh[NAME]
+            except Exception as e:  # noqa: BLE001
+                state["errors"].append(f"{type(e).__name__}: {e}")
+
+        def gather_material_hook(self, gltf2_material, blender_material, export_settings):
+            try:
+                name = blender_material.get(TAG) if blender_material is not None else None
+                if name is None or name not in plan.maps:
+                    return
+                gltf2_material.name = blender_material.get(NAME, gltf2_material.name)
+                maps = plan.maps[name]
+                if "ao" in maps:
+                    tex, _ = texture("ao", maps["ao"][1])
+                    gltf2_material.occlusion_texture = gltf2_io.MaterialOcclusionTextureInfoClass(
+                        extensions=None, extras=None, index=tex, strength=1.0, tex_coord=1)
+                if "irradiance" in maps:
+                    tex, intensity = texture("irradiance", maps["irradiance"][1])
+                    if gltf2_material.extensions is None:
+                        gltf2_material.extensions = {}
+                    gltf2_material.extensions[EXTENSION] = Extension(
+                        name=EXTENSION, extension={"index": tex, "texCoord": 1, "intensity": intensity},
+                        required=False)
+                state["done"].add(name)
+            except Exception as e:  # noqa: BLE001 - the exporter would only log it
+                state["errors"].append(f"{type(e).__name__}: {e}")
+
+    return LightmapExtension
+
+
+@contextlib.contextmanager
+def _registered(extension):
+    """``extension`` seen by the glTF exporter (which collects ``glTF2ExportUserExtension`` of each enabled
+    add-on's module) during the block only: a temporary add-on entry naming this module."""
+    module = sys.modules[__name__]
+    prefs = bpy.context.preferences
+    dirty = prefs.is_dirty
+    entry = prefs.addons.new()
+    entry.module = __name__
+    module.glTF2ExportUserExtension = extension
+    try:
+        yield
+    finally:
+        del module.glTF2ExportUserExtension
+        prefs.addons.remove(entry)
+        prefs.is_dirty = dirty
+
+
+def export_glb(scene, folder, out):
+    """Write ``scene`` as the glTF binary ``out`` with the light maps of ``folder``/bake_report.json (see the
+    module docstring); return {"objects": {name: {kind: intensity}}, "notes": [lines], "path": out}. ``out`` is
+    written whole (a temporary file beside it, then moved) or not at all."""
+    plan = Plan(folder, scene)
+    if not plan.maps:
+        raise InputError("no object of the report can carry its maps: " + "; ".join(plan.notes or ["none baked"]))
+    state = {"textures": {}, "errors": [], "done": set()}
+    tmp = os.path.join(os.path.dirname(out), f".{os.path.basename(out)}.{os.getpid()}.tmp.glb")
+    try:
+        with _prepared(scene, plan), _registered(_extension_class(plan, state)), interrupt.blender_call():
+            result = bpy.ops.export_scene.gltf(filepath=tmp, export_format="GLB", use_selection=False,
+                                               export_texcoords=True, export_animations=False)
+        if "FINISHED" not in result:
+            raise ILError(f"Blender's glTF exporter did not finish ({', '.join(result)})")
+        if state["errors"]:
+            raise ILError("light-map hook failed: " + "; ".join(state["errors"]))
+        os.replace(tmp, out)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+    missed = sorted(set(plan.maps) - state["done"])
+    notes = list(plan.notes)
+    if missed:
+        notes.append("not exported (no material reached the exporter): " + ", ".join(missed))
+    objects = {}
+    for name in sorted(state["done"]):
+        objects[name] = {kind: state["textures"][(kind, f)][1] for kind, (_, f) in plan.maps[name].items()}
+    return {"objects": objects, "notes": notes, "path": out}

@@ -1,0 +1,185 @@
+"""scripts/export_lightmaps.py: Blender's glTF exporter writes the baked maps (issue 28, item 2). The .glb is read
+back with json/struct: TEXCOORD_1 in [0, 1] on the baked meshes, occlusionTexture on texCoord 1, MOZ_lightmap
+{"index", "texCoord": 1, "intensity"}, and decoded texel / 255 x intensity equal to the EXR's E within the stated
+encoding error (half an 8-bit step); the .blend's bytes are unchanged; bad input exits 2 with one line."""
+import json
+import os
+import struct
+
+import bpy
+import numpy as np
+import pytest
+
+from addon.bake import bake_lightmaps
+from addon.bake.gltf import EXTENSION, encoding_error
+from addon.bake.options import BakeOptions
+from addon.blender import compat
+from addon.blender import scene as sc
+from addon.core.io import exr
+from addon.core.io.png import decode_png
+
+pytestmark = pytest.mark.both_versions
+
+
+def _read_glb(path):
+    data = open(path, "rb").read()
+    magic, version, length = struct.unpack("<4sII", data[:12])
+    assert magic == b"glTF" and version == 2 and length == len(data)
+    n, kind = struct.unpack("<I4s", data[12:20])
+    assert kind == b"JSON"
+    gltf = json.loads(data[20:20 + n])
+    m, kind = struct.unpack("<I4s", data[20 + n:28 + n])
+    assert kind == b"BIN\x00"
+    return gltf, data[28 + n:28 + n + m]
+
+
+def _accessor(gltf, binary, index):
+    acc = gltf["accessors"][index]
+    view = gltf["bufferViews"][acc["bufferView"]]
+    assert acc["componentType"] == 5126 and acc["type"] == "VEC2"
+    start = view.get("byteOffset", 0) + acc.get("byteOffset", 0)
+    stride = view.get("byteStride", 8)
+    raw = np.frombuffer(binary, np.uint8, count=stride * (acc["count"] - 1) + 8, offset=start)
+    return np.stack([raw[i * stride:i * stride + 8].view(np.float32) for i in range(acc["count"])])
+
+
+def _image(gltf, binary, texture):
+    img = gltf["images"][gltf["textures"][texture]["source"]]
+    view = gltf["bufferViews"][img["bufferView"]]
+    assert img["mimeType"] == "image/png"
+    start = view.get("byteOffset", 0)
+    return decode_png(binary[start:start + view["byteLength"]])
+
+
+def _same_uvs(uv1, obj, layer):
+    """The glTF's TEXCOORD_1 rows are the object's light-map layer (glTF v = 1 - Blender v), as sets."""
+    uv = np.array([d.uv[:] for d in obj.data.uv_layers[layer].data])
+    want = {(round(u, 5), round(1.0 - v, 5)) for u, v in uv}
+    return {(round(float(u), 5), round(float(v), 5)) for u, v in uv1} == want
+
+
+def _scene():
+    """A 2 m plane (Principled colour) under a 0.5 m cube (sharing the material) made with Blender's operators,
+    under a white sky."""
+    scene = bpy.context.scene
+    bpy.ops.mesh.primitive_plane_add(size=2.0)
+    plane = bpy.context.active_object
+    bpy.ops.mesh.primitive_cube_add(size=0.5, location=(0.0, 0.0, 0.25))
+    cube = bpy.context.active_object
+    mat = bpy.data.materials.new("Paint")
+    compat.ensure_use_nodes(mat)
+    bsdf = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    bsdf.inputs["Base Color"].default_value = (0.8, 0.4, 0.2, 1.0)
+    plane.data.materials.append(mat)
+    cube.data.materials.append(mat)
+    sc.world(scene, strength=1.0)
+    return scene, plane, cube
+
+
+@pytest.fixture
+def baked(tmp_path):
+    """AO and irradiance of :func:`_scene` baked at 16², saved as a copy with the generated layers."""
+    scene, plane, cube = _scene()
+    out = tmp_path / "maps"
+    result = bake_lightmaps([plane, cube], ["ao", "irradiance"], str(out),
+                            BakeOptions(resolution=16, samples=4, bounces=1, margin=2), scene=scene)
+    blend = tmp_path / "baked.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True, compress=False)
+    return blend, out, result["objects"]
+
+
+def test_glb_carries_the_maps(baked, tmp_path, script):
+    blend, out, report = baked
+    before = blend.read_bytes()
+    glb = tmp_path / "export" / "scene.glb"
+    glb.parent.mkdir()
+    r = script("export_lightmaps.py", blend, "--lightmaps", out, "--out", glb)
+    assert r.returncode == 0, r.stderr
+    assert blend.read_bytes() == before
+    assert sorted(os.listdir(glb.parent)) == ["scene.glb"]
+    gltf, binary = _read_glb(glb)
+    assert EXTENSION in gltf["extensionsUsed"] and EXTENSION not in gltf.get("extensionsRequired", [])
+    nodes = {n["name"]: n for n in gltf["nodes"]}
+    for name in ("Plane", "Cube"):
+        mesh = gltf["meshes"][nodes[name]["mesh"]]
+        assert mesh["name"] == bpy.data.objects[name].data.name          # the original mesh's, not the copy's
+        e_exr = report[name]["irradiance"]
+        chans, _ = exr.read_exr(e_exr["file"])
+        E = np.stack([chans[c] for c in "RGB"], axis=-1)
+        k, _ = exr.read_exr(report[name]["ao"]["file"])
+        for prim in mesh["primitives"]:
+            uv1 = _accessor(gltf, binary, prim["attributes"]["TEXCOORD_1"])
+            assert uv1.min() >= 0.0 and uv1.max() <= 1.0
+            assert _same_uvs(uv1, bpy.data.objects[name], e_exr["uv_layer"])
+            mat = gltf["materials"][prim["material"]]
+            assert mat["name"] == "Paint"
+            occ = mat["occlusionTexture"]
+            assert occ["texCoord"] == 1
+            ao = _image(gltf, binary, occ["index"])
+            assert np.abs(ao[..., 0] / 255.0 - k["Y"]).max() <= 0.5 / 255 + 1e-6
+            moz = mat["extensions"][EXTENSION]
+            assert moz["texCoord"] == 1 and moz["intensity"] == pytest.approx(float(E.max()), rel=1e-6)
+            img = _image(gltf, binary, moz["index"])
+            assert img.shape == E.shape
+            decoded = img / 255.0 * moz["intensity"]
+            rng = np.random.default_rng(0)
+            rows, cols = rng.integers(0, E.shape[0], 64), rng.integers(0, E.shape[1], 64)
+            err = np.abs(decoded[rows, cols] - E[rows, cols]).max()
+            assert err <= encoding_error(moz["intensity"]) * (1 + 1e-5), err
+    # the plane's and the cube's maps are different images on different materials
+    mats = {gltf["meshes"][nodes[n]["mesh"]]["primitives"][0]["material"] for n in ("Plane", "Cube")}
+    assert len(mats) == 2
+
+
+def test_atlas_parts(tmp_path, script):
+    """A shared atlas: both materials point at the one image, each mesh carries its own part's UVs."""
+    scene, plane, cube = _scene()
+    out = tmp_path / "maps"
+    report = bake_lightmaps([plane, cube], ["irradiance"], str(out),
+                            BakeOptions(resolution=16, samples=4, bounces=1, margin=1, atlas=True),
+                            scene=scene)["objects"]
+    blend, glb = tmp_path / "atlas.blend", tmp_path / "atlas.glb"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True, compress=False)
+    r = script("export_lightmaps.py", blend, "--lightmaps", out, "--out", glb)
+    assert r.returncode == 0, r.stderr
+    gltf, binary = _read_glb(glb)
+    nodes = {n["name"]: n for n in gltf["nodes"]}
+    textures = set()
+    for obj in (plane, cube):
+        prim = gltf["meshes"][nodes[obj.name]["mesh"]]["primitives"][0]
+        textures.add(gltf["materials"][prim["material"]]["extensions"][EXTENSION]["index"])
+        uv1 = _accessor(gltf, binary, prim["attributes"]["TEXCOORD_1"])
+        assert _same_uvs(uv1, obj, report[obj.name]["irradiance"]["uv_layer"])
+    assert len(textures) == 1 and len(gltf["images"]) == 1
+
+
+def test_session_left_as_it_was(baked, tmp_path):
+    """In a session (the panel's case): the add-on entry of the hooks, the mesh and material copies are gone after
+    the export, the objects have their meshes, slots and UV layers back."""
+    from addon.bake.gltf import export_glb
+    _, out, _ = baked
+    scene = bpy.context.scene
+
+    def state():
+        return (sorted(bpy.context.preferences.addons.keys()), sorted(m.name for m in bpy.data.meshes),
+                sorted(m.name for m in bpy.data.materials),
+                [(o.name, o.data.name, [s.material.name if s.material else None for s in o.material_slots],
+                  [lay.name for lay in o.data.uv_layers], o.data.uv_layers.active.name) for o in scene.objects
+                 if o.type == "MESH"])
+
+    before = state()
+    result = export_glb(scene, str(out), str(tmp_path / "session.glb"))
+    assert sorted(result["objects"]) == ["Cube", "Plane"] and not result["notes"]
+    assert state() == before
+    import sys
+    assert not hasattr(sys.modules["addon.bake.gltf"], "glTF2ExportUserExtension")
+
+
+def test_bad_input_exits_2(baked, tmp_path, script):
+    blend, _, _ = baked
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    r = script("export_lightmaps.py", blend, "--lightmaps", empty, "--out", tmp_path / "x.glb")
+    assert r.returncode == 2
+    assert len(r.stderr.strip().splitlines()) == 1 and "bake_report.json" in r.stderr
+    assert not (tmp_path / "x.glb").exists()
