@@ -43,8 +43,9 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     "seconds" (the map's bakes, denoising and files) and "estimated_error" (RMS over covered texels,
     None when not estimated), plus "error_estimate" (which estimate that is, see passes.ESTIMATES),
     "cycles_seconds" (inside the Cycles bake calls), "pilot_samples" (target_error runs) and, for
-    images, "preview", "uv_layer", "coverage", "denoised", and "low_fill" (the warning line of a generated layout
-    covering under uv.FILL of its map).
+    images, "preview", "uv_layer", "coverage", "denoised", "unwrap" (the unwrapper of a layout generated in this
+    run: "smart_project" or "lightmap_pack") and "low_fill" (the warning line of a generated layout covering under
+    uv.FILL of its map).
     """
     options = options or BakeOptions()
     scene = scene or bpy.context.scene
@@ -136,6 +137,7 @@ class _Run:
     layers: dict = dataclasses.field(default_factory=dict)
     sides: dict = dataclasses.field(default_factory=dict)
     margins: dict = dataclasses.field(default_factory=dict)
+    unwraps: dict = dataclasses.field(default_factory=dict)
     fills: dict = dataclasses.field(default_factory=dict)
     errors: list = dataclasses.field(default_factory=list)
     tracker: Tracker = None
@@ -159,8 +161,7 @@ class _Run:
     def light_map_uvs(self, objects, groups):
         """The light-map UV layers of every group (one layout for the atlas); a group that fails is recorded."""
         if self.options.atlas:
-            self.layers, self.sides, self.margins = uvmod.prepare(self.scene, objects, self.state, self.options,
-                                                                  together=True)
+            self.record(uvmod.prepare(self.scene, objects, self.state, self.options, together=True))
             return
         t0, todo = time.perf_counter(), sum(len(g) for _, g in groups)
         for i, (name, group) in enumerate(groups):
@@ -171,8 +172,13 @@ class _Run:
             except (InputError, ILError) as e:
                 self.fail(name, e)
                 continue
-            for have, new in zip((self.layers, self.sides, self.margins), made):
-                have.update(new)
+            self.record(made)
+
+    def record(self, made):
+        """Keep a :class:`uv.Layouts`' layers, sides, margins and unwrappers."""
+        for have, new in ((self.layers, made.layers), (self.sides, made.sides), (self.margins, made.margins),
+                          (self.unwraps, made.unwraps)):
+            have.update(new)
 
     def check_fill(self, targets):
         """uv.low_fill of each generated layout at its map's final size (the plan may enlarge the side the layout
@@ -246,7 +252,7 @@ class _Run:
         t_files = time.perf_counter()
         result.seconds += t_files - t_map     # the header's il:seconds: bakes and checks, not the files
         entries = write.write_map(name, group, kind, result, self.out, self.options, self.layers, margin,
-                                  target.overlap, self.digests[(name, kind)], self.stems, self.fills)
+                                  target.overlap, self.digests[(name, kind)], self.stems, self.fills, self.unwraps)
         part = {"objects": {}, "skipped": self.report["skipped"], "unchanged": self.report["unchanged"]}
         for o in group:
             entries[o.name]["seconds"] = round(result.seconds + time.perf_counter() - t_files, 4)  # files included

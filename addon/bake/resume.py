@@ -53,8 +53,9 @@ def _kept_entries(name, group, kind, out, options, stems, stored, old_reports):
         try:
             per = json.loads(header_text(header.get("il:objects")) or "{}")
             lines = json.loads(header_text(header.get("il:low_fill")) or "{}")
+            made = json.loads(header_text(header.get("il:unwrap")) or "{}")
         except ValueError:
-            per, lines = {}, {}
+            per, lines, made = {}, {}, {}
         whole = {"coverage": number("il:coverage"), "chart_area": number("il:chart_area")}
         if header.get("il:overlap") is not None:
             whole["overlap"] = number("il:overlap")
@@ -71,6 +72,8 @@ def _kept_entries(name, group, kind, out, options, stems, stored, old_reports):
                 extras[o.name]["overlap"] = own["overlap"]
             if isinstance(lines, dict) and isinstance(lines.get(o.name), str):
                 extras[o.name]["low_fill"] = lines[o.name]
+            if isinstance(made, dict) and isinstance(made.get(o.name), str):
+                extras[o.name]["unwrap"] = made[o.name]
     entries = {}
     for o in group:
         fresh = write.entry(path, res, result, extras[o.name])

@@ -1,7 +1,8 @@
 """Light-map UVs: an existing layer used as it is, or a generated non-overlapping "Lightmap" layer.
 
-The generated layer comes from Blender's Smart UV Project run on temporary copies of the meshes
-(built with bmesh, every face revealed and selected, one UV layer): the user's meshes never enter
+The generated layer comes from Blender's Smart UV Project, or for a single mesh its Lightmap Pack when that
+fills more of the map, run on temporary canonical copies of the meshes (faces in an order given by their
+vertices, every face revealed and selected through bmesh, one UV layer): the user's meshes never enter
 edit mode and their select / hide flags are never written, only the finished UVs are copied into
 their "Lightmap" layer (the other layers, the active layer and the layer that renders stay as they
 were). Writing those flags through RNA is unsafe: in bpy 5.0 (``compat.MISTYPED_SELECT_EDGE``) a mesh
@@ -18,7 +19,9 @@ the margin is halved down to half a texel; a layout is accepted only when its ch
 """
 import collections
 import contextlib
+import dataclasses
 import hashlib
+import io
 import math
 
 import bmesh
@@ -40,6 +43,13 @@ MIN_CHART_AREA = 0.2
 """A margin is lowered (down to half a texel) until the charts fill at least this fraction of the map: a
 margin wider than that wastes most texels of a small map."""
 _OUTSIDE = 1e-4       # UVs this far outside [0, 1]: the packer failed
+SMART, LIGHTMAP_PACK = "smart_project", "lightmap_pack"
+"""The unwrappers a generated layout comes from (the report entries' "unwrap")."""
+LIGHTMAP_PACK_TRIANGLES = 10000
+"""Lightmap Pack (Python: measured 0.06 s for 1,280 triangles, 0.28 s for 5,120, 0.31 s for 10,000 quads, 1.6 s
+for 40,000 quads, against 0.001-0.07 s for Smart UV Project) is tried only on single meshes up to this many
+triangles, at most about 0.6 s a try (one try per layout the margin and texel-density search keeps)."""
+_LIGHTMAP_PACK_MAX_MARGIN = 0.01   # the operator's largest margin: 1 % of the square
 
 
 # ------------------------------------------------------------------ reading layers
@@ -247,17 +257,36 @@ def _side_that_fits(tri, w, h, cap=4096):
 
 # ------------------------------------------------------------------ generated layouts
 
+@dataclasses.dataclass
+class Layouts:
+    """The light-map layers of a set of objects, by object name: ``layers`` the UV layer each is baked through,
+    ``sides`` the side a generated layout was made for, ``margins`` its margin in texels (possibly lowered to
+    half a texel; else the asked one; :func:`dilation` gives the texels the map is dilated by), ``unwraps`` the
+    unwrapper of a generated layout (SMART or LIGHTMAP_PACK)."""
+    layers: dict = dataclasses.field(default_factory=dict)
+    sides: dict = dataclasses.field(default_factory=dict)
+    margins: dict = dataclasses.field(default_factory=dict)
+    unwraps: dict = dataclasses.field(default_factory=dict)
+
+
+@dataclasses.dataclass
+class _Made:
+    """A generated layout: the side it was made for, its margin in texels, its unwrapper."""
+    side: int
+    margin: float
+    unwrap: str
+
+
 def prepare(scene, objects, state, options, together=False):
-    """Return ``({object: layer name}, {object: side its layout was made for}, {object: margin in texels})``
-    (the generated layout's margin, possibly lowered to half a texel; else the asked one; :func:`dilation`
-    gives the texels the map is dilated by).
+    """Return the objects' :class:`Layouts`.
 
     ``options.uv_layer`` is used as it is; otherwise an existing "Lightmap" layer (from an earlier
     bake) is reused as it is when it still covers the map, or one is generated. With ``together`` the
     objects are unwrapped in one go, so their charts share one UV square (an atlas) without overlapping.
     Only generated layouts have an entry in the sides (:func:`low_fill` checks them at the map's final size).
     """
-    names, sides, margins = {}, {}, {}
+    made = Layouts()
+    names, margins = made.layers, made.margins
     todo = []
     for o in objects:
         if options.uv_layer:
@@ -273,10 +302,10 @@ def prepare(scene, objects, state, options, together=False):
         if group:
             for o in group:
                 names[o.name] = LIGHTMAP
-            side, margin = _unwrap_with_margin(scene, group, state, options, names)
-            sides.update((o.name, side) for o in group)
-            margins.update((o.name, margin) for o in group)
-    return names, sides, margins
+            layout = _unwrap_with_margin(scene, group, state, options, names)
+            for o in group:
+                made.sides[o.name], margins[o.name], made.unwraps[o.name] = layout.side, layout.margin, layout.unwrap
+    return made
 
 
 def _reusable(obj, options):
@@ -310,7 +339,7 @@ def _margins(margin):
 
 
 def _unwrap_with_margin(scene, group, state, options, names):
-    """Generate "Lightmap" for ``group``; return (side the layout was made for, its margin in texels).
+    """Generate "Lightmap" for ``group``; return its :class:`_Made` (side, margin in texels, unwrapper).
 
     A fixed resolution gives the side at once; the margin is lowered (down to half a texel, with a
     warning) until the charts lie inside the unit square and cover the map (MIN_COVERAGE), else the
@@ -330,7 +359,7 @@ def _unwrap_with_margin(scene, group, state, options, names):
                         "the charts do not fit even the largest map: bake the parts separately")
                 raise InputError(f"{label}: the light-map charts do not fit {article(f'{fixed}x{fixed}')} map (they would "
                                  f"cover under {100 * MIN_COVERAGE:.0f} % of their UV area): {hint}")
-            return fixed, _dilation(label, options.margin, margin, fixed)
+            return _Made(fixed, _dilation(label, options.margin, margin, fixed), copies.unwrapper)
         side = resolution(group, names, options, coverage=1.0)
         made = None
         for _ in range(3):
@@ -355,7 +384,7 @@ def _unwrap_with_margin(scene, group, state, options, names):
                         f"charts cover their faces")
             made = side
         side = made
-        return side, _dilation(label, options.margin, margin, side)
+        return _Made(side, _dilation(label, options.margin, margin, side), copies.unwrapper)
 
 
 FILL = 0.55
@@ -424,19 +453,25 @@ def margin_value(margin):
 def _fit(copies, group, side, margin):
     """Unwrap at ``side`` with the largest margin (texels) of :func:`_margins` whose layout fits and whose charts
     fill at least MIN_CHART_AREA of the map (else the fitting layout that fills most); leave it in place and
-    return that margin, or None when none fits."""
+    return that margin, or None when none fits. A single mesh's layout is then also tried by Lightmap Pack with
+    that margin (:meth:`_Copies.try_lightmap_pack`), kept when it fills more of the map."""
     best = None
     for m in _margins(margin):
         copies.unwrap(margin_fraction(m, side))
         if _fits(copies, group, side):
             area = sum(chart_area(triangles_uv(o, LIGHTMAP)) for o in group)
             if area >= MIN_CHART_AREA:
-                return m
+                best = (m, area)
+                break
             if best is None or area > best[1]:
                 best = (m, area)
-    if best is not None and best[0] != _margins(margin)[-1]:
-        copies.unwrap(margin_fraction(best[0], side))
-    return None if best is None else best[0]
+    else:
+        if best is not None and best[0] != _margins(margin)[-1]:
+            copies.unwrap(margin_fraction(best[0], side))
+    if best is None:
+        return None
+    copies.try_lightmap_pack(margin_fraction(best[0], side), side)
+    return best[0]
 
 
 def _fit_side(copies, group, side):
@@ -487,14 +522,17 @@ def unwrap_scale(meshes):
 
 
 class _Copies:
-    """Temporary objects with bmesh copies of the group's meshes (all faces revealed and selected, one
-    UV layer, scaled by :func:`unwrap_scale`), where Smart UV Project runs; :meth:`unwrap` copies the result
-    into each mesh's "Lightmap" layer (loop order is kept by the bmesh round trip). Removed on exit, also on
-    errors."""
+    """Temporary objects with canonical copies of the group's meshes (:func:`_canonical_copy`: all faces revealed
+    and selected, one UV layer, scaled by :func:`unwrap_scale`, faces in an order given by their vertices), where
+    the unwrappers run; :meth:`unwrap` copies the result into each mesh's "Lightmap" layer (through the copy's
+    map to the original loops). ``unwrapper`` names the layout in place (SMART or LIGHTMAP_PACK). Removed on
+    exit, also on errors."""
 
     def __init__(self, scene, group, state):
         self.scene, self.group, self.state = scene, list(group), state
         self.copies = []
+        self.loops = []          # per copy: the original mesh's loop of each of the copy's loops
+        self.unwrapper = SMART
 
     def __enter__(self):
         for o in self.group:
@@ -509,20 +547,7 @@ class _Copies:
             scale = unwrap_scale(o.data for o in self.group)
             for o in self.group:
                 tmp = self.state.track(bpy.data.meshes, bpy.data.meshes.new(f"IL unwrap {o.data.name}"))
-                bm = bmesh.new()
-                try:
-                    bm.from_mesh(o.data)
-                    for seq in (bm.verts, bm.edges, bm.faces):
-                        for item in seq:
-                            item.hide = False
-                            item.select = True
-                    if scale != 1.0:
-                        bmesh.ops.scale(bm, vec=(scale, scale, scale), verts=bm.verts)
-                    bm.to_mesh(tmp)
-                finally:
-                    bm.free()
-                while len(tmp.uv_layers):
-                    tmp.uv_layers.remove(tmp.uv_layers[0])
+                self.loops.append(_canonical_copy(o.data, tmp, scale))
                 tmp.uv_layers.new(name=LIGHTMAP, do_init=False)
                 tmp.uv_layers.active_index = 0
                 obj = self.state.track(bpy.data.objects, bpy.data.objects.new(f"IL unwrap {o.name}", tmp))
@@ -546,22 +571,17 @@ class _Copies:
         if self.copies:
             self.scene.view_layers[0].update()   # no stale base of a removed copy is left for the Cycles bake
         self.copies = []
+        self.loops = []
 
     def unwrap(self, margin_uv):
         """Smart UV Project of every copy in one edit session (one UV square) into "Lightmap"; for several copies
         (an atlas) the charts are also re-packed by ``uv.pack_islands`` (bounding boxes, rotation, same margin) and
         the layout whose charts cover more of the square is kept (measured: the packer wins on a level's atlas; on
         single primitives it gained nothing for three times the time)."""
-        vl = self.scene.view_layers[0]
         temps = [obj for _, obj in self.copies]
-        for o in filter(None, vl.objects):
-            want = o in temps
-            if o.select_get(view_layer=vl) != want:
-                o.select_set(want, view_layer=vl)
         lead = temps[0]
-        vl.objects.active = lead
-        ctx = dict(scene=self.scene, view_layer=vl, active_object=lead, object=lead,
-                   selected_objects=temps, selected_editable_objects=temps)
+        ctx = self._context()
+        self.unwrapper = SMART
         with _edit(ctx, lead):
             bpy.ops.uv.smart_project(angle_limit=1.15192, island_margin=float(margin_uv), margin_method="FRACTION",
                                      area_weight=0.0, correct_aspect=True, scale_to_bounds=False)
@@ -576,16 +596,58 @@ class _Copies:
         packed = self._uvs(temps)
         self._write(packed if _charted(packed) > _charted(smart) else smart)
 
+    def _context(self):
+        """The copies selected (and nothing else), the first active: the context override of their edit session."""
+        vl = self.scene.view_layers[0]
+        temps = [obj for _, obj in self.copies]
+        for o in filter(None, vl.objects):
+            want = o in temps
+            if o.select_get(view_layer=vl) != want:
+                o.select_set(want, view_layer=vl)
+        lead = temps[0]
+        vl.objects.active = lead
+        return dict(scene=self.scene, view_layer=vl, active_object=lead, object=lead,
+                    selected_objects=temps, selected_editable_objects=temps)
+
+    def try_lightmap_pack(self, margin_uv, side):
+        """For one copy of at most LIGHTMAP_PACK_TRIANGLES triangles: Blender's Lightmap Pack with the same margin
+        (its margin, a whole fraction 1/k of the square, at least ``margin_uv``); its layout replaces Smart UV
+        Project's (in place) when it fits a ``side``² map and fills more of it (:func:`fill`). Return the fills
+        (smart, lightmap pack; None for what was not measured)."""
+        if len(self.copies) != 1 or self.unwrapper != SMART or not 0 < margin_uv <= _LIGHTMAP_PACK_MAX_MARGIN:
+            return None, None
+        lead = self.copies[0][1]
+        lead.data.calc_loop_triangles()
+        if len(lead.data.loop_triangles) > LIGHTMAP_PACK_TRIANGLES:
+            return None, None
+        smart_fill = fill(self.group, side)
+        smart = self._uvs([lead])
+        # in object mode it unwraps the selected objects (in edit mode the window's scene's objects in edit mode,
+        # not the context's: a bake of another scene than the window's would find none); it prints its steps
+        with bpy.context.temp_override(**self._context()), contextlib.redirect_stdout(io.StringIO()):
+            # the operator's margin is a percentage p of the square, applied as 1 / int(100 / p): at least p / 100
+            bpy.ops.uv.lightmap_pack(PREF_CONTEXT="ALL_FACES", PREF_PACK_IN_ONE=True, PREF_NEW_UVLAYER=False,
+                                     PREF_BOX_DIV=12, PREF_MARGIN_DIV=float(100.0 * margin_uv))
+        self._write(self._uvs([lead]))
+        packed = fill(self.group, side) if _fits(self, self.group, side) else None
+        if packed is not None and packed > smart_fill:
+            self.unwrapper = LIGHTMAP_PACK
+        else:
+            self._write(smart)
+        return smart_fill, packed
+
     def _write(self, uvs):
-        """The copies' UVs (:meth:`_uvs`) into their meshes' "Lightmap" layers."""
-        for (o, obj), (uv, *_) in zip(self.copies, uvs):
+        """The copies' UVs (:meth:`_uvs`) into their meshes' "Lightmap" layers (each copy loop to its original)."""
+        for (o, obj), (uv, *_), loops in zip(self.copies, uvs, self.loops):
             me = o.data
             if LIGHTMAP not in me.uv_layers:
                 me.uv_layers.new(name=LIGHTMAP, do_init=False)
                 self.state.created_uv(me, LIGHTMAP)
             else:
                 self.state.save_uv(me, LIGHTMAP)   # an earlier bake's layer, re-unwrapped: put back unless kept
-            me.uv_layers[LIGHTMAP].data.foreach_set("uv", uv)
+            out = np.empty_like(uv).reshape(-1, 2)
+            out[loops] = uv.reshape(-1, 2)
+            me.uv_layers[LIGHTMAP].data.foreach_set("uv", out.ravel())
 
     @staticmethod
     def _uvs(temps):
@@ -602,6 +664,62 @@ class _Copies:
             nxt[start + total - 1] = start
             out.append((uv, nxt, start))
         return out
+
+
+def _canonical_copy(me, tmp, scale):
+    """Fill the empty mesh ``tmp`` with ``me``'s vertices (× ``scale``) and faces, every face starting at its
+    lowest vertex index and the faces sorted by their first three vertices (then corner count, then their order),
+    all revealed and selected (through bmesh: see the module's note on ``.select_edge``); return, for each of
+    ``tmp``'s loops, ``me``'s loop it copies.
+
+    The unwrappers' layouts depend on face order and on each face's first corner: Blender 5.3's UV sphere
+    primitive makes the same faces in a different order in every process, and Smart UV Project then packs
+    different charts; on the canonical copy the same vertices and faces give the same layout."""
+    nv, nl, nf = len(me.vertices), len(me.loops), len(me.polygons)
+    co = np.zeros(nv * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    lv = np.zeros(nl, np.int64)
+    me.loops.foreach_get("vertex_index", lv)
+    start, total = np.zeros(nf, np.int64), np.zeros(nf, np.int64)
+    me.polygons.foreach_get("loop_start", start)
+    me.polygons.foreach_get("loop_total", total)
+    if nf:
+        face_of = np.repeat(np.arange(nf), total)          # face offsets ascend (Blender 4+)
+        low = np.full(nf, np.iinfo(np.int64).max)
+        np.minimum.at(low, face_of, lv)
+        first = np.full(nf, np.iinfo(np.int64).max)
+        np.minimum.at(first, face_of, np.where(lv == low[face_of], np.arange(nl), np.iinfo(np.int64).max))
+        rot = first - start
+        corner = [lv[start + (rot + k) % total] for k in range(3)]
+        perm = np.lexsort((total, corner[2], corner[1], corner[0]))
+    else:
+        rot, perm = np.zeros(0, np.int64), np.zeros(0, np.int64)
+    new_total = total[perm]
+    new_start = np.concatenate([[0], np.cumsum(new_total)[:-1]]).astype(np.int64) if nf else new_total
+    face = np.repeat(np.arange(nf), new_total)
+    k = np.arange(nl) - new_start[face]
+    f = perm[face]
+    loops = start[f] + (rot[f] + k) % total[f]
+    tmp.vertices.add(nv)
+    tmp.vertices.foreach_set("co", co * np.float32(scale))
+    tmp.loops.add(nl)
+    tmp.loops.foreach_set("vertex_index", lv[loops])
+    tmp.polygons.add(nf)
+    tmp.polygons.foreach_set("loop_start", new_start)
+    tmp.update(calc_edges=True)
+    bm = bmesh.new()
+    try:
+        bm.from_mesh(tmp)
+        for seq in (bm.verts, bm.edges, bm.faces):
+            for item in seq:
+                item.hide = False
+                item.select = True
+        bm.to_mesh(tmp)
+    finally:
+        bm.free()
+    while len(tmp.uv_layers):
+        tmp.uv_layers.remove(tmp.uv_layers[0])
+    return loops
 
 
 @contextlib.contextmanager

@@ -87,12 +87,13 @@ def _finite(name, kind, values):
 
 
 def write_map(name, group, kind, result, out, options, layers, margin=None, overlap=None, digest=None, stems=None,
-              low_fill=None):
+              low_fill=None, unwraps=None):
     """Write the files of one baked map; return ``{object: report entry}``. ``margin``: the layout's margin in
     texels (default the asked one; the map is dilated by :func:`uv.dilation` texels; both in the report and the
     header). ``overlap`` = ({object: fraction}, group fraction) of covered texels shared by several faces;
     ``stems`` the file stems of :func:`file_stems`; ``low_fill`` {object: the :func:`uv.low_fill` line} (report
-    entries' "low_fill", header "il:low_fill")."""
+    entries' "low_fill", header "il:low_fill"); ``unwraps`` {object: unwrapper of a layout made in this run}
+    (entries' "unwrap", header "il:unwrap")."""
     stems = stems or file_stems()
     if options.target != "image":
         return _write_vertices(group, kind, result, out, options, digest, stems)
@@ -124,6 +125,9 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
     lines = {o.name: low_fill[o.name] for o in group if o.name in (low_fill or {})}
     if lines:
         attrs["il:low_fill"] = json.dumps(lines)
+    made = {o.name: unwraps[o.name] for o in group if o.name in (unwraps or {})}
+    if made:
+        attrs["il:unwrap"] = json.dumps(made)
     path = map_file(out, stems, name, kind)
     exr.write_exr(path, KINDS[kind].exr_channels(np.flipud(values), np.flipud(alpha)), attrs)
     png = map_file(out, stems, name, kind, ".png")
@@ -138,6 +142,8 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
             extra["overlap"] = float(overlap[0][o.name])
         if o.name in lines:
             extra["low_fill"] = lines[o.name]
+        if o.name in made:
+            extra["unwrap"] = made[o.name]
         entries[o.name] = entry(path, res, result, extra)
     return entries
 

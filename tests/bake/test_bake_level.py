@@ -279,7 +279,7 @@ def test_a_bake_killed_right_after_a_map_file_resumes_with_every_map_in_the_repo
     assert rebuilt["preview"] == str(out / "Floor_irradiance.png")
     assert set(rebuilt) == set(reference)
     for key in ("resolution", "samples", "estimated_error", "error_estimate", "uv_layer", "coverage", "chart_area",
-                "margin", "overlap", "denoised"):
+                "margin", "overlap", "denoised", "unwrap"):
         assert rebuilt[key] == reference[key], key
     assert 0 < rebuilt["cycles_seconds"] <= rebuilt["seconds"]         # the bake's, from the header
     a = exr.read_exr(str(out / "Floor_irradiance.exr"))[0]
