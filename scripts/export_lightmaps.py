@@ -22,7 +22,11 @@ def main(args):
     from addon.bake.gltf import encoding_error, export_glb
     from addon.core import errors
     from addon.core.errors import InputError
+    if not args.glb:
+        raise InputError("no output file given: --out FILE.glb")
     out = os.path.abspath(args.glb)
+    if os.path.isfile(os.path.dirname(out)):
+        raise InputError(f"--out: its output folder is a file: {os.path.dirname(out)}")
     if not out.lower().endswith(".glb"):
         raise InputError(f"--out: not a .glb file name: {out}")
     if not os.path.isdir(os.path.dirname(out)):

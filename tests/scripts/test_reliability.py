@@ -25,9 +25,11 @@ from addon.blender.scene import remove_scene
 from conftest import ROOT
 
 SCRIPTS = sorted(f for f in os.listdir(os.path.join(ROOT, "scripts")) if f.endswith(".py") and f != "_cli.py")
-BLEND_SCRIPTS = ("ssao.py", "shadows.py", "envmap.py", "bake.py", "radiosity.py")
+BLEND_SCRIPTS = ("ssao.py", "shadows.py", "envmap.py", "bake.py", "radiosity.py", "reflections.py", "raytrace.py",
+                 "export_lightmaps.py")
 NO_OUT = ("bench_shadows.py", "bench_shading.py")    # print only
-REQUIRED = {"bake.py": ["--objects", "Cube"]}
+REQUIRED = {"bake.py": ["--objects", "Cube"], "export_lightmaps.py": ["--lightmaps", ROOT]}
+OUT_FILE = ("export_lightmaps.py",)                  # --out names the file written, not a folder
 
 
 def _aim(obj, target=(0.0, 0.0, 0.3)):
@@ -224,7 +226,8 @@ def test_every_script_refuses_an_out_that_is_a_file_and_a_corrupt_blend(tmp_path
     runs = {}
     for name in SCRIPTS:
         if name not in NO_OUT:
-            runs[(name, "out")] = [name, *REQUIRED.get(name, ()), "--out", a_file]
+            runs[(name, "out")] = [name, *REQUIRED.get(name, ()), "--out",
+                                   a_file / "scene.glb" if name in OUT_FILE else a_file]
         if name in BLEND_SCRIPTS:
             runs[(name, "blend")] = [name, corrupt, *REQUIRED.get(name, ()), "--out", tmp_path / f"o_{name}"]
             runs[(name, "header")] = [name, damaged, *REQUIRED.get(name, ()), "--out", tmp_path / f"o_{name}"]
@@ -335,7 +338,8 @@ def test_an_empty_out_is_refused_by_every_script_and_button(tmp_path, addon_regi
     for name, p in procs.items():
         _, err = p.communicate(timeout=300)
         lines = _errors(err)
-        assert p.returncode == 2 and len(lines) == 1 and "no output folder given" in lines[0], (name, err)
+        want = "no output file given" if name in OUT_FILE else "no output folder given"
+        assert p.returncode == 2 and len(lines) == 1 and want in lines[0], (name, err)
     assert not list(cwd.iterdir())
     bpy.ops.mesh.primitive_plane_add()
     settings = bpy.context.scene.illumination
