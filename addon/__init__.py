@@ -7,8 +7,8 @@ UI modules are imported only when registering.
 
 
 def _modules():
-    from .ui import environment, envmap, lightmaps, panel, settings, shading, shadows, ssao
-    return (panel, shading, environment, lightmaps, envmap, shadows, ssao, settings)
+    from .ui import environment, envmap, lightmaps, panel, raytrace, reflections, settings, shading, shadows, ssao
+    return (panel, shading, environment, lightmaps, envmap, shadows, ssao, reflections, raytrace, settings)
 
 
 def register():

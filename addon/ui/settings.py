@@ -3,6 +3,8 @@ import bpy
 from bpy.props import PointerProperty
 
 from .lightmaps import IL_PG_lightmaps
+from .raytrace import IL_PG_raytrace
+from .reflections import IL_PG_reflections
 from .shading import IL_PG_shading
 from .shadows import IL_PG_shadows
 from .ssao import IL_PG_ssao
@@ -13,6 +15,8 @@ class IL_PG_settings(bpy.types.PropertyGroup):
     lightmaps: PointerProperty(type=IL_PG_lightmaps)
     shadows: PointerProperty(type=IL_PG_shadows)
     ssao: PointerProperty(type=IL_PG_ssao)
+    reflections: PointerProperty(type=IL_PG_reflections)
+    raytrace: PointerProperty(type=IL_PG_raytrace)
 
 
 classes = (IL_PG_settings,)

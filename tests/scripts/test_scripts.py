@@ -74,3 +74,10 @@ def test_demo_writes_render_exr_png_and_report(script, tmp_path):
     assert png.shape == (120, 160, 3)
     report = json.loads((tmp_path / "demo_report.json").read_text())
     assert report["steps"]["render"]["samples"] == 8
+    refl = report["steps"]["reflections"]
+    assert set(refl["methods"]) == {"latlong", "cube", "sphere", "raytraced"}
+    assert refl["methods"]["raytraced"]["relative_rmse"] == 0.0
+    sweep = [row["latlong"] for row in refl["distance_sweep"]]
+    assert sweep[-1] > sweep[0], sweep          # the notes' limit: the map is right only at its capture point
+    rt = report["steps"]["raytrace"]
+    assert rt["rays"] > 0 and np.isfinite(rt["rmse_vs_cycles"])

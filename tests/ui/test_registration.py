@@ -9,7 +9,7 @@ pytestmark = pytest.mark.both_versions
 
 OPERATORS = ("build_demo_scene",)
 PANELS = ("IL_PT_main", "IL_PT_shading", "IL_PT_lightmaps", "IL_PT_envmap", "IL_PT_comparisons", "IL_PT_shadows",
-          "IL_PT_ssao")
+          "IL_PT_ssao", "IL_PT_reflections", "IL_PT_raytrace")
 
 
 def _registered_panels():
@@ -18,7 +18,7 @@ def _registered_panels():
 
 def test_settings_group_and_sections(addon_registered):
     s = bpy.context.scene.illumination
-    for section in ("shading", "lightmaps", "shadows", "ssao"):
+    for section in ("shading", "lightmaps", "shadows", "ssao", "reflections", "raytrace"):
         assert getattr(s, section) is not None
     assert _registered_panels() == set(PANELS)
     assert bpy.types.IL_PT_main.bl_category == "Illumination"
@@ -26,7 +26,8 @@ def test_settings_group_and_sections(addon_registered):
     parents = {p: getattr(bpy.types, p).bl_parent_id for p in PANELS[1:]}
     assert parents == {"IL_PT_shading": "IL_PT_main", "IL_PT_lightmaps": "IL_PT_main",
                        "IL_PT_envmap": "IL_PT_main", "IL_PT_comparisons": "IL_PT_main", "IL_PT_shadows": "IL_PT_comparisons",
-                       "IL_PT_ssao": "IL_PT_comparisons"}
+                       "IL_PT_ssao": "IL_PT_comparisons", "IL_PT_reflections": "IL_PT_comparisons",
+                       "IL_PT_raytrace": "IL_PT_comparisons"}
 
 
 def test_unregister_leaves_nothing_and_register_again_works(addon_registered):

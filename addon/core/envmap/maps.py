@@ -169,6 +169,7 @@ def lookup_error(env_fn, projection, size, directions):
         c = (np.arange(size) + 0.5) / size
         t, s = np.meshgrid(1.0 - c, c, indexing="ij")
         d, inside = pj.sphere_map_uv_to_direction(s, t)
-        img = env_fn(d) * inside[..., None]
+        d[~inside] = (0.0, 1.0, 0.0)                  # the rim's direction, as projections.latlong_to_sphere_map
+        img = env_fn(d)
     err = sample(img, projection, directions) - env_fn(directions)
     return float(np.sqrt(np.mean(err ** 2))), float(np.max(np.abs(err)))

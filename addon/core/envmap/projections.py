@@ -90,16 +90,19 @@ def direction_to_sphere_map_uv(d):
     d = np.asarray(d, np.float64)
     rx, ry, rz = d[..., 0], d[..., 2], -d[..., 1]
     m = 2 * np.sqrt(rx * rx + ry * ry + (rz + 1) ** 2)
-    m = np.where(m > 1e-12, m, 1e-12)
-    return rx / m + 0.5, ry / m + 0.5
+    behind = m <= 1e-12                               # r = +Y exactly: the rim; its top point stands for it
+    m = np.where(behind, 1.0, m)
+    return np.where(behind, 0.5, rx / m + 0.5), np.where(behind, 1.0, ry / m + 0.5)
 
 
 def latlong_to_sphere_map(env, size):
-    """Lat-long (H, W, C) -> sphere map (size, size, C), zero outside the disk; row 0 at the top."""
+    """Lat-long (H, W, C) -> sphere map (size, size, C); row 0 at the top. Texels outside the disk hold the
+    rim's direction (+Y, behind the ball), so a bilinear lookup near the rim never mixes in black."""
     c = (np.arange(size) + 0.5) / size
     t, s = np.meshgrid(1.0 - c, c, indexing="ij")
     d, inside = sphere_map_uv_to_direction(s, t)
-    return sample_latlong(env, d) * inside[..., None]
+    d[~inside] = (0.0, 1.0, 0.0)
+    return sample_latlong(env, d)
 
 
 def sphere_map_to_latlong(sphere, width):

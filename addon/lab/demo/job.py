@@ -17,7 +17,7 @@ from ...nodes import groups, material
 from ...blender.progress import Progress
 from ...blender import render
 from .. import shadows, ssao as ssao_lab
-from ..options import ShadowOptions, SSAOOptions
+from ..options import RaytraceOptions, ReflectionOptions, ShadowOptions, SSAOOptions
 from .. import report as lab_report
 from . import scene as demo
 
@@ -111,6 +111,29 @@ def ssao_step(output_dir, quick=False):
             "lines": ssao_lab.summary_lines(report)}
 
 
+def reflections_step(output_dir, quick=False):
+    """The reflection step: the "nearby" scene's mirror sphere, lat-long, cube and sphere maps against Cycles'
+    mirror, the capture point moved away; returns figures for the demo report."""
+    from .. import reflections
+    rep = reflections.run_builtin("nearby", output_dir, ReflectionOptions(
+        resolution=48 if quick else 128, map_size=16 if quick else 64))
+    return {"report": rep.path, "files": [rep.path],
+            "methods": {m: {"relative_rmse": e["relative_rmse"], "seconds": e["seconds"]}
+                        for m, e in rep["methods"].items()},
+            "distance_sweep": rep["distance_sweep"]}
+
+
+def raytrace_step(output_dir, quick=False):
+    """The ray-tracing step: Whitted on the glass sphere against Cycles on the same light paths; returns
+    figures for the demo report."""
+    from .. import raytrace
+    rep = raytrace.run_builtin("glass", output_dir, RaytraceOptions(
+        method="whitted", max_depth=4, resolution=32 if quick else 96, samples=4 if quick else 16))
+    return {"report": rep.path, "files": [rep.path],
+            **{k: rep[k] for k in ("rays", "seconds", "rays_per_second", "relative_rmse_vs_cycles")},
+            "cycles_noise_rmse": rep["cycles"]["noise_rmse"], "rmse_vs_cycles": rep["rmse_vs_cycles"]}
+
+
 def _report(output_dir):
     result = lab_report.run(os.path.join(output_dir, "report"), quick=True)
     return {"report": result["report"], "files": [result["report"]],
@@ -130,6 +153,9 @@ def run(out, quick=False, samples=32):
         ("lightmaps", "bake AO and irradiance maps", lambda s: lightmaps_step(s, os.path.join(out, "lightmaps"), quick)),
         ("shadows", "compare shadow methods with ray-traced shadows", lambda s: shadows_step(out, quick)),
         ("ssao", "compare screen-space AO with ray-traced AO", lambda s: ssao_step(os.path.join(out, "ssao"), quick)),
+        ("reflections", "compare reflection maps with Cycles' mirror",
+         lambda s: reflections_step(os.path.join(out, "reflections"), quick)),
+        ("raytrace", "Whitted ray tracing against Cycles", lambda s: raytrace_step(os.path.join(out, "raytrace"), quick)),
     ]
     if not quick:
         steps.append(("report", "measure speed against accuracy (quick report)", lambda s: _report(out)))

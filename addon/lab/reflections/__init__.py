@@ -24,6 +24,7 @@ from ...core.errors import InputError
 from ...core.io import exr
 from ...core.io.files import check_output_dir, write_json
 from ...core.result import JobResult
+from ...blender.progress import Progress
 from ..options import ReflectionOptions
 from .frame import BOUNCES, ReflectionFrame
 from . import scenes
@@ -70,15 +71,21 @@ def measure(scene, options=None, capture_point=None):
     obj = _mirror(scene, o.object)
     h = int(o.map_size)
     images, methods = {}, {}
-    with ReflectionFrame(scene, obj, o.resolution, o.samples) as f:
+    captured = any(m in MAP_OF for m in o.methods)
+    with Progress("reflections", 1 + captured + len(o.methods)) as prog, \
+            ReflectionFrame(scene, obj, o.resolution, o.samples) as f:
+        prog.step(f"Cycles' mirror on '{obj.name}', {o.samples} sample(s)")
         ref, ref_s = f.reference()
         if not f.mask.any():
             raise InputError(f"the camera of scene '{scene.name}' does not see '{obj.name}'")
         point = np.array(obj.matrix_world.translation if capture_point is None else capture_point, np.float64)
-        cap, cap_s = (f.capture(point, 2 * h) if any(m in MAP_OF for m in o.methods) else (None, 0.0))
+        if captured:
+            prog.step(f"capture at {', '.join(f'{c:.2f}' for c in point)}, {4 * h}x{2 * h}")
+        cap, cap_s = (f.capture(point, 2 * h) if captured else (None, 0.0))
         v = -f.dirs
         r = 2.0 * np.einsum("...i,...i->...", f.normal, v)[..., None] * f.normal - v
         for m in o.methods:
+            prog.step(m)
             t = time.perf_counter()
             if m == "raytraced":
                 img, params = ref, {"samples": o.samples, "bounces": BOUNCES}

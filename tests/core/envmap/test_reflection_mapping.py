@@ -109,3 +109,14 @@ def test_lookup_error_against_an_analytic_environment():
     err = {p: maps.lookup_error(env_fn, p, maps.equal_texel_size(p, 32), d) for p in maps.PROJECTIONS}
     assert all(e[0] < 1e-2 for e in err.values())
     assert err["SPHERE"][1] > err["CUBE"][1]
+
+
+def test_a_constant_environment_reads_the_same_in_every_direction_of_every_map():
+    """Bilinear weights sum to 1, so a constant world must come back exactly, also next to the sphere map's rim
+    (its texels outside the disk hold the rim's direction, never black)."""
+    d = np.concatenate([_dirs(5000, seed=7), [[0.0, 1.0, 0.0], [0.0, 0.999, 0.0447], [0.0447, 0.999, 0.0]]])
+    for p in maps.PROJECTIONS:
+        img = maps.convert(np.full((16, 32, 3), 2.5), p)
+        np.testing.assert_allclose(maps.sample(img, p, d), 2.5, rtol=1e-12, err_msg=p)
+        rmse, worst = maps.lookup_error(lambda x: np.full(x.shape[:-1] + (3,), 2.5), p, 12, d)
+        assert worst < 1e-12, p
