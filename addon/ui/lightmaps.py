@@ -1,10 +1,12 @@
-"""Panel section "Light maps": AO and irradiance bakes (issue: light maps)."""
+"""Panel section "Light maps": AO and irradiance bakes, their preview on the materials and their glTF export."""
+import os
+
 import bpy
-from bpy.props import EnumProperty
+from bpy.props import EnumProperty, StringProperty
 
 from ..bake.cost import panel_max_side
 from ..bake.options import BakeOptions
-from ..core.errors import warn
+from ..core.errors import InputError, warn
 from ..core.lightmap import MAX_RESOLUTION
 from ..core.result import JobResult
 from ..nodes import lightmap_preview
@@ -120,6 +122,51 @@ class IL_OT_remove_lightmaps(JobOperator, bpy.types.Operator):
         return JobResult({"slots": count}, summary=f"restored {count} material slot(s)")
 
 
+class IL_OT_export_lightmaps(JobOperator, bpy.types.Operator):
+    """Export the scene as glTF binary with the light maps of the output folder on TEXCOORD_1 (AO as occlusion,
+    irradiance as MOZ_lightmap), through Blender's glTF exporter; the scene is left as it was"""
+
+    bl_idname = "illumination.export_lightmaps"
+    bl_label = "Export glTF with Light Maps"
+    bl_options = {"REGISTER"}
+
+    filepath: StringProperty(name="File", subtype="FILE_PATH", description="The .glb file to write")
+    filter_glob: StringProperty(default="*.glb", options={"HIDDEN"})
+
+    @classmethod
+    def poll(cls, context):
+        return (polls.has_scene(cls, context) and polls.object_mode(cls, context)
+                and polls.saved_or_absolute(cls, context.scene.illumination.lightmaps.output_dir))
+
+    def invoke(self, context, event):
+        if not self.filepath:
+            stem = os.path.splitext(os.path.basename(bpy.data.filepath))[0] or "lightmaps"
+            self.filepath = os.path.join(bpy.path.abspath(context.scene.illumination.lightmaps.output_dir),
+                                         stem + ".glb")
+        context.window_manager.fileselect_add(self)
+        return {"RUNNING_MODAL"}
+
+    def job(self, context):
+        from ..bake.gltf import export_glb
+        if not self.filepath.strip():
+            raise InputError("Choose a .glb file to write")
+        out = os.path.abspath(bpy.path.abspath(self.filepath))
+        if not out.lower().endswith(".glb"):
+            raise InputError(f"Choose a .glb file to write, not '{os.path.basename(out)}'")
+        if not os.path.isdir(os.path.dirname(out)):
+            raise InputError(f"No such folder: {os.path.dirname(out)}")
+        try:
+            import io_scene_gltf2  # noqa: F401
+        except ImportError:
+            raise InputError("Enable Blender's glTF 2.0 add-on (io_scene_gltf2) first") from None
+        folder = bpy.path.abspath(context.scene.illumination.lightmaps.output_dir)
+        result = export_glb(context.scene, folder, out)
+        for line in result["notes"]:
+            warn(line)
+        return JobResult(result, path=out,
+                         summary=f"{len(result['objects'])} object(s) with light maps written to {out}")
+
+
 class IL_PT_lightmaps(Sidebar, bpy.types.Panel):
     bl_idname = "IL_PT_lightmaps"
     bl_label = "Light maps"
@@ -157,7 +204,9 @@ class IL_PT_lightmaps(Sidebar, bpy.types.Panel):
         row.operator(IL_OT_apply_lightmaps.bl_idname, text="Irradiance", icon="SHADING_RENDERED").source = "IRRADIANCE"
         row.operator(IL_OT_apply_lightmaps.bl_idname, text="AO", icon="SHADING_SOLID").source = "AO"
         col.operator(IL_OT_remove_lightmaps.bl_idname, icon="LOOP_BACK")
+        layout.operator(IL_OT_export_lightmaps.bl_idname, text="Export glTF", icon="EXPORT")
 
 
-classes = (IL_PG_lightmaps, IL_OT_bake_lightmaps, IL_OT_apply_lightmaps, IL_OT_remove_lightmaps, IL_PT_lightmaps)
+classes = (IL_PG_lightmaps, IL_OT_bake_lightmaps, IL_OT_apply_lightmaps, IL_OT_remove_lightmaps, IL_OT_export_lightmaps,
+           IL_PT_lightmaps)
 register, unregister = bpy.utils.register_classes_factory(classes)

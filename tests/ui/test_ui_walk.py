@@ -460,6 +460,8 @@ def test_walk_every_button_on_the_demo_scene(tmp_path, no_matplotlib_no_scipy, p
         ("apply_lightmaps", {"source": "IRRADIANCE"}, "ERROR", "no irradiance map", ()),
         ("apply_lightmaps", {"source": "AO"}, "FINISHED", "", (box, sphere)),
         ("remove_lightmaps", {}, "FINISHED", "", (box, sphere)),
+        ("export_lightmaps", {"filepath": str(tmp_path / "scene.txt")}, "ERROR", ".glb", ()),
+        ("export_lightmaps", {"filepath": str(tmp_path / "scene.glb")}, "FINISHED", "", ()),
         ("reflections_compare", {}, "ERROR", "Environment Texture", ()),
         ("raytrace_render", {}, "FINISHED", "", ()),
         ("run_shadow_comparison", {}, "FINISHED", "", ()),
@@ -609,7 +611,7 @@ def test_bad_cases_say_why(tmp_path, no_matplotlib_no_scipy):
         getattr(scene.illumination, section).property_unset("output_dir")
     before = snapshot()
     for name in ("bake_lightmaps", "run_shadow_comparison", "ssao_compare", "envmap_irradiance", "radiosity",
-                 "reflections_compare", "raytrace_render"):
+                 "export_lightmaps", "reflections_compare", "raytrace_render"):
         outcome, message = press(name)
         assert outcome in ("POLL", "ERROR"), f"{name}, unsaved: {outcome} {message}"
         assert_says_why(outcome, message, outcome, f"{name}, unsaved")
