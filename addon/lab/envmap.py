@@ -35,11 +35,12 @@ REPORT = "envmap_report.json"
 LINEAR_SPACES = {"Linear Rec.709", "Non-Color", "scene_linear"}
 
 
-def image_pixels(image):
+def image_pixels(image, decode=True):
     """A Blender image's linear RGB (H, W, 3), row 0 at the top (Blender stores the bottom row first).
 
     ``Image.pixels`` gives a float image's linear values but an 8-bit image's encoded ones: an sRGB
-    8-bit image is decoded as Cycles does; other non-linear 8-bit colour spaces are refused.
+    8-bit image is decoded as Cycles does (``decode=False`` leaves it encoded: Cycles filters such a texture
+    before it decodes); other non-linear 8-bit colour spaces are refused.
     """
     w, h = image.size
     if w == 0 or h == 0:
@@ -52,9 +53,14 @@ def image_pixels(image):
     image.pixels.foreach_get(px)
     px = px.reshape(h, w, image.channels)
     rgb = px[..., :3] if image.channels >= 3 else np.repeat(px[..., :1], 3, axis=-1)
-    if not image.is_float and space == "sRGB":
+    if decode and is_srgb_bytes(image):
         rgb = io_png.srgb_decode(rgb)
     return np.flipud(rgb).astype(np.float32)
+
+
+def is_srgb_bytes(image):
+    """True for an 8-bit image whose values are sRGB-encoded (Cycles decodes them after filtering)."""
+    return not image.is_float and image.colorspace_settings.name == "sRGB"
 
 
 def world_environment(scene):

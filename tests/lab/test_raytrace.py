@@ -132,3 +132,53 @@ def test_an_il_material_is_traced_with_its_models_parameters(tmp_path):
         assert m.mirror is None and m.ior is None
     finally:
         scenes.remove(scene)
+
+
+def _textured_plane(tmp_path, srgb):
+    """A plane made with Blender's operator, a Diffuse BSDF whose Color is an 8x8 checker Image Texture (8-bit sRGB
+    saved as PNG, or float), a point light and a camera looking down at it."""
+    from addon.blender import compat
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    bpy.ops.mesh.primitive_plane_add(size=4.0)
+    plane = bpy.context.active_object
+    bpy.ops.object.light_add(type="POINT", location=(0.5, -0.5, 3.0))
+    bpy.context.active_object.data.energy = 300.0
+    bpy.context.active_object.data.shadow_soft_size = 0.0
+    bpy.ops.object.camera_add(location=(0.0, 0.0, 5.0))
+    scene.camera = bpy.context.active_object
+    scene.render.resolution_x = scene.render.resolution_y = RES
+    checker = (np.indices((8, 8)).sum(0) % 2).astype(np.float32)
+    rgba = np.stack([0.1 + 0.8 * checker, 0.3 + 0.0 * checker, 0.9 - 0.7 * checker, np.ones_like(checker)], -1)
+    img = bpy.data.images.new("Checker", 8, 8, float_buffer=not srgb, alpha=True)
+    img.pixels.foreach_set(rgba.ravel())
+    if srgb:
+        img.filepath_raw = str(tmp_path / "checker.png")
+        img.file_format = "PNG"
+        img.save()
+        img = bpy.data.images.load(str(tmp_path / "checker.png"))
+    mat = bpy.data.materials.new("Checker")
+    compat.ensure_use_nodes(mat)
+    nt = mat.node_tree
+    nt.nodes.clear()
+    tex, bsdf, out = (nt.nodes.new(k) for k in ("ShaderNodeTexImage", "ShaderNodeBsdfDiffuse", "ShaderNodeOutputMaterial"))
+    tex.image = img
+    nt.links.new(tex.outputs["Color"], bsdf.inputs["Color"])
+    nt.links.new(bsdf.outputs[0], out.inputs["Surface"])
+    plane.data.materials.append(mat)
+    return scene
+
+
+@pytest.mark.both_versions
+@pytest.mark.parametrize("srgb", [True, False])
+def test_an_image_texture_is_read_through_the_uvs_as_cycles_reads_it(tmp_path, srgb):
+    """k_d from an Image Texture on the plane's UVs (bilinear, repeat; an 8-bit sRGB PNG decoded to linear): ray
+    casting equals Cycles within its noise, where the texture's unlinked value would be a flat grey."""
+    scene = _textured_plane(tmp_path, srgb)
+    r = raytrace.run(scene, str(tmp_path), RaytraceOptions(method="raycast", resolution=RES, samples=SAMPLES))
+    w, c = _rgb(tmp_path / "raycast.exr"), _rgb(tmp_path / "cycles.exr")
+    sigma = r["cycles"]["noise_rmse"]
+    assert _trimmed_rmse(w, c) <= 4 * sigma + 1e-4, (_trimmed_rmse(w, c), sigma)
+    assert not [n for n in r["left_out"] if "Checker" in n], r["left_out"]
+    red_over_blue = w[..., 0] / np.maximum(w[..., 2], 1e-9)
+    assert red_over_blue.max() > 3 and red_over_blue.min() < 1 / 3     # both checker colours are there

@@ -46,7 +46,7 @@ class Stats:
                 "rays_per_second": self.rays / self.seconds if self.seconds > 0 else None}
 
 
-def direct_light(scene, mat, p, n, ng, v, stats):
+def direct_light(scene, mat, p, n, ng, v, stats, kd=None):
     """Σ_lights I (local model) over the lights a shadow ray reaches (seed 004: the shadow ray from the hit point
     toward the light; anything in between, glass included, blocks it)."""
     out = np.zeros(p.shape)
@@ -60,7 +60,7 @@ def direct_light(scene, mat, p, n, ng, v, stats):
         stats.shadow += len(idx)
         blocked = scene.bvh.occluded(origin[idx], l[idx], dist[idx] - scene.epsilon, tmin=0.0)
         lit = idx[~blocked]
-        out[lit] += mat.local(n[lit], l[lit], v[lit], I[lit])
+        out[lit] += mat.local(n[lit], l[lit], v[lit], I[lit], kd=None if kd is None else kd[lit])
     return out
 
 
@@ -136,7 +136,7 @@ def _trace_batch(scene, origins, dirs, method, max_depth, progress):
             sel = scene.material_index[tri] == m
             mat = scene.materials[m]
             radiance, rays = shade(scene, mat, p[sel], d[sel], ng[sel], ns[sel], stats,
-                                   spawn=depth < depth_limit)
+                                   spawn=depth < depth_limit, tri=tri[sel])
             if depth == depth_limit and mat.specular_only:
                 np.add.at(cut, pixel[sel], weight[sel].max(-1))
             np.add.at(image, pixel[sel], weight[sel] * radiance)
@@ -162,8 +162,9 @@ def _trace_batch(scene, origins, dirs, method, max_depth, progress):
     return image, stats
 
 
-def shade(scene, mat, p, d, ng, ns, stats, spawn=True):
-    """Local radiance at hits of one material and the secondary rays [(which hits, origins, dirs, weight factor)]."""
+def shade(scene, mat, p, d, ng, ns, stats, spawn=True, tri=None):
+    """Local radiance at hits of one material and the secondary rays [(which hits, origins, dirs, weight factor)];
+    ``tri``: the hit triangles (a textured k_d is read through their UVs)."""
     count = len(p)
     v = -d
     if not mat.specular_only:
@@ -171,7 +172,8 @@ def shade(scene, mat, p, d, ng, ns, stats, spawn=True):
         back = dot(ng, d) > 0
         ng = np.where(back[:, None], -ng, ng)
         ns = np.where(back[:, None], -ns, ns)
-        radiance = ambient_light(scene, mat, count) + direct_light(scene, mat, p, ns, ng, v, stats)
+        kd = None if tri is None else scene.albedo(mat, tri, p)
+        radiance = ambient_light(scene, mat, count) + direct_light(scene, mat, p, ns, ng, v, stats, kd)
         return radiance + np.asarray(mat.emission), []
     radiance = np.broadcast_to(np.asarray(mat.emission, np.float64), (count, 3)).copy()
     if not spawn:
