@@ -4,11 +4,14 @@ is never written.
     python scripts/export_lightmaps.py baked.blend --lightmaps out/maps --out out/scene.glb
     blender -b baked.blend -P scripts/export_lightmaps.py -- --lightmaps out/maps --out out/scene.glb
 
-Each baked mesh carries its light-map UV layer as TEXCOORD_1, AO as the material's occlusionTexture (texCoord 1),
-irradiance as the material extension MOZ_lightmap {"index", "texCoord": 1, "intensity"}: an 8-bit linear PNG of
-E / max(E) with intensity = max(E) in W/m² (docs/lightmaps.md, "Export"). A batch bake does not save the .blend, so
-open the copy it saved (bake.py --save-as): objects whose light-map UV layer is not in the file are named and
-skipped. Only --out is written (a temporary file beside it, then moved into place).
+Each baked mesh carries its light-map UV layer as TEXCOORD_1, irradiance as the material extension MOZ_lightmap
+{"index", "texCoord": 1, "intensity"}: an 8-bit linear PNG of E / max(E) with intensity = max(E) in W/m², AO as the
+material's occlusionTexture (texCoord 1) where no irradiance was baked (E holds the occlusion already, and a client
+multiplies the light map by the occlusion: --ao-with-irradiance exports both; docs/lightmaps.md, "Export"). A
+batch bake does not save the .blend, so open the copy it saved (bake.py --save-as): objects whose light-map UV layer
+is not in the file are named and skipped. Only --out is written (a temporary file beside it, then moved into
+place), and with --godot / --unity the engine files beside it, named after it (docs/lightmaps.md, "Godot 4 and
+Unity"): STEM.lightmap.exr, .exr.import and STEM.lightmap.tres; STEM.unity_lightmap_K.exr and STEM.unity.json.
 """
 import os
 import sys
@@ -38,7 +41,7 @@ def main(args):
         import io_scene_gltf2  # noqa: F401
     except ImportError:
         raise InputError("Blender's glTF exporter (io_scene_gltf2) is not available in this Blender") from None
-    result = export_glb(bpy.context.scene, folder, out)
+    result = export_glb(bpy.context.scene, folder, out, ao_with_irradiance=args.ao_with_irradiance)
     for line in result["notes"]:
         errors.warn(line)
     for name, maps in result["objects"].items():
@@ -50,10 +53,21 @@ def main(args):
             parts.append("ao")
         print(f"{name}: " + ", ".join(parts))
     print(f"wrote {out}: {len(result['objects'])} object(s) with light maps on TEXCOORD_1")
+    if args.godot or args.unity:
+        from addon.bake.engines import write_engine_files
+        for path in write_engine_files(bpy.context.scene, folder, out, result["objects"], args.godot, args.unity):
+            print(f"wrote {path}")
 
 
 if __name__ == "__main__":
     p = _cli.parser("export_lightmaps.py", __doc__.splitlines()[0])
     p.add_argument("--lightmaps", required=True, metavar="DIR", help="the bake's output folder (bake_report.json)")
     p.add_argument("--out", dest="glb", required=True, metavar="FILE.glb", help="the glTF binary to write")
+    p.add_argument("--ao-with-irradiance", action="store_true",
+                   help="also export AO as occlusionTexture on materials that carry irradiance (darkens twice)")
+    p.add_argument("--godot", action="store_true",
+                   help="also write the irradiance maps as a Godot 4 LightmapGIData with its Texture2DArray")
+    p.add_argument("--unity", action="store_true",
+                   help="also write the irradiance maps as Unity lightmaps (E/pi EXR) with each renderer's "
+                        "lightmapIndex and lightmapScaleOffset")
     _cli.run(p, main)

@@ -8,7 +8,9 @@ call, then removed):
   every UV layer of a mesh as ``TEXCOORD_<its index>``, so the export runs on a temporary copy of each baked mesh
   whose layers are ordered [the render layer, the light-map layer, the others] (a mesh whose only layer is the
   light-map layer gets a copy of it as ``TEXCOORD_0``);
-- AO is the material's ``occlusionTexture`` with ``texCoord: 1``: an 8-bit PNG of k_A (R = G = B, linear);
+- AO is the material's ``occlusionTexture`` with ``texCoord: 1``: an 8-bit PNG of k_A (R = G = B, linear), only
+  where irradiance is not exported too (unless ``ao_with_irradiance``): a client multiplies the light map's
+  indirect diffuse by the occlusion (three.js aomap_fragment), and E already holds the occlusion;
 - irradiance is the material extension ``MOZ_lightmap`` {"index", "texCoord": 1, "intensity"}: an 8-bit RGB PNG of
   E / max(E) (linear, not sRGB: the loader must read it as linear data), ``intensity`` = max(E) in W/m², the largest
   channel value of the map; decoded texel / 255 × intensity = E within half a step, intensity / 510.
@@ -185,7 +187,7 @@ def _prepared(scene, plan):
             bpy.data.materials.remove(mat)
 
 
-def _extension_class(plan, state):
+def _extension_class(plan, state, ao_with_irradiance=False):
     """The exporter's user extension for ``plan``; ``state`` collects textures (one per map file), intensities
     and errors (the exporter logs and swallows a hook's exceptions)."""
     from io_scene_gltf2.io.com import gltf2_io
@@ -228,7 +230,7 @@ def _extension_class(plan, state):
                     return
                 gltf2_material.name = blender_material.get(NAME, gltf2_material.name)
                 maps = plan.maps[name]
-                if "ao" in maps:
+                if "ao" in maps and (ao_with_irradiance or "irradiance" not in maps):
                     tex, _ = texture("ao", maps["ao"][1])
                     gltf2_material.occlusion_texture = gltf2_io.MaterialOcclusionTextureInfoClass(
                         extensions=None, extras=None, index=tex, strength=1.0, tex_coord=1)
@@ -264,17 +266,18 @@ def _registered(extension):
         prefs.is_dirty = dirty
 
 
-def export_glb(scene, folder, out):
+def export_glb(scene, folder, out, ao_with_irradiance=False):
     """Write ``scene`` as the glTF binary ``out`` with the light maps of ``folder``/bake_report.json (see the
-    module docstring); return {"objects": {name: {kind: intensity}}, "notes": [lines], "path": out}. ``out`` is
-    written whole (a temporary file beside it, then moved) or not at all."""
+    module docstring); return {"objects": {name: {kind: intensity}}, "notes": [lines], "path": out}, kinds as
+    exported. ``out`` is written whole (a temporary file beside it, then moved) or not at all."""
     plan = Plan(folder, scene)
     if not plan.maps:
         raise InputError("no object of the report can carry its maps: " + "; ".join(plan.notes or ["none baked"]))
     state = {"textures": {}, "errors": [], "done": set()}
     tmp = os.path.join(os.path.dirname(out), f".{os.path.basename(out)}.{os.getpid()}.tmp.glb")
     try:
-        with _prepared(scene, plan), _registered(_extension_class(plan, state)), interrupt.blender_call():
+        hooks = _extension_class(plan, state, ao_with_irradiance)
+        with _prepared(scene, plan), _registered(hooks), interrupt.blender_call():
             result = bpy.ops.export_scene.gltf(filepath=tmp, export_format="GLB", use_selection=False,
                                                export_texcoords=True, export_animations=False)
         if "FINISHED" not in result:
@@ -291,5 +294,6 @@ def export_glb(scene, folder, out):
         notes.append("not exported (no material reached the exporter): " + ", ".join(missed))
     objects = {}
     for name in sorted(state["done"]):
-        objects[name] = {kind: state["textures"][(kind, f)][1] for kind, (_, f) in plan.maps[name].items()}
+        objects[name] = {kind: state["textures"][(kind, f)][1] for kind, (_, f) in plan.maps[name].items()
+                         if kind != "ao" or ao_with_irradiance or "irradiance" not in plan.maps[name]}
     return {"objects": objects, "notes": notes, "path": out}

@@ -1,7 +1,8 @@
 """scripts/export_lightmaps.py: Blender's glTF exporter writes the baked maps (issue 28, item 2). The .glb is read
-back with json/struct: TEXCOORD_1 in [0, 1] on the baked meshes, occlusionTexture on texCoord 1, MOZ_lightmap
-{"index", "texCoord": 1, "intensity"}, and decoded texel / 255 x intensity equal to the EXR's E within the stated
-encoding error (half an 8-bit step); the .blend's bytes are unchanged; bad input exits 2 with one line."""
+back with json/struct: TEXCOORD_1 in [0, 1] on the baked meshes, MOZ_lightmap {"index", "texCoord": 1,
+"intensity"}, and decoded texel / 255 x intensity equal to the EXR's E within the stated encoding error (half an
+8-bit step); occlusionTexture on texCoord 1 only where no irradiance is exported or with --ao-with-irradiance; the
+.blend's bytes are unchanged; bad input exits 2 with one line."""
 import json
 import os
 import struct
@@ -95,6 +96,11 @@ def test_glb_carries_the_maps(baked, tmp_path, script):
     glb.parent.mkdir()
     r = script("export_lightmaps.py", blend, "--lightmaps", out, "--out", glb)
     assert r.returncode == 0, r.stderr
+    assert ", ao" not in r.stdout                     # irradiance holds the occlusion: no occlusionTexture
+    assert all("occlusionTexture" not in m for m in _read_glb(glb)[0]["materials"])
+    r = script("export_lightmaps.py", blend, "--lightmaps", out, "--out", glb, "--ao-with-irradiance")
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.count(", ao") == 2
     assert blend.read_bytes() == before
     assert sorted(os.listdir(glb.parent)) == ["scene.glb"]
     gltf, binary = _read_glb(glb)
@@ -173,6 +179,22 @@ def test_session_left_as_it_was(baked, tmp_path):
     assert state() == before
     import sys
     assert not hasattr(sys.modules["addon.bake.gltf"], "glTF2ExportUserExtension")
+
+
+def test_ao_alone_is_the_occlusion_texture(baked, tmp_path):
+    """A report with AO and no irradiance: occlusionTexture on texCoord 1 by default, no MOZ_lightmap."""
+    from addon.bake.gltf import export_glb
+    _, out, _ = baked
+    path = out / "bake_report.json"
+    report = json.loads(path.read_text())
+    report["objects"] = {name: {"ao": maps["ao"]} for name, maps in report["objects"].items()}
+    path.write_text(json.dumps(report))
+    result = export_glb(bpy.context.scene, str(out), str(tmp_path / "ao.glb"))
+    assert result["objects"] == {"Cube": {"ao": 1.0}, "Plane": {"ao": 1.0}}
+    gltf, _ = _read_glb(tmp_path / "ao.glb")
+    assert len(gltf["materials"]) == 2
+    for mat in gltf["materials"]:
+        assert mat["occlusionTexture"]["texCoord"] == 1 and EXTENSION not in mat.get("extensions", {})
 
 
 def test_bad_input_exits_2(baked, tmp_path, script):

@@ -1,0 +1,95 @@
+"""Irradiance light maps handed to engines that take maps baked elsewhere (issue 28, item 4). No bpy.
+
+Both engines multiply the light map by the albedo and nothing else (Godot's scene shader: ``ambient_light +=
+lightmap × exposure_normalization; ambient_light *= albedo``; Unity's ``DecodeLightmap(…) × albedo``), so a
+texel holds the radiance of a white Lambertian surface, L = E/π in W/(m² sr): what Blender shows as pixel value
+1 with exposure 0. The UVs are the light-map layer exported as ``TEXCOORD_1`` (Godot: UV2; Unity's glTF importers:
+uv2); glTF's flipped v and the image row order cancel, so the maps are written as the bake wrote them.
+
+- Godot 4.3+: one float EXR of S x (n·S) texels, the n maps stacked as slices of S x S (S the largest map side,
+  each map at its slice's top-left), with the ``.import`` that makes Godot import it as a Texture2DArray of n
+  slices, and a ``LightmapGIData`` text resource: ``user_data`` = [NodePath, Rect2(0, 0, w/S, h/S), slice, -1]
+  per object (Godot reads uv2 × Rect2.size + Rect2.position).
+- Unity: per map an EXR of E/π and a JSON of ``lightmapIndex`` and ``lightmapScaleOffset`` (x, y scale, z, w
+  offset) per renderer, for ``LightmapSettings.lightmaps`` and ``Renderer.lightmapIndex`` /
+  ``lightmapScaleOffset`` set from a script. Objects of one atlas share a map; their UVs are already in it.
+"""
+import dataclasses
+import math
+
+import numpy as np
+
+GODOT_INVALID = '.:@/"%'
+"""Characters Godot replaces with "_" in node names (String::get_invalid_node_name_characters)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class EngineMap:
+    """The irradiance maps of the objects to hand over: ``users`` {object name: node path parts from the scene root
+    (parents first)} and ``map_of`` {object name: map key}; ``maps`` {map key: E (H, W, 3) in W/m²}."""
+    users: dict
+    map_of: dict
+    maps: dict
+
+    def keys(self):
+        """Map keys in a fixed order (first use by object name)."""
+        seen = []
+        for name in sorted(self.map_of):
+            if self.map_of[name] not in seen:
+                seen.append(self.map_of[name])
+        return seen
+
+
+def godot_node_name(name):
+    """The name Godot's glTF import gives a node called ``name``."""
+    return "".join("_" if c in GODOT_INVALID else c for c in name)
+
+
+def _node_path(parts):
+    path = "/".join(godot_node_name(p) for p in parts)
+    return "../" + path.replace("\\", "\\\\")
+
+
+def godot_layers(em):
+    """(image (n·S, S, 3) of E/π, {map key: (slice, (w/S, h/S))}): the maps stacked top to bottom."""
+    keys = em.keys()
+    side = max(max(em.maps[k].shape[:2]) for k in keys)
+    image = np.zeros((len(keys) * side, side, 3), np.float32)
+    where = {}
+    for i, k in enumerate(keys):
+        h, w = em.maps[k].shape[:2]
+        image[i * side:i * side + h, :w] = em.maps[k][..., :3] / math.pi
+        where[k] = (i, (w / side, h / side))
+    return image, where
+
+
+def godot_import(slices):
+    """The ``.import`` text that makes Godot import the stacked EXR as a Texture2DArray of ``slices``, uncompressed
+    (VRAM compression would quantise HDR values), without mipmaps, as Godot's own LightmapGI writes it."""
+    return ("[remap]\n\nimporter=\"2d_array_texture\"\ntype=\"CompressedTexture2DArray\"\n\n[params]\n\n"
+            "compress/mode=3\ncompress/channel_pack=1\nmipmaps/generate=false\n"
+            f"slices/horizontal=1\nslices/vertical={int(slices)}\n")
+
+
+def godot_resource(em, texture_file, where):
+    """The ``LightmapGIData`` text resource (.tres) that references ``texture_file`` (a path relative to the
+    resource) and every object as a user of its slice."""
+    users = []
+    for name in sorted(em.map_of):
+        i, (sx, sy) = where[em.map_of[name]]
+        users.append(f'NodePath("{_node_path(em.users[name])}"), Rect2(0, 0, {sx:.9g}, {sy:.9g}), {i}, -1')
+    texture = texture_file.replace("\\", "/").replace('"', '\\"')
+    return ("[gd_resource type=\"LightmapGIData\" load_steps=2 format=3]\n\n"
+            f"[ext_resource type=\"TextureLayered\" path=\"{texture}\" id=\"1_lightmap\"]\n\n"
+            "[resource]\nlightmap_textures = [ExtResource(\"1_lightmap\")]\nuses_spherical_harmonics = false\n"
+            f"user_data = [{', '.join(users)}]\n")
+
+
+def unity_layout(em, files):
+    """The JSON-ready dict for Unity: ``files`` {map key: file name of its E/π EXR}."""
+    keys = em.keys()
+    return {"units": "texel = E/pi in W/(m^2 sr), the radiance of a white Lambertian surface",
+            "uv": "uv2 (glTF TEXCOORD_1)",
+            "lightmaps": [{"index": i, "lightmapColor": files[k]} for i, k in enumerate(keys)],
+            "renderers": {name: {"lightmapIndex": keys.index(em.map_of[name]),
+                                 "lightmapScaleOffset": [1.0, 1.0, 0.0, 0.0]} for name in sorted(em.map_of)}}

@@ -1,0 +1,65 @@
+"""Godot and Unity hand-off files (core.io.engines): what each engine reads back from them."""
+import math
+import re
+
+import numpy as np
+
+from addon.core.io import engines
+
+
+def _maps():
+    rng = np.random.default_rng(3)
+    a = rng.uniform(0, 5, (16, 16, 3)).astype(np.float32)      # an object's own map
+    b = rng.uniform(0, 5, (8, 12, 3)).astype(np.float32)       # an atlas two objects share
+    return engines.EngineMap(users={"Floor": ["Floor"], "Lamp.001": ["Room", "Lamp.001"], 'Odd "x"': ['Odd "x"']},
+                             map_of={"Floor": "a", "Lamp.001": "b", 'Odd "x"': "b"}, maps={"a": a, "b": b})
+
+
+def _godot_read(image, side, rect, slice_index, u, v):
+    """Godot's lookup of uv2 = (u, v) (glTF convention, v down): uvw.xy = uv2 * rect.size + rect.position in the
+    slice, nearest texel."""
+    x = u * rect[0] * side
+    y = v * rect[1] * side
+    return image[slice_index * side + int(y), int(x)]
+
+
+def test_godot_slices_give_each_object_its_own_texels_as_e_over_pi():
+    em = _maps()
+    image, where = engines.godot_layers(em)
+    side = 16
+    assert image.shape == (2 * side, side, 3)
+    for key, m in em.maps.items():
+        i, rect = where[key]
+        h, w = m.shape[:2]
+        assert rect == (w / side, h / side)
+        for y in range(h):
+            for x in range(w):
+                got = _godot_read(image, side, rect, i, (x + 0.5) / w, (y + 0.5) / h)
+                np.testing.assert_allclose(got, m[y, x] / math.pi, rtol=1e-6)
+    i, _ = where["b"]
+    assert not image[i * side + 8:(i + 1) * side].any() and not image[i * side:(i + 1) * side, 12:].any()
+
+
+def test_godot_resource_lists_every_user_with_its_slice_and_rect():
+    em = _maps()
+    _, where = engines.godot_layers(em)
+    text = engines.godot_resource(em, "scene.lightmap.exr", where)
+    assert text.startswith('[gd_resource type="LightmapGIData"')
+    assert 'path="scene.lightmap.exr"' in text and 'lightmap_textures = [ExtResource("1_lightmap")]' in text
+    users = re.findall(r'NodePath\("((?:[^"\\]|\\.)*)"\), Rect2\(0, 0, ([0-9.e-]+), ([0-9.e-]+)\), (\d+), -1',
+                       text)
+    assert len(users) == 3
+    by_path = {p: (float(sx), float(sy), int(i)) for p, sx, sy, i in users}
+    assert by_path["../Floor"] == (1.0, 1.0, where["a"][0])
+    assert by_path["../Room/Lamp_001"] == (0.75, 0.5, where["b"][0])     # "." is not allowed in Godot node names
+    assert by_path["../Odd _x_"][2] == where["b"][0]                 # so is '"'
+    assert "slices/vertical=2" in engines.godot_import(2)
+
+
+def test_unity_layout_shares_one_lightmap_per_atlas():
+    em = _maps()
+    layout = engines.unity_layout(em, {"a": "a.exr", "b": "b.exr"})
+    r = layout["renderers"]
+    assert r["Lamp.001"]["lightmapIndex"] == r['Odd "x"']["lightmapIndex"] != r["Floor"]["lightmapIndex"]
+    assert [m["lightmapColor"] for m in layout["lightmaps"]] == ["a.exr", "b.exr"]
+    assert all(v["lightmapScaleOffset"] == [1.0, 1.0, 0.0, 0.0] for v in r.values())

@@ -1,0 +1,57 @@
+"""export_lightmaps.py --godot --unity (issue 28, item 4): the files each engine reads, checked against the bake's
+own EXRs and the .glb's node names (what Godot's and Unity's glTF importers name the nodes). Not run in the
+engines: docs/lightmaps.md says what was verified."""
+import json
+import math
+import re
+
+import numpy as np
+import pytest
+
+from addon.core.io import exr
+from tests.scripts.test_export_lightmaps import _read_glb, baked  # noqa: F401  (the fixture)
+
+pytestmark = pytest.mark.both_versions
+
+
+def _rgb(path):
+    ch, _ = exr.read_exr(path)
+    return np.stack([ch[c] for c in "RGB"], -1)
+
+
+def test_godot_and_unity_files_hold_e_over_pi_for_each_glb_node(baked, tmp_path, script):  # noqa: F811
+    blend, out, report = baked
+    glb = tmp_path / "scene.glb"
+    r = script("export_lightmaps.py", blend, "--lightmaps", out, "--out", glb, "--godot", "--unity")
+    assert r.returncode == 0, r.stderr
+    gltf, _ = _read_glb(glb)
+    nodes = {n["name"] for n in gltf["nodes"] if "mesh" in n}
+    names = sorted(report)
+    assert nodes >= set(names)
+    maps = {name: _rgb(report[name]["irradiance"]["file"]) for name in names}
+
+    tres = (tmp_path / "scene.lightmap.tres").read_text()
+    assert 'path="scene.lightmap.exr"' in tres
+    users = re.findall(r'NodePath\("\.\./([^"]+)"\), Rect2\(0, 0, ([0-9.]+), ([0-9.]+)\), (\d+), -1', tres)
+    assert sorted(u[0] for u in users) == names
+    stack = _rgb(tmp_path / "scene.lightmap.exr")
+    side = stack.shape[1]
+    assert stack.shape[0] == side * len(names)
+    assert f"slices/vertical={len(names)}" in (tmp_path / "scene.lightmap.exr.import").read_text()
+    for name, sx, sy, k in users:
+        h, w = maps[name].shape[:2]
+        assert (float(sx), float(sy)) == (w / side, h / side)
+        part = stack[int(k) * side:int(k) * side + h, :w]
+        np.testing.assert_allclose(part, maps[name] / math.pi, rtol=1e-6, atol=0)
+
+    layout = json.loads((tmp_path / "scene.unity.json").read_text())
+    assert sorted(layout["renderers"]) == names
+    for name in names:
+        entry = layout["renderers"][name]
+        assert entry["lightmapScaleOffset"] == [1.0, 1.0, 0.0, 0.0]
+        color = layout["lightmaps"][entry["lightmapIndex"]]["lightmapColor"]
+        np.testing.assert_allclose(_rgb(tmp_path / color), maps[name] / math.pi, rtol=1e-6, atol=0)
+    assert len({layout["renderers"][n]["lightmapIndex"] for n in names}) == len(names)
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith("scene.")) == sorted(
+        ["scene.glb", "scene.lightmap.exr", "scene.lightmap.exr.import", "scene.lightmap.tres", "scene.unity.json"]
+        + [f"scene.unity_lightmap_{i}.exr" for i in range(len(names))])
