@@ -7,7 +7,7 @@ import bpy
 import numpy as np
 
 from . import cost, cycles
-from .passes import DENOISED, BakeResult, PassSum, denoised, estimated, fixed_calls, sample_passes
+from .passes import BakeResult, PassSum, denoised, estimated, fixed_calls, sample_passes
 from .plan import speed
 
 
@@ -246,11 +246,10 @@ def bake_batch(scene, batch, kind, options, layers, temporary, state):
             for samples, seed in fixed_calls(kind, options):
                 sums = {name: PassSum(samples) for name in images}
                 for n, s in sample_passes(kind, samples, seed, largest, pace):
-                    for image in images.values():
-                        image.pixels.foreach_set(np.zeros(image.size[0] * image.size[1] * 4, np.float32))
-                    seconds += cycles.call_bake(scene, [proxy.obj], kind, n, s, PROXY_UV, options)
-                    for name, image in images.items():
-                        sums[name].add(*cycles.read_image(image, kind, inside[name]), n)
+                    read, t = cycles.bake_images(scene, [proxy.obj], kind, n, s, PROXY_UV, options, images, inside)
+                    seconds += t
+                    for name in images:
+                        sums[name].add(*read[name], n)
                 for name in images:
                     parts[name].append(sums[name].result())
     finally:
@@ -263,7 +262,7 @@ def bake_batch(scene, batch, kind, options, layers, temporary, state):
     for name in list(parts):
         values, mask, n, err, estimate = estimated(kind, options, parts.pop(name))
         if options.denoise:
-            values, estimate = denoised(values, mask, kind), estimate + DENOISED
+            values, estimate = denoised(values, mask, kind, estimate)
         share = texels[name] / total
         results[name] = BakeResult(values, mask, n, elapsed * share, err, estimate, 0, seconds * share)
     return results

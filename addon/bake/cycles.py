@@ -12,7 +12,8 @@ from ..core import errors, lightmap
 from ..core.errors import ILError, InputError
 from . import orientation, uv as uvmod
 from .kinds import KINDS
-from .passes import (DENOISED, ESTIMATES, BakeResult, PassSum, bake_to_error, denoised, estimated, fixed_calls,
+from .materials import show_bake
+from .passes import (ESTIMATES, BakeResult, PassSum, bake_to_error, denoised, estimated, fixed_calls,
                      sample_passes, warn_capped)
 from .plan import speed
 
@@ -75,10 +76,13 @@ def bake_map(scene, group, kind, options, layers, size, image_nodes, state):
     Each bake is the Cycles calls of :func:`sample_passes` (one call unless it is estimated beyond cost.PASS_SECONDS).
     """
     t0 = time.perf_counter()
+    image_target = options.target == "image"
+    if KINDS[kind].images_only and not image_target:
+        raise InputError(f"{kind} maps are image maps only (12 channels do not fit a colour attribute): use the "
+                         f"image target")
     for o in state.render_hidden:               # hidden for render: seen by Cycles only for its own map
         if o.hide_render != (o not in group):
             o.hide_render = o not in group
-    image_target = options.target == "image"
     image = None
     if image_target:
         image = state.track(bpy.data.images, bpy.data.images.new(f"IL {kind}", size[0], size[1],
@@ -109,7 +113,7 @@ def bake_map(scene, group, kind, options, layers, size, image_nodes, state):
     if image is not None:
         bpy.data.images.remove(image)           # one map's image at a time (memory, cost.BYTES_PER_TEXEL)
     if image_target and options.denoise:
-        values, estimate = denoised(values, mask, kind), estimate + DENOISED
+        values, estimate = denoised(values, mask, kind, estimate)
     return BakeResult(values, mask, n, time.perf_counter() - t0, err, estimate, pilot, once.cycles_seconds, capped)
 
 
@@ -152,11 +156,9 @@ def _bake_once(scene, group, kind, samples, seed, image, uv_name, options, insid
     """One Cycles bake call; returns (values, mask, seconds inside the call) with the kind's scale applied
     (E multiplied by π; an image's mask within ``inside``, see :func:`read_image`)."""
     if image is not None:
-        image.pixels.foreach_set(np.zeros(image.size[0] * image.size[1] * 4, np.float32))
-    seconds = call_bake(scene, group, kind, samples, seed, uv_name if image is not None else None, options)
-    if image is not None:
-        values, mask = read_image(image, kind, inside)
-        return values, mask, seconds
+        read, seconds = bake_images(scene, group, kind, samples, seed, uv_name, options, {"": image}, {"": inside})
+        return read[""] + (seconds,)
+    seconds = call_bake(scene, group, kind, samples, seed, None, options)
     record = KINDS[kind]
     values = {}
     for o in group:
@@ -167,9 +169,36 @@ def _bake_once(scene, group, kind, samples, seed, image, uv_name, options, insid
     return values, None, seconds
 
 
-def call_bake(scene, group, kind, samples, seed, uv_name, options):
+def bake_images(scene, objects, kind, samples, seed, uv_name, options, images, inside):
+    """One bake of ``samples`` at ``seed`` of the objects into ``images`` {name: image} (their materials' active
+    image nodes), masks within ``inside`` {name: mask or None}: one Cycles call, or for a kind of several
+    ``bakes`` each call in turn (:func:`materials.show_bake` sets the materials for it) and the kind's
+    ``combine`` of their values. Returns ({name: (values, mask)}, seconds inside the calls)."""
+    record = KINDS[kind]
+    parts, seconds = {name: [] for name in images}, 0.0
+    for bake in record.bakes or (None,):
+        if bake is not None:
+            show_bake(objects, bake)
+        for image in images.values():
+            image.pixels.foreach_set(np.zeros(image.size[0] * image.size[1] * 4, np.float32))
+        seconds += call_bake(scene, objects, kind, samples, seed, uv_name, options, bake)
+        for name, image in images.items():
+            parts[name].append(read_image(image, kind, inside[name], bake))
+    if not record.bakes:
+        return {name: p[0] for name, p in parts.items()}, seconds
+    out = {}
+    for name, p in parts.items():
+        mask = p[0][1]
+        values = record.combine([v for v, _ in p])
+        values[~mask] = 0.0
+        out[name] = values, mask
+    return out, seconds
+
+
+def call_bake(scene, group, kind, samples, seed, uv_name, options, bake=None):
     """One ``object.bake`` of the objects ``group`` (into their active image nodes with ``uv_name``, else into
-    their active colour attributes); returns the seconds inside the call.
+    their active colour attributes), of type and pass filter of ``bake`` (one of the kind's ``bakes``) or of the
+    kind; returns the seconds inside the call.
 
     Cycles: ``samples`` and ``seed``, no denoising, adaptive sampling or sample clamping (Blender clamps
     indirect light at 10 by default: a biased E where light is trapped, e.g. under a lamp near a ceiling)."""
@@ -185,8 +214,8 @@ def call_bake(scene, group, kind, samples, seed, uv_name, options):
                   target="IMAGE_TEXTURES" if uv_name is not None else "VERTEX_COLORS")
     if uv_name is not None:
         kwargs["uv_layer"] = uv_name
-    kwargs["type"] = KINDS[kind].bake_type
-    pass_filter = KINDS[kind].cycles_pass_filter(options)
+    kwargs["type"] = KINDS[kind].bake_type if bake is None else bake.bake_type
+    pass_filter = KINDS[kind].cycles_pass_filter(options, bake)
     if pass_filter is not None:
         kwargs["pass_filter"] = pass_filter
     ctx = dict(scene=scene, view_layer=vl, active_object=group[0], object=group[0],
@@ -203,16 +232,16 @@ def call_bake(scene, group, kind, samples, seed, uv_name, options):
     return seconds
 
 
-def read_image(image, kind, inside=None):
-    """(values, covered mask) of a baked image (the kind's scale applied: E multiplied by π): the texels Cycles
-    baked, within the mask
+def read_image(image, kind, inside=None, bake=None):
+    """(values, covered mask) of a baked image (the kind's scale applied: E multiplied by π; or as ``bake``, one of
+    the kind's ``bakes``, reads it): the texels Cycles baked, within the mask
     ``inside`` when given (:func:`centre_texels`); values 0 elsewhere."""
     w, h = image.size
     px = np.zeros(w * h * 4, np.float32)
     image.pixels.foreach_get(px)
     px = px.reshape(h, w, 4)
     mask = px[..., 3] > 0.5
-    values = KINDS[kind].read(px)
+    values = (KINDS[kind] if bake is None else bake).read(px)
     if inside is not None:
         mask &= inside
         values[~mask] = 0.0

@@ -9,8 +9,33 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from ..core import lightmap
+from ..core import directional, lightmap
 from ..core.io import png as io_png
+
+
+@dataclasses.dataclass(frozen=True)
+class Bake:
+    """One Cycles call of a kind baked in several (``Kind.bakes``): its type and pass filter, the reading of its
+    RGBA (value = RGB × scale + offset), and what its material shows: ``tilt`` t (a white Lambert of normal
+    normalize(N + t - (t·N) N)) and ``normal`` (1: an emission of that normal × 0.5 + 0.5, for an EMIT bake)."""
+    bake_type: str
+    pass_filter: Optional[frozenset]
+    scale: float
+    offset: float
+    tilt: tuple
+    normal: int
+
+    def read(self, rgba):
+        return rgba[..., :3] * self.scale + self.offset
+
+
+def tilted_bakes(tilts):
+    """The bakes of a directional map: per tilt t_k, E(n_k) (DIFFUSE direct + indirect, × π) and n_k (EMIT)."""
+    out = []
+    for t in tilts:
+        out += [Bake("DIFFUSE", frozenset({"DIRECT", "INDIRECT"}), math.pi, 0.0, t, 0),
+                Bake("EMIT", None, 2.0, -1.0, t, 1)]
+    return tuple(out)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -22,7 +47,8 @@ class Kind:
                             at 0 bounces)
     bounces                 follows ``options.bounces`` (Cycles' diffuse bounces, EXR il:bounces); else 0 bounces
     lit                     lights, world and materials shade it: they are in its input hash (DESIGN.md resume)
-    channels, scale         EXR channels ("Y" or "RGB") and the factor from Cycles' value (E = π × DIFFUSE)
+    channels, scale         EXR channels ("Y", "RGB" or a tuple of names) and the factor from Cycles' value
+                            (E = π × DIFFUSE)
     quantity, units         EXR il:quantity, il:units
     attribute               the vertex target's colour attribute
     value_range             (low, high or None) the quantity lives in; the denoised map is clipped to it
@@ -38,6 +64,11 @@ class Kind:
     per_material            one temporary material per original slot material (else one shared by every slot)
     zero_means_inside       a map 0 everywhere on an object whose faces look into itself is refused
     scale_option            (what, option) the length whose scale its shading has (vertex-target coarseness), or None
+    bakes                   the Cycles calls of one bake when there are several (:class:`Bake`; empty: one call of
+                            bake_type), their values combined by ``combine([values of each call]) -> values``
+    layout                  EXR il:layout (how the channels are read), or ""
+    denoise                 the denoiser applies (False: ``--denoise`` leaves the map as baked, with a warning)
+    images_only             no vertex target (its values do not fit a colour attribute)
     """
     id: str
     label: str
@@ -46,7 +77,7 @@ class Kind:
     pass_filter: Optional[frozenset]
     bounces: bool
     lit: bool
-    channels: str
+    channels: object
     scale: float
     quantity: str
     units: str
@@ -64,6 +95,11 @@ class Kind:
     per_material: bool
     zero_means_inside: bool = False
     scale_option: Optional[tuple] = None
+    bakes: tuple = ()
+    combine: Optional[Callable] = None
+    layout: str = ""
+    denoise: bool = True
+    images_only: bool = False
 
     def read(self, rgba):
         """The map's values from Cycles' (..., 4) colours: the first channel (Y) or RGB × scale."""
@@ -89,11 +125,12 @@ class Kind:
             return 0, 0
         return int(options.bounces), max(int(options.bounces), 1)
 
-    def cycles_pass_filter(self, options):
-        """The ``pass_filter`` of its Cycles bakes, or None."""
-        if self.pass_filter is None:
+    def cycles_pass_filter(self, options, bake=None):
+        """The ``pass_filter`` of its Cycles bakes (of ``bake``, one of ``bakes``), or None."""
+        wanted = self.pass_filter if bake is None else bake.pass_filter
+        if wanted is None:
             return None
-        return set(self.pass_filter) if options.bounces > 0 else set(self.pass_filter) - {"INDIRECT"}
+        return set(wanted) if options.bounces > 0 else set(wanted) - {"INDIRECT"}
 
 
 KINDS = {k.id: k for k in (
@@ -114,5 +151,21 @@ KINDS = {k.id: k for k in (
          smallest_target_error=lightmap.smallest_target_error_unbounded,
          target_limit="in float32 maps", preview=io_png.tonemap,
          material="irradiance_material", per_material=True),
+    Kind(id="directional", label="Directional (L1 SH)",
+         description="L1 spherical-harmonic irradiance that follows normal maps (12 channels, Godot's order)",
+         bake_type="DIFFUSE", pass_filter=frozenset({"DIRECT", "INDIRECT"}), bounces=True, lit=True,
+         channels=directional.CHANNELS, scale=math.pi, quantity="L1 SH radiance coefficients L_lm (Ramamoorthi & "
+         "Hanrahan), E(n) = 0.886227 L00 + 1.023328 (L1-1 n_y + L10 n_z + L11 n_x), world space (Blender, Z up)",
+         units="W/(m^2 sr)", attribute="IL Directional", value_range=(None, None),
+         bytes_per_texel=1000, seconds_per_texel_sample=9.0e-6,
+         halves=True, variance=None, estimate="none",
+         smallest_target_error=lightmap.smallest_target_error_unbounded,
+         target_limit="in float32 maps", preview=lambda v: io_png.tonemap(directional.ambient(v)),
+         material="directional_material", per_material=True,
+         bakes=tilted_bakes(directional.tilt_vectors()), combine=directional.combine,
+         layout="L00.RGB, L1-1.RGB (n_y), L10.RGB (n_z), L11.RGB (n_x) in W/(m^2 sr), Godot's order; E(n) = "
+                "0.886227 L00 + 1.023328 (L1-1 n_y + L10 n_z + L11 n_x) in W/m^2 for a world-space unit normal n; "
+                "least-squares fit of 5 DIFFUSE bakes at the mesh normal and 4 tilts (docs/lightmaps.md)",
+         denoise=False, images_only=True),
 )}
 """{id: Kind} in the order the options offer them."""

@@ -123,9 +123,18 @@ def estimated(kind, options, parts):
     return values, mask, n, lightmap.expected_error(var, n), ESTIMATES[record.estimate]
 
 
-def denoised(values, mask, kind):
-    """OIDN on the map (empty texels filled from the nearest covered one first), clipped to the kind's value_range:
-    the denoiser's overshoot at edges put k_A above 1 (Sponza's floors: 1,320 of 4,940 texels, up to 1.022)."""
+def denoised(values, mask, kind, estimate):
+    """(values, estimate) denoised: OIDN on the map (empty texels filled from the nearest covered one first),
+    clipped to the kind's value_range (the denoiser's overshoot at edges put k_A above 1: Sponza's floors, 1,320 of
+    4,940 texels, up to 1.022), the estimate + DENOISED; a kind the denoiser does not apply to (``denoise``
+    False: signed SH coefficients) comes back as it is, with a warning."""
+    if not KINDS[kind].denoise:
+        errors.warn(f"denoise ignored for {kind} maps: the denoiser takes colours, not signed coefficients")
+        return values, estimate
+    return _denoise(values, mask, kind), estimate + DENOISED
+
+
+def _denoise(values, mask, kind):
     filled, _ = lightmap.nearest_fill(values, mask)
     from .denoise import denoise
     lo, hi = KINDS[kind].value_range

@@ -52,7 +52,7 @@ def _attributes(kind, result, options, uv_name):
     return {"il:quantity": record.quantity, "il:units": record.units, "il:samples": result.samples,
             "il:ao_distance": options.ao_distance, "il:uv_layer": uv_name or "",
             "il:blender_version": bpy.app.version_string, "il:bounces": options.bounces if record.bounces else "",
-            "il:denoised": int(bool(options.denoise and options.target == "image")),
+            "il:denoised": int(bool(options.denoise and options.target == "image" and record.denoise)),
             "il:estimated_error": result.estimated_error, "il:error_estimate": result.estimate,
             "il:pilot_samples": int(result.pilot_samples), "il:seconds": round(result.seconds, 4),
             "il:cycles_seconds": round(result.cycles_seconds, 4)}
@@ -111,6 +111,8 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
     attrs = _attributes(kind, result, options, uv_name)
     if digest:
         attrs[HASH_KEY] = digest
+    if KINDS[kind].layout:
+        attrs["il:layout"] = KINDS[kind].layout
     attrs["il:coverage"] = float(result.mask.mean())
     attrs["il:chart_area"] = float(sum(areas.values()))
     attrs["il:min_coverage"] = MIN_COVERAGE_TEXT
@@ -137,7 +139,7 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
     for o in group:
         extra = {"preview": png, "uv_layer": uv_name, "coverage": covered[o.name],
                  "chart_area": areas[o.name], "margin": margin, "dilation": grow,
-                 "denoised": bool(options.denoise)}
+                 "denoised": bool(options.denoise and KINDS[kind].denoise)}
         if overlap is not None:
             extra["overlap"] = float(overlap[0][o.name])
         if o.name in lines:

@@ -15,10 +15,11 @@ def test_every_kind_record_is_complete(kind):
     record = KINDS[kind]
     assert record.id == kind and record.label and record.description
     for field in dataclasses.fields(Kind):
-        if field.name not in ("pass_filter", "variance", "scale_option"):
+        if field.name not in ("pass_filter", "variance", "scale_option", "combine"):
             assert getattr(record, field.name) is not None, field.name
     assert record.bake_type in ("AO", "DIFFUSE", "EMIT", "COMBINED", "SHADOW", "NORMAL")
-    assert record.channels in ("Y", "RGB") and record.scale > 0
+    assert (record.channels in ("Y", "RGB") or record.bakes) and record.scale > 0
+    assert (record.combine is not None) == bool(record.bakes)
     assert record.bytes_per_texel > 0 and record.seconds_per_texel_sample > 0
     lo, hi = record.value_range
     assert hi is None or hi > lo
@@ -30,17 +31,21 @@ def test_every_kind_record_is_complete(kind):
     assert record.estimate in ("binomial", "none")
     values = np.full((2, 3) + ((len(record.channels),) if len(record.channels) > 1 else ()), 0.5, np.float32)
     shown = record.preview(values)
-    assert shown.shape == values.shape and np.isfinite(shown).all()
+    assert shown.shape == (values.shape if not record.bakes else (2, 3, 3)) and np.isfinite(shown).all()
     channels = record.exr_channels(values, np.ones((2, 3), np.float32))
     assert list(channels) == [*record.channels, "A"] and np.array_equal(record.from_exr(channels), values)
     rgba = np.full((2, 3, 4), 0.25, np.float32)
+    if record.bakes:            # read per Cycles call, then combined
+        parts = [bake.read(rgba) for bake in record.bakes]
+        assert record.combine(parts).shape == values.shape
+        return
     assert record.read(rgba).shape == values.shape
     assert np.allclose(record.read(rgba), 0.25 * (record.scale if len(record.channels) > 1 else 1.0))
 
 
 def test_the_two_kinds_are_as_designed():
     ao, irradiance = KINDS["ao"], KINDS["irradiance"]
-    assert list(KINDS) == ["ao", "irradiance"]
+    assert list(KINDS) == ["ao", "irradiance", "directional"]
     assert (ao.bake_type, ao.pass_filter, ao.bounces, ao.lit, ao.halves) == ("AO", None, False, False, False)
     assert (irradiance.bake_type, irradiance.bounces, irradiance.lit, irradiance.halves) == \
         ("DIFFUSE", True, True, True)
