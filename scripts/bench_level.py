@@ -1,5 +1,7 @@
 """Level benchmark: a generated level of 200+ objects baked AO + irradiance per object and as an atlas; pipeline
-wall time against Blender's bare bake calls, peak RSS, texels per second, atlas utilisation against uv.pack_islands.
+wall time against Blender's bare bake calls, peak RSS, texels per second, atlas utilisation against uv.pack_islands;
+time outside Cycles over time inside at --samples and at 64 (production) samples, first runs and reruns with a
+light changed (layouts from the UV cache).
 
     python scripts/bench_level.py --out out/bench_level [--quick] [--props N] [--texel-density T] [--samples N]
 """

@@ -36,7 +36,8 @@ def _rna_digest(h, struct):
 
 
 _HASHED_OPTIONS = ("resolution", "texel_density", "max_resolution", "samples", "target_error", "pilot_samples",
-                   "max_samples", "ao_distance", "margin", "denoise", "uv_layer", "target", "atlas", "seed")
+                   "max_samples", "ao_distance", "margin", "denoise", "seam_fix", "uv_layer", "target", "atlas",
+                   "seed")
 
 
 def _node_tree_digest(h, tree):

@@ -47,6 +47,8 @@ class BakeOptions(Options):
     margin: int = option(4, "Margin", "dilation beyond the covered texels, in texels", minimum=0, maximum=1024,
                          metavar="PX", subtype="PIXEL")
     denoise: bool = option(False, "Denoise", "Blender's denoiser (OpenImageDenoise) on the image maps")
+    seam_fix: bool = option(True, "Fix Seams", "stitch the texels along chart seams where the jump across them is "
+                            "above the bake's noise (the seams are measured either way)", flag="--no-seam-fix")
     uv_layer: str = option(None, "UV Layer", "existing UV layer used as it is (default: generate 'Lightmap')",
                            kind=str, metavar="NAME")
     target: str = option("image", "Target", "image maps or vertex colours", choices=TARGET_CHOICES)

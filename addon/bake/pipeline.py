@@ -15,7 +15,7 @@ from ..core import budget, errors
 from ..core.errors import ILError, InputError
 from ..core.io.files import remove_stale_temporaries
 from ..core.result import JobResult
-from . import batch as batching, cost, cycles, uv as uvmod, write
+from . import batch as batching, cost, cycles, uv as uvmod, uvcache, write
 from .inputs import input_hash, lighting_digest
 from .kinds import KINDS
 from .materials import TemporaryMaterials
@@ -142,6 +142,7 @@ class _Run:
     errors: list = dataclasses.field(default_factory=list)
     tracker: Tracker = None
     pace: cost.Speed = None
+    uv_cache: uvcache.UVCache = None
 
     def step(self, message):
         self.progress.step(message)
@@ -160,15 +161,17 @@ class _Run:
 
     def light_map_uvs(self, objects, groups):
         """The light-map UV layers of every group (one layout for the atlas); a group that fails is recorded."""
+        self.uv_cache = uvcache.UVCache(os.path.join(self.out, uvcache.DIR))
         if self.options.atlas:
-            self.record(uvmod.prepare(self.scene, objects, self.state, self.options, together=True))
+            self.record(uvmod.prepare(self.scene, objects, self.state, self.options, together=True,
+                                      cache=self.uv_cache))
             return
         t0, todo = time.perf_counter(), sum(len(g) for _, g in groups)
         for i, (name, group) in enumerate(groups):
             if i:
                 self.uv_progress(i, len(groups), time.perf_counter() - t0, todo)
             try:
-                made = uvmod.prepare(self.scene, group, self.state, self.options)
+                made = uvmod.prepare(self.scene, group, self.state, self.options, cache=self.uv_cache)
             except (InputError, ILError) as e:
                 self.fail(name, e)
                 continue
@@ -196,7 +199,7 @@ class _Run:
         """A progress line of the UV step on stderr in batch: groups done, elapsed, ETA (seconds per group so far)."""
         eta = seconds / done * (total - done)
         message = f"light-map UVs: {done}/{total} ({objects} objects), elapsed {seconds:.1f} s, ETA {eta:.0f} s"
-        self.progress.note(message)
+        self.progress.note(message, done / total)
 
     def bake_batch(self, batch, kind):
         """Bake and write map ``kind`` of the pending targets of ``batch`` in shared Cycles calls; return the
@@ -242,8 +245,8 @@ class _Run:
         self.tracker.done(target.name, kind)
 
     def finish(self, target, kind, result, t_map):
-        """Check and write a baked map, put its entries in the report and merge them into the report file
-        (finished maps are in it, also if a later one fails)."""
+        """Check and write a baked map, put its entries in the report and merge them into the report file at once
+        (finished maps are in it, also if a later one fails: a full disk, Ctrl-C)."""
         name, group = target.name, target.group
         if target.size is not None:
             write.check_covered(name, group, kind, result, self.layers, target.areas)
@@ -252,11 +255,20 @@ class _Run:
         t_files = time.perf_counter()
         result.seconds += t_files - t_map     # the header's il:seconds: bakes and checks, not the files
         entries = write.write_map(name, group, kind, result, self.out, self.options, self.layers, margin,
-                                  target.overlap, self.digests[(name, kind)], self.stems, self.fills, self.unwraps)
-        part = {"objects": {}, "skipped": self.report["skipped"], "unchanged": self.report["unchanged"]}
+                                  target.overlap, self.digests[(name, kind)], self.stems, self.fills, self.unwraps,
+                                  self.scene)
+        part = {"objects": {}}
         for o in group:
             entries[o.name]["seconds"] = round(result.seconds + time.perf_counter() - t_files, 4)  # files included
             self.report["objects"].setdefault(o.name, {})[kind] = entries[o.name]
             part["objects"].setdefault(o.name, {})[kind] = entries[o.name]
-        part["seconds"] = time.perf_counter() - self.t_all
+        self.merge(part)
+
+    def merge(self, part):
+        """Merge ``part`` ({"objects": ...}) into the report file; then the UV cache is written (after a map is:
+        a run that writes nothing leaves no cache)."""
+        part.update(skipped=self.report["skipped"], unchanged=self.report["unchanged"],
+                    seconds=time.perf_counter() - self.t_all)
         merge_report(self.report_path, part)
+        if self.uv_cache:
+            self.uv_cache.flush()

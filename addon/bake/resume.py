@@ -54,8 +54,9 @@ def _kept_entries(name, group, kind, out, options, stems, stored, old_reports):
             per = json.loads(header_text(header.get("il:objects")) or "{}")
             lines = json.loads(header_text(header.get("il:low_fill")) or "{}")
             made = json.loads(header_text(header.get("il:unwrap")) or "{}")
+            seams = json.loads(header_text(header.get("il:seams")) or "{}")
         except ValueError:
-            per, lines, made = {}, {}, {}
+            per, lines, made, seams = {}, {}, {}, {}
         whole = {"coverage": number("il:coverage"), "chart_area": number("il:chart_area")}
         if header.get("il:overlap") is not None:
             whole["overlap"] = number("il:overlap")
@@ -74,6 +75,8 @@ def _kept_entries(name, group, kind, out, options, stems, stored, old_reports):
                 extras[o.name]["low_fill"] = lines[o.name]
             if isinstance(made, dict) and isinstance(made.get(o.name), str):
                 extras[o.name]["unwrap"] = made[o.name]
+            if isinstance(seams, dict) and isinstance(seams.get(o.name), dict):
+                extras[o.name]["seams"] = seams[o.name]
     entries = {}
     for o in group:
         fresh = write.entry(path, res, result, extras[o.name])

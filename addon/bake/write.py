@@ -13,6 +13,7 @@ from .inputs import HASH_KEY
 from .kinds import KINDS
 from .passes import flat
 from .plan import file_stems, map_file
+from .seams import seam_step
 
 
 MIN_COVERAGE_TEXT = (f"covered texels >= {uvmod.MIN_COVERAGE:g} x side^2 x chart_area (the charts' UV area inside "
@@ -87,13 +88,15 @@ def _finite(name, kind, values):
 
 
 def write_map(name, group, kind, result, out, options, layers, margin=None, overlap=None, digest=None, stems=None,
-              low_fill=None, unwraps=None):
+              low_fill=None, unwraps=None, scene=None):
     """Write the files of one baked map; return ``{object: report entry}``. ``margin``: the layout's margin in
     texels (default the asked one; the map is dilated by :func:`uv.dilation` texels; both in the report and the
     header). ``overlap`` = ({object: fraction}, group fraction) of covered texels shared by several faces;
     ``stems`` the file stems of :func:`file_stems`; ``low_fill`` {object: the :func:`uv.low_fill` line} (report
     entries' "low_fill", header "il:low_fill"); ``unwraps`` {object: unwrapper of a layout made in this run}
-    (entries' "unwrap", header "il:unwrap")."""
+    (entries' "unwrap", header "il:unwrap"). With ``scene``, the seams are measured and stitched when needed
+    (:func:`seams.seam_step`: entries' "seams", header "il:seam_rms", "il:seam_fixed" and "il:seams", the entries'
+    figures by object, so an entry rebuilt on resume keeps them)."""
     stems = stems or file_stems()
     if options.target != "image":
         return _write_vertices(group, kind, result, out, options, digest, stems)
@@ -102,6 +105,11 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
     _finite(name, kind, result.values[result.mask])
     values, grown = lightmap.dilate(result.values, result.mask, grow)
     values = np.where(grown[..., None] if values.ndim == 3 else grown, values, 0.0)
+    seam_entries, seam_attrs = {}, {}
+    if scene is not None:
+        values, seam_entries, seam_attrs = seam_step(scene, group, layers, result.values, result.mask, values, grow,
+                                                     result.estimated_error, KINDS[kind].value_range,
+                                                     fix=options.seam_fix)
     alpha = result.mask.astype(np.float32)
     uv_name = layers.get(group[0].name)
     h, w = result.mask.shape
@@ -120,6 +128,9 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
         attrs["il:overlap"] = float(overlap[1])
     attrs["il:margin"] = margin
     attrs["il:dilation"] = grow
+    attrs.update(seam_attrs)
+    if seam_entries:
+        attrs["il:seams"] = json.dumps(seam_entries)
     if len(group) > 1:
         attrs["il:objects"] = json.dumps({o.name: {"coverage": covered[o.name], "chart_area": areas[o.name]}
                                           | ({"overlap": float(overlap[0][o.name])} if overlap else {})
@@ -146,6 +157,8 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
             extra["low_fill"] = lines[o.name]
         if o.name in made:
             extra["unwrap"] = made[o.name]
+        if o.name in seam_entries:
+            extra["seams"] = seam_entries[o.name]
         entries[o.name] = entry(path, res, result, extra)
     return entries
 

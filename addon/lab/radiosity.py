@@ -783,7 +783,8 @@ def cycles_patch_irradiance(scene, results, patches, out, samples=64, bounces=32
     others = [o for o in scene.objects if o not in keep and not o.hide_render]
     options = BakeOptions(samples=int(samples), bounces=int(bounces), seed=int(seed), margin=0, uv_layer=UV,
                           sizes={obj.name: atlas.size for obj, _, atlas in results.values()},
-                          force=True, keep_products=False)    # bake also where a former run's map is unchanged
+                          force=True, keep_products=False,      # bake also where a former run's map is unchanged
+                          seam_fix=False)      # every patch is a chart: a stitch would blend neighbouring patches
     settings = [(o, "hide_render") for o in others + objs] + world_settings(scene)
     with SavedState(scene, settings=settings) as state:
         for o in others:

@@ -191,6 +191,7 @@ class IL_PT_lightmaps(Sidebar, bpy.types.Panel):
             col.prop(s, "margin")
             col.prop(s, "atlas")
             col.prop(s, "denoise")
+            col.prop(s, "seam_fix")
         col = layout.column(align=True)
         col.prop(s, "quality_mode")
         col.prop(s, "samples" if s.quality_mode == "SAMPLES" else "target_error")

@@ -4,7 +4,11 @@ a collection instance) baked AO + irradiance per object and as an atlas.
 Measured in one run: the pipeline's wall time against Blender's bare ``object.bake`` calls for the same maps
 (same UV layers, image sizes, samples) and against its own time inside Cycles, a rerun with unchanged meshes, the
 median fill of the maps and how many warned of a low fill, peak RSS, texels per second, and the atlas's utilisation
-(covered texels / map texels) against Blender's ``uv.pack_islands`` on the same charts.
+(covered texels / map texels) against Blender's ``uv.pack_islands`` on the same charts. The per-object bake is
+also run at production samples (:data:`PRODUCTION_SAMPLES`), and each is redone with its meshes unchanged but a
+light changed (irradiance rebaked, AO resumed) and the "Lightmap" layers gone, as a new process finds an unsaved
+file: the layouts come from the UV cache (``bake/uvcache.py``); the time outside Cycles over the time inside is
+the figure issue 27 bounds (at most 1 on a first run, 0.1 on such a rerun).
 """
 import os
 import resource
@@ -27,6 +31,8 @@ TITLE = "Light maps of a level: pipeline against bare Cycles bakes"
 
 PRIMITIVES = ("cube", "uv_sphere", "ico_sphere", "cylinder", "cone", "torus", "monkey", "grid", "circle", "plane")
 MAPS = ("ao", "irradiance")
+PRODUCTION_SAMPLES = 64
+"""BakeOptions' default samples."""
 
 
 def peak_rss():
@@ -242,6 +248,30 @@ def pack_islands_utilisation(objects, side, margin):
             bpy.data.meshes.remove(me)
 
 
+def _timed(scene, objects, out, options):
+    """(wall seconds, seconds inside Cycles, report) of a bake into ``out``."""
+    t = time.perf_counter()
+    report = bake_lightmaps(objects, list(MAPS), out, options, scene=scene)
+    wall = time.perf_counter() - t
+    cycles = sum(e["cycles_seconds"] for maps in report["objects"].values() for e in maps.values())
+    return wall, cycles, report
+
+
+def _changed_light_rerun(scene, objects, out, options):
+    """A rerun of the bake into ``out`` with the meshes unchanged, the "Lightmap" layers removed (a new process
+    opening the unsaved file) and the lights 1 % brighter (irradiance rebaked, AO unchanged): its row figures."""
+    for me in {o.data for o in objects}:
+        if uvmod.LIGHTMAP in me.uv_layers:
+            me.uv_layers.remove(me.uv_layers[uvmod.LIGHTMAP])
+    for o in scene.objects:
+        if o.type == "LIGHT":
+            o.data.energy *= 1.01
+    wall, cycles, report = _timed(scene, objects, out, options)
+    return {"pipeline_seconds": round(wall, 3), "pipeline_cycles_seconds": round(cycles, 3),
+            "outside_over_cycles": round((wall - cycles) / max(cycles, 1e-9), 3),
+            "maps_baked": sum(len(m) for m in report["objects"].values())}
+
+
 def run(output_dir, quick=False, props=None, texel_density=None, samples=None):
     """Build the level in a new scene, bake it per object (pipeline, then bare) and as an atlas; return the table
     and figures (``level`` rows: one per measurement)."""
@@ -271,6 +301,9 @@ def run(output_dir, quick=False, props=None, texel_density=None, samples=None):
         bake_lightmaps(objects, list(MAPS), per_object, options, scene=scene)     # unchanged meshes: hashes only
         rerun = time.perf_counter() - t
         print(f"level: rerun with unchanged meshes {rerun:.1f} s", flush=True)
+        rerun_row = _changed_light_rerun(scene, objects, per_object, options)      # before the bare bakes' materials
+        print(f"level: rerun, a light changed, layouts from the UV cache {rerun_row['pipeline_seconds']:.1f} s",
+              flush=True)
         baked = [o for o in objects if o.name in report["objects"]]
         texels = sum(e["resolution"][0] * e["resolution"][1] for maps in report["objects"].values()
                      for e in maps.values())
@@ -292,6 +325,24 @@ def run(output_dir, quick=False, props=None, texel_density=None, samples=None):
                      "bare_seconds": round(bare_total, 3), "pipeline_over_bare": round(wall / bare_total, 3),
                      "texels_per_second": round(texels / wall), "covered_texels_per_second": round(covered / wall),
                      "peak_rss_mib": round(rss_pipeline / 2 ** 20, 1)})
+        rows.append({"run": f"per object, light changed, {samples} spp", "objects": len(baked), **rerun_row})
+        production = os.path.join(output_dir, "production")
+        shutil.rmtree(production, ignore_errors=True)
+        for me in {o.data for o in objects}:
+            if uvmod.LIGHTMAP in me.uv_layers:
+                me.uv_layers.remove(me.uv_layers[uvmod.LIGHTMAP])
+        full = options.replace(samples=PRODUCTION_SAMPLES)
+        wall_p, cycles_p, report_p = _timed(scene, objects, production, full)
+        print(f"level: pipeline at {PRODUCTION_SAMPLES} spp {wall_p:.1f} s ({cycles_p:.1f} s in Cycles)", flush=True)
+        rows.append({"run": f"per object, {PRODUCTION_SAMPLES} spp", "objects": len(report_p["objects"]),
+                     "triangles": tris, "pipeline_seconds": round(wall_p, 3),
+                     "pipeline_cycles_seconds": round(cycles_p, 3),
+                     "outside_over_cycles": round((wall_p - cycles_p) / max(cycles_p, 1e-9), 3)})
+        rerun_p = _changed_light_rerun(scene, objects, production, full)
+        print(f"level: rerun at {PRODUCTION_SAMPLES} spp, a light changed {rerun_p['pipeline_seconds']:.1f} s",
+              flush=True)
+        rows.append({"run": f"per object, light changed, {PRODUCTION_SAMPLES} spp", "objects": len(baked),
+                     **rerun_p})
         atlas_dir = os.path.join(output_dir, "atlas")
         shutil.rmtree(atlas_dir, ignore_errors=True)
         t = time.perf_counter()

@@ -1,0 +1,136 @@
+"""Cache of generated light-map layouts, so that a mesh is unwrapped once: in memory within a run (meshes with the
+same geometry, linked duplicates) and on disk in the output folder (``<out>/.il-uv-cache/<digest hex>.npz``) for
+reruns and resumed bakes.
+
+The key is a digest of everything the layout depends on: per object its mesh (vertex positions, loops' vertices,
+faces' first loops and corner counts: what the unwrappers see, and the loop order the UVs come back in), its
+evaluated mesh (the modifiers' result), the metric MᵀM of its world matrix (world area, hence the side chosen from a
+texel density; the matrix itself for an atlas; both to 6 digits), and the layout options (margin, resolution, texel density, maximum
+resolution, fixed sizes, atlas), :data:`LAYOUT_VERSION` and Blender's version (the unwrappers may change). An
+entry holds each object's UVs (float32, its loop order), the side, margin and unwrapper; a file that cannot be read,
+or whose arrays do not match the meshes (shape, dtype, finite values inside the unit square), is ignored and
+rebuilt. Files are written (atomically) only after a map of the run is written, never outside the output folder,
+named by the digest only.
+"""
+import dataclasses
+import hashlib
+import io
+import os
+
+import bpy
+import numpy as np
+
+from ..core.io.files import write_bytes
+
+LAYOUT_VERSION = 2
+"""Raised whenever the layout search (uv.py) changes what it makes for the same input."""
+DIR = ".il-uv-cache"
+_SLACK = 1e-4
+
+
+@dataclasses.dataclass
+class Entry:
+    """A generated layout: per object its "Lightmap" UVs (flat float32, 2 per loop), the side it was made for,
+    the margin in texels, the unwrapper, the side asked before it was enlarged (0: not enlarged)."""
+    uvs: list
+    side: int
+    margin: float
+    unwrap: str
+    enlarged_from: int = 0
+
+
+def _arrays(me):
+    nv, nl, nf = len(me.vertices), len(me.loops), len(me.polygons)
+    co = np.zeros(nv * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    lv, start, total = np.zeros(nl, np.int32), np.zeros(nf, np.int32), np.zeros(nf, np.int32)
+    me.loops.foreach_get("vertex_index", lv)
+    me.polygons.foreach_get("loop_start", start)
+    me.polygons.foreach_get("loop_total", total)
+    return co, lv, start, total
+
+
+def key(objects, depsgraph, options, together=False):
+    """Hex digest of the layout of ``objects`` made with ``options`` (see the module docstring)."""
+    h = hashlib.blake2b(digest_size=20)
+    h.update(repr((LAYOUT_VERSION, tuple(bpy.app.version), float(options.margin), options.texel_density,
+                   int(options.resolution), int(options.max_resolution), bool(together))).encode())
+    for o in objects:
+        sizes = options.sizes.get(o.name) if options.sizes else None
+        m = np.array(o.matrix_world, float)[:3, :3]
+        h.update(repr((tuple(sizes) if sizes else None, _rounded(m if together else m.T @ m))).encode())
+        for me in (o.data, o.evaluated_get(depsgraph).data):
+            for a in _arrays(me):
+                h.update(np.int64(a.size).tobytes())
+                h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def _rounded(a):
+    """``a`` to 6 digits of its largest entry (a rotation's float32 round-off in MᵀM is below that)."""
+    scale = float(np.abs(a).max()) or 1.0
+    return f"{scale:.6g}", tuple(float(x) for x in np.round(a / scale, 6).ravel() + 0.0)
+
+
+class UVCache:
+    """Layouts by :func:`key`: ``memory`` for this run, ``folder`` (None: memory only) across runs."""
+
+    def __init__(self, folder=None):
+        self.folder = folder
+        self.memory, self.pending = {}, {}
+
+    def path(self, digest):
+        return os.path.join(self.folder, f"{digest}.npz")
+
+    def get(self, digest, meshes):
+        """The :class:`Entry` of ``digest`` whose UVs fit ``meshes`` (one per object), or None."""
+        entry = self.memory.get(digest)
+        if entry is None and self.folder is not None:
+            entry = _read(self.path(digest))
+        if entry is None or not _fits(entry, meshes):
+            return None
+        self.memory[digest] = entry
+        return entry
+
+    def put(self, digest, entry):
+        self.memory[digest] = entry
+        if self.folder is not None:
+            self.pending[digest] = entry
+
+    def flush(self):
+        """Write the entries made since the last flush (a failed write is dropped: the cache is an optimisation)."""
+        while self.pending:
+            digest, entry = self.pending.popitem()
+            buf = io.BytesIO()
+            np.savez(buf, side=np.int64(entry.side), margin=np.float64(entry.margin),
+                     unwrap=np.array(entry.unwrap), enlarged_from=np.int64(entry.enlarged_from),
+                     **{f"uv{i}": uv for i, uv in enumerate(entry.uvs)})
+            try:
+                write_bytes(self.path(digest), buf.getvalue())
+            except OSError:
+                pass
+
+
+def _read(path):
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            n = sum(1 for k in z.files if k.startswith("uv"))
+            return Entry([np.asarray(z[f"uv{i}"]) for i in range(n)], int(z["side"]), float(z["margin"]),
+                         str(z["unwrap"]), int(z["enlarged_from"]))
+    except Exception:      # missing, truncated, not an npz, a field missing or of another kind: rebuilt
+        return None
+
+
+def _fits(entry, meshes):
+    """The entry's arrays match the meshes: one float32 array of 2 × loops finite UVs in the unit square each,
+    a positive side and margin."""
+    from .uv import LIGHTMAP_PACK, SMART
+    if len(entry.uvs) != len(meshes) or entry.side < 1 or not entry.margin > 0 or entry.unwrap not in (SMART,
+                                                                                                       LIGHTMAP_PACK):
+        return False
+    for uv, me in zip(entry.uvs, meshes):
+        if uv.dtype != np.float32 or uv.shape != (2 * len(me.loops),) or not np.isfinite(uv).all():
+            return False
+        if len(uv) and (uv.min() < -_SLACK or uv.max() > 1 + _SLACK):
+            return False
+    return True

@@ -1,0 +1,196 @@
+"""The unwrap cache (bake/uvcache.py, issue 27): a cached layout skips the unwrapper and bakes the same pixels,
+a corrupt entry is rebuilt, files stay inside the output folder; the UV step's progress (objects done / total)."""
+import os
+import re
+
+import bpy
+import numpy as np
+import pytest
+
+from addon.bake import BakeOptions, bake_lightmaps, cycles, uv as uvmod, uvcache
+from addon.blender import progress
+from addon.core import lightmap
+from addon.core.errors import ILError
+from addon.core.io import exr
+
+OPTIONS = dict(resolution=16, samples=1, bounces=0, overwrite=True, force=True)
+
+
+def _props():
+    """A floor, a bevelled cube and a UV sphere, each with its own mesh."""
+    bpy.ops.mesh.primitive_plane_add(size=4)
+    bpy.context.object.name = "Floor"
+    bpy.ops.mesh.primitive_cube_add(size=0.8, location=(-1, 0, 0.4))
+    bpy.context.object.name = "Box"
+    bpy.context.object.modifiers.new("Bevel", "BEVEL").width = 0.05
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.4, location=(1, 0, 0.4), segments=12, ring_count=6)
+    bpy.context.object.name = "Ball"
+    return [bpy.data.objects[n] for n in ("Floor", "Box", "Ball")]
+
+
+@pytest.fixture
+def unwraps(monkeypatch):
+    """Counts the unwrapper runs (:meth:`uv._Copies.unwrap`)."""
+    calls = []
+    real = uvmod._Copies.unwrap
+
+    def counting(self, *a, **kw):
+        calls.append([o.name for o in self.group])
+        return real(self, *a, **kw)
+
+    monkeypatch.setattr(uvmod._Copies, "unwrap", counting)
+    return calls
+
+
+def _bake(objects, out):
+    for o in objects:                           # a new process opening the unsaved file has no layer
+        if uvmod.LIGHTMAP in o.data.uv_layers:
+            o.data.uv_layers.remove(o.data.uv_layers[uvmod.LIGHTMAP])
+    rep = bake_lightmaps(objects, ["ao"], str(out), BakeOptions(**OPTIONS), scene=bpy.context.scene)
+    return {n: exr.read_exr(e["ao"]["file"])[0]["Y"] for n, e in rep["objects"].items()}
+
+
+def _entries(out):
+    folder = out / uvcache.DIR
+    return sorted(folder.iterdir()) if folder.exists() else []
+
+
+def test_a_cached_layout_skips_the_unwrap_and_bakes_the_same_pixels(tmp_path, unwraps):
+    objects = _props()
+    fresh = _bake(objects, tmp_path)
+    assert sorted({n for call in unwraps for n in call}) == ["Ball", "Box", "Floor"]
+    assert len(_entries(tmp_path)) == 3
+    unwraps.clear()
+    cached = _bake(objects, tmp_path)
+    assert unwraps == []
+    assert sorted(cached) == sorted(fresh)
+    for name in fresh:
+        assert np.array_equal(cached[name], fresh[name]), name
+
+
+def test_a_corrupt_or_mismatched_entry_is_ignored_and_rebuilt(tmp_path, unwraps):
+    objects = _props()
+    fresh = _bake(objects, tmp_path)
+    entries = _entries(tmp_path)
+    entries[0].write_bytes(b"PK\x03\x04 not a zip")
+    np.savez(entries[1].open("wb"), side=np.int64(16), margin=np.float64(1.0), unwrap=np.array("smart_project"),
+             enlarged_from=np.int64(0), uv0=np.zeros(6, np.float32))          # fewer loops than the mesh
+    entries[2].write_bytes(b"")
+    unwraps.clear()
+    again = _bake(objects, tmp_path)
+    assert sorted({n for call in unwraps for n in call}) == ["Ball", "Box", "Floor"]
+    for name in fresh:
+        assert np.array_equal(again[name], fresh[name]), name
+    for path in _entries(tmp_path):                                            # rewritten, readable
+        with np.load(path, allow_pickle=False) as z:
+            assert z["uv0"].dtype == np.float32 and z["uv0"].size > 6
+
+
+def test_meshes_of_equal_geometry_unwrap_once_and_files_stay_in_the_output_folder(tmp_path, unwraps):
+    bpy.ops.mesh.primitive_cube_add(size=1, location=(0, 0, 0.5))
+    first = bpy.context.object
+    first.name = "../../escape"
+    second = first.copy()
+    second.data = first.data.copy()                     # its own mesh, the same vertices and faces
+    second.name = "Twin"
+    second.location = (2, 0, 0.5)
+    bpy.context.scene.collection.objects.link(second)
+    out = tmp_path / "maps"
+    _bake([first, second], out)
+    assert len(unwraps) >= 1 and all(call == ["../../escape"] for call in unwraps)
+    files = [os.path.relpath(os.path.join(d, f), tmp_path) for d, _, fs in os.walk(tmp_path) for f in fs]
+    assert all(f.startswith("maps" + os.sep) for f in files), files
+    names = [p.name for p in _entries(out)]
+    assert len(names) == 1 and re.fullmatch(r"[0-9a-f]{40}\.npz", names[0])
+
+
+def test_a_bake_that_writes_no_map_writes_no_cache(tmp_path, monkeypatch):
+    def broken(*args, **kw):
+        raise ILError("Cycles failed")
+
+    monkeypatch.setattr(cycles, "_bake_once", broken)
+    bpy.ops.mesh.primitive_cube_add(size=1)
+    with pytest.raises(ILError, match="Cycles failed"):
+        bake_lightmaps([bpy.context.object], ["ao"], str(tmp_path), BakeOptions(**OPTIONS), scene=bpy.context.scene)
+    assert os.listdir(tmp_path) == []
+
+
+def test_the_digest_follows_modifiers_geometry_and_layout_options():
+    bpy.ops.mesh.primitive_grid_add(size=1)
+    grid = bpy.context.object
+    solid = grid.modifiers.new("Solidify", "SOLIDIFY")
+    scene = bpy.context.scene
+
+    def key(**kw):
+        scene.view_layers[0].update()
+        return uvcache.key([grid], scene.view_layers[0].depsgraph, BakeOptions(**dict(OPTIONS, **kw)))
+
+    base = key()
+    assert key() == base
+    solid.thickness = 0.3
+    changed = key()
+    assert changed != base
+    assert key(margin=2) != changed and key(resolution=32) != changed
+    grid.rotation_euler = (0, 0, 0.7)                   # a rotation keeps the metric: the same layout
+    assert key() == changed
+    grid.scale = (2, 1, 1)
+    assert key() != changed
+    grid.data.vertices[0].co.z += 0.1
+    assert key(**{}) != changed
+
+
+def test_solidify_overlap_is_named_as_the_modifier(tmp_path):
+    bpy.ops.mesh.primitive_grid_add(size=1, x_subdivisions=4, y_subdivisions=4)
+    grid = bpy.context.object
+    grid.modifiers.new("Shell", "SOLIDIFY").thickness = 0.1
+    with pytest.warns(Warning, match=r"Solidify copies share the light-map texels .*modifier 'Shell'"):
+        bake_lightmaps([grid], ["ao"], str(tmp_path), BakeOptions(**dict(OPTIONS, resolution=32)),
+                       scene=bpy.context.scene)
+
+
+def test_the_uv_step_reports_objects_done_out_of_all(tmp_path, monkeypatch):
+    seen = []
+    monkeypatch.setattr(progress.Progress, "note", lambda self, message, fraction=None: seen.append((message,
+                                                                                                   fraction)))
+    bake_lightmaps(_props(), ["ao"], str(tmp_path), BakeOptions(**OPTIONS), scene=bpy.context.scene)
+    uv = [(m, f) for m, f in seen if m.startswith("light-map UVs")]
+    assert [f for _, f in uv] == [pytest.approx(1 / 3), pytest.approx(2 / 3)]
+    assert uv[0][0].startswith("light-map UVs: 1/3 (3 objects), elapsed") and "ETA" in uv[0][0]
+
+
+def test_the_ui_progress_moves_within_a_step_and_shows_the_line():
+    class WindowManager:
+        def __init__(self):
+            self.values = []
+
+        def progress_begin(self, lo, hi):
+            self.values.append(("begin", lo, hi))
+
+        def progress_update(self, value):
+            self.values.append(value)
+
+        def progress_end(self):
+            self.values.append("end")
+
+    wm = WindowManager()
+    with progress.Progress("bake", 4) as p:
+        p.wm = wm
+        p.step("light-map UVs")
+        p.note("light-map UVs: 1/4", 0.25)
+        p.note("light-map UVs: 3/4", 0.75)
+        p.step("Floor: ao")
+    assert wm.values == [0, 0.25, 0.75, 1, "end"]
+
+
+def test_an_atlas_covers_at_least_the_texels_pack_islands_gives_its_charts(tmp_path):
+    from addon.lab.bench.level import pack_islands_utilisation
+    objects = _props()
+    bpy.ops.mesh.primitive_torus_add(major_radius=0.4, minor_radius=0.15, location=(0, 1.2, 0.2))
+    objects.append(bpy.context.object)
+    rep = bake_lightmaps(objects, ["ao"], str(tmp_path), BakeOptions(**dict(OPTIONS, resolution=64, margin=1,
+                                                                            atlas=True)), scene=bpy.context.scene)
+    entry = rep["objects"][objects[0].name]["ao"]
+    side = entry["resolution"][0]
+    tri = np.concatenate([uvmod.triangles_uv(o, uvmod.LIGHTMAP) for o in objects])
+    ours = float(lightmap.coverage_mask(tri, side, side).mean())
+    assert ours >= pack_islands_utilisation(objects, side, entry["margin"]) > 0.3
