@@ -51,6 +51,8 @@ def main(args):
             parts.append(f"irradiance intensity {e:.6g} W/m^2 (encoding error <= {encoding_error(e):.3g})")
         if "ao" in maps:
             parts.append("ao")
+        if "directional" in maps:
+            parts.append(f"directional e0 intensity {maps['directional']:.6g} W/m^2 (extras.il_directional)")
         print(f"{name}: " + ", ".join(parts))
     print(f"wrote {out}: {len(result['objects'])} object(s) with light maps on TEXCOORD_1")
     if args.godot or args.unity:

@@ -1,16 +1,16 @@
 """The Godot and Unity files beside an exported .glb (core.io.engines; docs/lightmaps.md, "Godot 4 and Unity").
 
-Only the irradiance maps of the objects the .glb carries are handed over; every file is written in the .glb's
+The irradiance maps of the objects the .glb carries are handed over (to Godot their directional maps instead,
+in its SH mode, when every one of them has one); every file is written in the .glb's
 folder under the .glb's own stem, through a temporary name and a rename.
 """
 import math
 import os
 
-import numpy as np
-
 from ..core.io import engines, exr
 from ..core.io.files import write_json
 from .gltf import Plan
+from .kinds import KINDS
 
 
 def _node_parts(obj):
@@ -21,45 +21,42 @@ def _node_parts(obj):
     return parts
 
 
-def _engine_map(scene, folder, names):
+def _engine_map(scene, folder, names, kind="irradiance"):
     plan = Plan(folder, scene)
     users, map_of, maps = {}, {}, {}
     for name in names:
-        entry = plan.maps.get(name, {}).get("irradiance")
+        entry = plan.maps.get(name, {}).get(kind)
         if entry is None:
             continue
         _, file = entry
         if file not in maps:
             channels, _ = exr.read_exr(file)
-            maps[file] = exr_rgb(channels)
+            maps[file] = KINDS[kind].from_exr(channels)
         users[name] = _node_parts(scene.objects[name])
         map_of[name] = file
     return engines.EngineMap(users, map_of, maps)
 
 
-def exr_rgb(channels):
-    """(H, W, 3) of an irradiance EXR's R, G, B."""
-    return np.stack([channels[c] for c in "RGB"], axis=-1)
-
-
 def write_engine_files(scene, folder, glb, names, godot=True, unity=True):
     """Write the Godot and/or Unity files for the objects ``names`` of the export ``glb``; return their paths."""
     em = _engine_map(scene, folder, names)
-    if not em.map_of:
-        return []
     out, stem = os.path.dirname(glb), os.path.splitext(os.path.basename(glb))[0]
     written = []
-    if godot:
-        image, where = engines.godot_layers(em)
+    sh = _engine_map(scene, folder, names, "directional")
+    sh = sh if sh.map_of and set(sh.map_of) >= set(em.map_of) else None
+    if godot and (sh or em.map_of):
+        image, where = engines.godot_sh_layers(sh) if sh else engines.godot_layers(em)
+        layers = 4 * len(where) if sh else len(where)
         texture = f"{stem}.lightmap.exr"
         exr.write_exr(os.path.join(out, texture), {c: image[..., i] for i, c in enumerate("RGB")},
-                      {"il:quantity": "E/pi (Godot LightmapGI slices)", "il:units": "W/(m^2 sr)",
-                       "il:slices": len(where)})
+                      {"il:quantity": "Godot LightmapGI " + ("SH layers L0' = E0/pi, l1 packed" if sh else
+                                                             "slices E/pi"),
+                       "il:units": "W/(m^2 sr)", "il:slices": layers})
         written.append(os.path.join(out, texture))
-        for name, text in ((texture + ".import", engines.godot_import(len(where))),
-                           (f"{stem}.lightmap.tres", engines.godot_resource(em, texture, where))):
+        for name, text in ((texture + ".import", engines.godot_import(layers)),
+                           (f"{stem}.lightmap.tres", engines.godot_resource(sh or em, texture, where, bool(sh)))):
             written.append(_write_text(os.path.join(out, name), text))
-    if unity:
+    if unity and em.map_of:
         files = {}
         for i, key in enumerate(em.keys()):
             files[key] = f"{stem}.unity_lightmap_{i}.exr"

@@ -13,7 +13,10 @@ call, then removed):
   indirect diffuse by the occlusion (three.js aomap_fragment), and E already holds the occlusion;
 - irradiance is the material extension ``MOZ_lightmap`` {"index", "texCoord": 1, "intensity"}: an 8-bit RGB PNG of
   E / max(E) (linear, not sRGB: the loader must read it as linear data), ``intensity`` = max(E) in W/m², the largest
-  channel value of the map; decoded texel / 255 × intensity = E within half a step, intensity / 510.
+  channel value of the map; decoded texel / 255 × intensity = E within half a step, intensity / 510;
+- a directional (L1 SH) map is the material's ``extras.il_directional`` (:data:`DIRECTIONAL_DECODE`): four 8-bit
+  linear PNGs in glTF's Y-up frame, e0 = the constant part of E(n) as E / max with its ``intensity``, and Godot 4.3's
+  packed l1 maps, so E(n) = e0 (1 + 4 Σ_m (2 l1_m − 1) n_m) in W/m².
 
 Maps are per object, so each baked object gets temporary copies of its materials (named as the originals in the
 glTF); objects without a material get a plain one. Objects of an atlas each carry their part through their own
@@ -28,6 +31,7 @@ import bpy
 import numpy as np
 
 from ..blender import interrupt
+from ..core import directional
 from ..core.errors import ILError, InputError
 from ..core.io import exr
 from ..core.io.png import encode_png
@@ -55,6 +59,23 @@ def encode_ao(values):
     return np.repeat(q[..., None], 3, axis=-1)
 
 
+DIRECTIONAL = "il_directional"
+DIRECTIONAL_DECODE = ("E(n) = e0 * (1 + 4 * ((2 * l1[0] - 1) * n.y + (2 * l1[1] - 1) * n.z + (2 * l1[2] - 1) * n.x)) "
+                      "in W/m^2, n the unit shading normal in glTF's world frame (Y up), e0 = texel(e0) / 255 * "
+                      "intensity, l1[m] = texel(l1[m]) / 255 (RGB each, linear, texCoord 1); a Lambertian surface "
+                      "shows base colour * E(n) / pi. The l1 maps are Godot 4.3's LightmapGI SH layers (clamped to "
+                      "[0, 1], which loses light where the directional part exceeds 4 e0 on an axis).")
+
+
+def encode_directional(values):
+    """(H, W, 12) L1 SH coefficients (Blender's frame) -> ([uint8 (H, W, 3) of e0, l1 (y), l1 (z), l1 (x)], intensity):
+    e0 = the constant part of E(n) as E / max (:func:`encode_irradiance`), the l1 maps Godot-packed in [0, 1]."""
+    coeffs = directional.to_y_up(np.asarray(values, np.float64))
+    e0, intensity = encode_irradiance(directional.ambient(coeffs))
+    _, l1 = directional.godot_packed(coeffs)
+    return [e0] + [np.rint(m * LEVELS).clip(0, LEVELS).astype(np.uint8) for m in l1], intensity
+
+
 def encoding_error(intensity):
     """The largest |decoded - E| of :func:`encode_irradiance` (half an 8-bit step of ``intensity``)."""
     return intensity / (2 * LEVELS)
@@ -79,7 +100,7 @@ class Plan:
                 absent.append(name)
                 continue
             found = {}
-            for kind in ("irradiance", "ao"):
+            for kind in ("irradiance", "ao", "directional"):
                 entry = entries.get(kind)
                 if entry is None:
                     continue
@@ -194,22 +215,27 @@ def _extension_class(plan, state, ao_with_irradiance=False):
     from io_scene_gltf2.io.com.gltf2_io_extensions import Extension
     from io_scene_gltf2.io.exp.binary_data import BinaryData
 
+    def gltf_texture(pixels, name):
+        image = gltf2_io.Image(buffer_view=BinaryData(data=encode_png(pixels)), extensions=None, extras=None,
+                               mime_type="image/png", name=name, uri=None)
+        if "sampler" not in state:
+            state["sampler"] = gltf2_io.Sampler(extensions=None, extras=None, mag_filter=LINEAR,
+                                                min_filter=LINEAR, name=None, wrap_s=CLAMP, wrap_t=CLAMP)
+        return gltf2_io.Texture(extensions=None, extras=None, name=name, sampler=state["sampler"], source=image)
+
     def texture(kind, path):
+        """(glTF texture, intensity) of a map file; a directional map gives ([four textures], intensity)."""
         key = (kind, path)
         if key not in state["textures"]:
             chans, _ = exr.read_exr(path)
             values = KINDS[kind].from_exr(chans)
-            if kind == "irradiance":
-                pixels, intensity = encode_irradiance(values)
-            else:
-                pixels, intensity = encode_ao(values), 1.0
             name = os.path.splitext(os.path.basename(path))[0]
-            image = gltf2_io.Image(buffer_view=BinaryData(data=encode_png(pixels)), extensions=None, extras=None,
-                                   mime_type="image/png", name=name, uri=None)
-            if "sampler" not in state:
-                state["sampler"] = gltf2_io.Sampler(extensions=None, extras=None, mag_filter=LINEAR,
-                                                    min_filter=LINEAR, name=None, wrap_s=CLAMP, wrap_t=CLAMP)
-            tex = gltf2_io.Texture(extensions=None, extras=None, name=name, sampler=state["sampler"], source=image)
+            if kind == "directional":
+                layers, intensity = encode_directional(values)
+                tex = [gltf_texture(p, f"{name}_{part}") for p, part in zip(layers, ("e0", "l1y", "l1z", "l1x"))]
+            else:
+                pixels, intensity = encode_irradiance(values) if kind == "irradiance" else (encode_ao(values), 1.0)
+                tex = gltf_texture(pixels, name)
             state["textures"][key] = (tex, intensity)
         return state["textures"][key]
 
@@ -241,6 +267,12 @@ def _extension_class(plan, state, ao_with_irradiance=False):
                     gltf2_material.extensions[EXTENSION] = Extension(
                         name=EXTENSION, extension={"index": tex, "texCoord": 1, "intensity": intensity},
                         required=False)
+                if "directional" in maps:
+                    (e0, *l1), intensity = texture("directional", maps["directional"][1])
+                    extras = dict(gltf2_material.extras or {})
+                    extras[DIRECTIONAL] = {"texCoord": 1, "e0": {"index": e0, "intensity": intensity},
+                                           "l1": [{"index": t} for t in l1], "decode": DIRECTIONAL_DECODE}
+                    gltf2_material.extras = extras
                 state["done"].add(name)
             except Exception as e:  # noqa: BLE001 - the exporter would only log it
                 state["errors"].append(f"{type(e).__name__}: {e}")

@@ -63,3 +63,25 @@ def test_unity_layout_shares_one_lightmap_per_atlas():
     assert r["Lamp.001"]["lightmapIndex"] == r['Odd "x"']["lightmapIndex"] != r["Floor"]["lightmapIndex"]
     assert [m["lightmapColor"] for m in layout["lightmaps"]] == ["a.exr", "b.exr"]
     assert all(v["lightmapScaleOffset"] == [1.0, 1.0, 0.0, 0.0] for v in r.values())
+
+
+def test_godot_sh_layers_give_e_over_pi_of_the_l1_model_in_godots_frame():
+    """Godot's SH decode, L0' + 4 L0' Σ (2 l1' - 1) n (n in its Y-up frame), of the four consecutive layers of a
+    slice equals E(n)/π of the directional map's L1 model wherever the packing does not clamp."""
+    from addon.core import directional
+    rng = np.random.default_rng(5)
+    a = rng.uniform(1.0, 3.0, (6, 6, 3))
+    b = rng.uniform(-0.4, 0.4, (6, 6, 3, 3)) * a[..., None, :]        # |b| < a: nothing clamps
+    coeffs = directional.coefficients(a, b)                               # Blender's frame, Z up
+    em = engines.EngineMap({"Wall": ["Wall"]}, {"Wall": "w"}, {"w": coeffs})
+    image, where = engines.godot_sh_layers(em)
+    i, rect = where["w"]
+    assert image.shape == (4 * 6, 6, 3) and rect == (1.0, 1.0) and i == 0
+    l0, l1y, l1z, l1x = (image[k * 6:(k + 1) * 6] for k in range(4))
+    for n_blender in ([0, 0, 1.0], [0.6, 0, 0.8], [0, -0.6, 0.8], [1.0, 0, 0]):
+        nb = np.array(n_blender)
+        ng = np.array([nb[0], nb[2], -nb[1]])                            # glTF / Godot: x, z, -y
+        godot = l0 + 4 * l0 * ((2 * l1y - 1) * ng[1] + (2 * l1z - 1) * ng[2] + (2 * l1x - 1) * ng[0])
+        np.testing.assert_allclose(godot, directional.irradiance(coeffs, nb) / math.pi, rtol=1e-5, atol=1e-6)
+    text = engines.godot_resource(em, "s.exr", where, sh=True)
+    assert "uses_spherical_harmonics = true" in text and "_uses_packed_directional = true" in text

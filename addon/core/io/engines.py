@@ -6,6 +6,8 @@ texel holds the radiance of a white Lambertian surface, L = E/π in W/(m² sr): 
 1 with exposure 0. The UVs are the light-map layer exported as ``TEXCOORD_1`` (Godot: UV2; Unity's glTF importers:
 uv2); glTF's flipped v and the image row order cancel, so the maps are written as the bake wrote them.
 
+- Godot 4.3+ with directional maps: its SH mode (``uses_spherical_harmonics``), four slices per map (L0' and the
+  packed l1 of :func:`..directional.godot_packed`); otherwise:
 - Godot 4.3+: one float EXR of S x (n·S) texels, the n maps stacked as slices of S x S (S the largest map side,
   each map at its slice's top-left), with the ``.import`` that makes Godot import it as a Texture2DArray of n
   slices, and a ``LightmapGIData`` text resource: ``user_data`` = [NodePath, Rect2(0, 0, w/S, h/S), slice, -1]
@@ -18,6 +20,8 @@ import dataclasses
 import math
 
 import numpy as np
+
+from .. import directional
 
 GODOT_INVALID = '.:@/"%'
 """Characters Godot replaces with "_" in node names (String::get_invalid_node_name_characters)."""
@@ -63,6 +67,25 @@ def godot_layers(em):
     return image, where
 
 
+def godot_sh_layers(em):
+    """Godot's SH mode from directional maps (``em.maps``: (H, W, 12) L1 coefficients, Blender's frame): (image
+    (4·n·S, S, 3), {map key: (slice, (w/S, h/S))}); each map's four layers L0' = E0 L00/π, then the packed l1 of
+    n_y, n_z, n_x (core.directional.godot_packed, in Godot's Y-up frame) stacked as consecutive slices, as Godot's
+    shader reads them (slice index × 4 + layer)."""
+    keys = em.keys()
+    side = max(max(em.maps[k].shape[:2]) for k in keys)
+    image = np.zeros((4 * len(keys) * side, side, 3), np.float32)
+    where = {}
+    for i, k in enumerate(keys):
+        h, w = em.maps[k].shape[:2]
+        l0, l1 = directional.godot_packed(directional.to_y_up(np.asarray(em.maps[k], np.float64)))
+        for j, layer in enumerate([np.clip(l0, 0.0, None)] + list(l1)):
+            row = (4 * i + j) * side
+            image[row:row + h, :w] = layer
+        where[k] = (i, (w / side, h / side))
+    return image, where
+
+
 def godot_import(slices):
     """The ``.import`` text that makes Godot import the stacked EXR as a Texture2DArray of ``slices``, uncompressed
     (VRAM compression would quantise HDR values), without mipmaps, as Godot's own LightmapGI writes it."""
@@ -71,9 +94,9 @@ def godot_import(slices):
             f"slices/horizontal=1\nslices/vertical={int(slices)}\n")
 
 
-def godot_resource(em, texture_file, where):
+def godot_resource(em, texture_file, where, sh=False):
     """The ``LightmapGIData`` text resource (.tres) that references ``texture_file`` (a path relative to the
-    resource) and every object as a user of its slice."""
+    resource) and every object as a user of its slice; ``sh``: the texture holds :func:`godot_sh_layers`."""
     users = []
     for name in sorted(em.map_of):
         i, (sx, sy) = where[em.map_of[name]]
@@ -81,8 +104,10 @@ def godot_resource(em, texture_file, where):
     texture = texture_file.replace("\\", "/").replace('"', '\\"')
     return ("[gd_resource type=\"LightmapGIData\" load_steps=2 format=3]\n\n"
             f"[ext_resource type=\"TextureLayered\" path=\"{texture}\" id=\"1_lightmap\"]\n\n"
-            "[resource]\nlightmap_textures = [ExtResource(\"1_lightmap\")]\nuses_spherical_harmonics = false\n"
-            f"user_data = [{', '.join(users)}]\n")
+            "[resource]\nlightmap_textures = [ExtResource(\"1_lightmap\")]\n"
+            f"uses_spherical_harmonics = {'true' if sh else 'false'}\n"
+            + ("_uses_packed_directional = true\n" if sh else "")
+            + f"user_data = [{', '.join(users)}]\n")
 
 
 def unity_layout(em, files):
