@@ -7,7 +7,9 @@ folder under the .glb's own stem, through a temporary name and a rename.
 import math
 import os
 
+from ..core.errors import InputError
 from ..core.io import engines, exr
+from ..core.io.files import write_bytes
 from ..core.io.files import write_json
 from .gltf import Plan
 from .kinds import KINDS
@@ -44,7 +46,10 @@ def write_engine_files(scene, folder, glb, names, godot=True, unity=True):
     written = []
     sh = _engine_map(scene, folder, names, "directional")
     sh = sh if sh.map_of and set(sh.map_of) >= set(em.map_of) else None
+    if not (em.map_of or sh):
+        raise InputError("--godot / --unity: no exported object has an irradiance or directional map to hand over")
     if godot and (sh or em.map_of):
+        engines.check_godot_size(sh or em, 4 if sh else 1)
         image, where = engines.godot_sh_layers(sh) if sh else engines.godot_layers(em)
         layers = 4 * len(where) if sh else len(where)
         texture = f"{stem}.lightmap.exr"
@@ -71,9 +76,6 @@ def write_engine_files(scene, folder, glb, names, godot=True, unity=True):
 
 
 def _write_text(path, text):
-    tmp = f"{path}.{os.getpid()}.tmp"
-    with open(tmp, "w", encoding="utf-8", newline="\n") as f:
-        f.write(text)
-    os.replace(tmp, path)
+    write_bytes(path, text.encode("utf-8"))
     return path
 

@@ -154,8 +154,9 @@ KINDS = {k.id: k for k in (
     Kind(id="directional", label="Directional (L1 SH)",
          description="L1 spherical-harmonic irradiance that follows normal maps (12 channels, Godot's order)",
          bake_type="DIFFUSE", pass_filter=frozenset({"DIRECT", "INDIRECT"}), bounces=True, lit=True,
-         channels=directional.CHANNELS, scale=math.pi, quantity="L1 SH radiance coefficients L_lm (Ramamoorthi & "
-         "Hanrahan), E(n) = 0.886227 L00 + 1.023328 (L1-1 n_y + L10 n_z + L11 n_x), world space (Blender, Z up)",
+         channels=directional.CHANNELS, scale=math.pi,
+         quantity="L1 SH coefficients (Ramamoorthi & Hanrahan's convention) of a fit of E(n) near the surface "
+         "normal, |b| <= 4a, E(n) = 0.886227 L00 + 1.023328 (L1-1 n_y + L10 n_z + L11 n_x), world space (Blender, Z up)",
          units="W/(m^2 sr)", attribute="IL Directional", value_range=(None, None),
          bytes_per_texel=1000, seconds_per_texel_sample=9.0e-6,
          halves=True, variance=None, estimate="none",

@@ -1,7 +1,8 @@
 """The seam figure of a baked image map (:mod:`core.seams`) from the objects' evaluated meshes, and the stitch.
 
-Seam edges are the edges of the evaluated mesh (what Cycles bakes) shared by two faces whose light-map UVs differ
-and whose corner normals agree (a smooth surface: at a hard edge the shading itself jumps). The figure is measured
+Seam edges are the edges of the evaluated mesh (what Cycles bakes; coincident vertices joined, as importers split
+them at UV and normal borders) shared by two faces whose light-map UVs differ and whose corner normals agree (a
+smooth surface: at a hard edge the shading itself jumps). The figure is measured
 on the map as an engine's bilinear sampler reads it: before dilation, after it (and after denoising, which comes
 first), and after the stitch, which runs when the jump after dilation is above the jump the bake's noise alone
 gives (σ × the figure's noise factor, σ the map's estimated_error) or above the map's own variation between
@@ -28,6 +29,8 @@ def mesh_seams(obj, layer, depsgraph, width, height):
         verts = np.zeros(n * 3, np.int64)
         me.loop_triangles.foreach_get("loops", loops)
         me.loop_triangles.foreach_get("vertices", verts)
+        co = np.zeros(len(me.vertices) * 3, np.float64)
+        me.vertices.foreach_get("co", co)
         uv = np.zeros(len(me.loops) * 2, np.float32)
         me.uv_layers[layer].data.foreach_get("uv", uv)
         normals = np.zeros(len(me.loops) * 3, np.float32)
@@ -35,8 +38,8 @@ def mesh_seams(obj, layer, depsgraph, width, height):
     finally:
         ev.to_mesh_clear()
     uv = uv.reshape(-1, 2).astype(float) * (width, height)
-    return core.seam_edges(verts.reshape(-1, 3), uv[loops].reshape(-1, 3, 2), normals.reshape(-1, 3)[loops]
-                           .reshape(-1, 3, 3))
+    return core.seam_edges(core.welded(co)[verts].reshape(-1, 3), uv[loops].reshape(-1, 3, 2),
+                           normals.reshape(-1, 3)[loops].reshape(-1, 3, 3))
 
 
 def _number(x, digits=6):

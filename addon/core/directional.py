@@ -49,9 +49,20 @@ def tilted(normal, t):
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
+RATIO = 4.0
+"""|b| ≤ RATIO · a: the largest directional part Godot's SH packing (and the glTF extras, which use it) holds on
+every axis, |b_m| ≤ 4a, bounded by the norm so that it holds in any frame. (An L1 model of a non-negative radiance
+has |b| ≤ 2a; the fit may go beyond, as it describes E(n) near the surface normal, not over the whole sphere.)"""
+
+
 def fit(irradiance, normals):
-    """Least squares E_k ≈ a + b·n_k per texel: ``irradiance`` K arrays (..., C), ``normals`` K arrays (..., 3);
-    returns (a (..., C), b (..., 3, C)); zero where the K normals do not determine b (uncovered texels)."""
+    """Least squares E_k ≈ a + b·n_k per texel, constrained to |b| ≤ RATIO · a: ``irradiance`` K arrays (..., C),
+    ``normals`` K arrays (..., 3); returns (a (..., C), b (..., 3, C)); zero where the K normals do not determine b
+    (uncovered texels).
+
+    Near the surface normal a sun's E = E_s n·s is exactly linear with a = 0, which no L1 model of a radiance (and no
+    engine's L1 decoding) can hold; where the free fit leaves the cone, b keeps its direction u and a is the least
+    squares scale of E_k ≈ a (1 + RATIO u·n_k), at least 0."""
     e = np.stack([np.asarray(x, np.float64) for x in irradiance], axis=-2)              # (..., K, C)
     n = np.stack([np.asarray(x, np.float64) for x in normals], axis=-2)                 # (..., K, 3)
     x = np.concatenate([np.ones(n.shape[:-1] + (1,)), n], axis=-1)                      # (..., K, 4)
@@ -61,7 +72,16 @@ def fit(irradiance, normals):
     beta = np.zeros(xte.shape)
     if ok.any():
         beta[ok] = np.linalg.solve(xtx[ok], xte[ok])
-    return beta[..., 0, :], beta[..., 1:, :]
+    a, b = beta[..., 0, :], beta[..., 1:, :]
+    size = np.linalg.norm(b, axis=-2)                                                   # (..., C)
+    out = (a < 0) | (size > RATIO * a)
+    if out.any():
+        u = b / np.maximum(size, 1e-300)[..., None, :]
+        w = 1.0 + RATIO * np.einsum("...ki,...ic->...kc", n, u)                         # (..., K, C)
+        scale = np.clip((e * w).sum(-2) / np.maximum((w * w).sum(-2), 1e-300), 0.0, None)
+        a = np.where(out, scale, a)
+        b = np.where(out[..., None, :], RATIO * scale[..., None, :] * u, b)
+    return a, b
 
 
 def coefficients(a, b):

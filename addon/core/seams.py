@@ -36,6 +36,18 @@ class Seams:
         return len(self.a)
 
 
+def welded(positions, tolerance=1e-6):
+    """Vertex ids (N,) with vertices at the same position (within ``tolerance`` × the mesh's extent) merged: an
+    imported mesh (glTF, OBJ) splits its vertices where UVs or normals differ, so its chart borders are open edges
+    until the coincident vertices are joined."""
+    p = np.asarray(positions, np.float64).reshape(-1, 3)
+    if not len(p):
+        return np.zeros(0, np.int64)
+    step = tolerance * max(float(np.ptp(p, axis=0).max()), 1e-12)
+    _, ids = np.unique(np.round((p - p.min(axis=0)) / step).astype(np.int64), axis=0, return_inverse=True)
+    return ids.reshape(-1)
+
+
 def seam_edges(tri_vertices, tri_uv, tri_normals=None, uv_tolerance=UV_TOLERANCE, normal_tolerance=NORMAL_TOLERANCE):
     """The seams of a triangle mesh: edges (vertex pairs) shared by exactly two triangles whose UVs differ at either
     vertex by more than ``uv_tolerance`` texels, and (with ``tri_normals`` (T, 3, 3) corner normals) whose corner

@@ -91,7 +91,8 @@ class IL_PT_raytrace(Sidebar, bpy.types.Panel):
         if s.last_report:
             method, rays_per_second, rel, missing = json.loads(s.last_report)
             box = layout.box()
-            box.label(text=f"{method}: {rays_per_second / 1e3:.0f} k rays/s")
+            if rays_per_second is not None:
+                box.label(text=f"{method}: {rays_per_second / 1e3:.0f} k rays/s")
             if rel is not None:
                 box.label(text=f"relative RMSE against Cycles: {rel:.3f}")
             if missing is not None:

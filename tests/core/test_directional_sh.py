@@ -97,22 +97,52 @@ def test_cycles_model_limits():
 
 
 def test_l1_model_error_of_the_verification_scene():
-    """The L1 model's own error in the scene of tests/bake/test_directional.py (sky 0.6 + 0.4 l_z, sun 3 W/m² at 50°
-    elevation): relative RMS over azimuths below 0.5 % up to 45° of tilt, below 10 % at 60° (Cycles' shadowing term
-    bends E(n) down at large tilts, which no linear function follows)."""
-    sun = (3.0, _sun_direction())
+    """The L1 model's own error in the scene of tests/bake/test_directional.py (sky 0.6 + 0.4 l_z above the horizon,
+    sun 3 W/m² at 50° elevation, Cycles' shadowing term): E(n) falls so fast with the tilt that the free linear fit
+    has |b| = 36 a, which Godot's packing cannot hold; the fit kept to |b| ≤ 4a is still closer to Cycles' E(n) at
+    every tilt up to 60° than the L1 projection of the incident radiance itself (what an SH-projecting baker
+    stores: L00 = Y00 ∫ L, L1m = Y1 ∫ L l_m over the upper hemisphere and the sun)."""
+    s = np.array(_sun_direction())
+    sun = (3.0, tuple(s))
+    l00 = d.Y00 * (0.6 * 2 * math.pi + 0.4 * math.pi) + 3.0 * d.Y00
+    l1 = 3.0 * d.Y1 * s + np.array([0.0, 0.0, d.Y1 * (0.6 * math.pi + 0.4 * 2 * math.pi / 3)])
     z = np.array([0.0, 0.0, 1.0])
     ns = _fit_normals(z)
-    coeffs = d.coefficients(*d.fit([np.atleast_1d(d.cycles_irradiance(n, (0.6, 0.4), sun)) for n in ns], ns))
+    a, b = d.fit([np.atleast_1d(d.cycles_irradiance(n, (0.6, 0.4), sun)) for n in ns], ns)
+    assert a[0] > 0 and np.linalg.norm(b[:, 0]) <= d.RATIO * a[0] * (1 + 1e-9)
+    coeffs = d.coefficients(a, b)
     phi = np.radians(np.arange(12) * 30 + 7)
-    for deg, bound in ((15, 0.005), (30, 0.005), (45, 0.005), (60, 0.10)):
+    for deg in (0, 15, 30, 45, 60):
         th = math.radians(deg)
         n = np.stack([np.sin(th) * np.cos(phi), np.sin(th) * np.sin(phi), np.full_like(phi, np.cos(th))], axis=1)
         exact = d.cycles_irradiance(n, (0.6, 0.4), sun)
-        rel = np.sqrt(np.mean((d.irradiance(coeffs, n, 1)[:, 0] - exact) ** 2) / np.mean(exact ** 2))
-        assert rel < bound, (deg, rel)
+        fitted = d.irradiance(coeffs, n, 1)[:, 0]
+        projected = d.E0 * l00 + d.E1 * (n @ l1)
+        assert np.sqrt(np.mean((fitted - exact) ** 2)) < np.sqrt(np.mean((projected - exact) ** 2)), deg
 
 
 def _sun_direction():
     e, a = math.radians(50), math.radians(30)
     return (math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e))
+
+
+@pytest.mark.parametrize("elevation", [90.0, 60.0, 40.0])
+def test_a_sun_alone_gives_a_model_an_engine_can_hold(elevation):
+    """A sun of E_s on a horizontal texel: E(n_k) = E_s max(0, n_k·s) at the five bake normals is exactly linear with
+    a = 0 near the normal, which Godot's packing cannot hold (it divides by a). The fit keeps a ≥ 0 and |b| ≤ 4a, so
+    the packing never clamps, and at the surface normal it is closer to E than the sun's own L1 projection
+    E_s (E0 Y00 + E1 Y1 n·s)."""
+    e_s, el = 3.0, math.radians(elevation)
+    sun = np.array([math.cos(el), 0.0, math.sin(el)])
+    up = np.array([0.0, 0.0, 1.0])
+    ns = _fit_normals(up)
+    e = [np.array([e_s * max(0.0, float(n @ sun))]) for n in ns]
+    a, b = d.fit(e, ns)
+    assert a[0] >= 0 and np.linalg.norm(b[:, 0]) <= d.RATIO * a[0] * (1 + 1e-9)
+    coeffs = d.coefficients(np.repeat(a, 3), np.repeat(b, 3, axis=-1))
+    _, l1 = d.godot_packed(d.to_y_up(coeffs))
+    assert all(np.all((m > 0) & (m < 1)) for m in l1)
+    fitted = float(a[0] + b[:, 0] @ up)
+    projection = e_s * (d.E0 * d.Y00 + d.E1 * d.Y1 * float(up @ sun))
+    truth = e_s * float(up @ sun)
+    assert abs(fitted - truth) < abs(projection - truth)

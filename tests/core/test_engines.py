@@ -85,3 +85,18 @@ def test_godot_sh_layers_give_e_over_pi_of_the_l1_model_in_godots_frame():
         np.testing.assert_allclose(godot, directional.irradiance(coeffs, nb) / math.pi, rtol=1e-5, atol=1e-6)
     text = engines.godot_resource(em, "s.exr", where, sh=True)
     assert "uses_spherical_harmonics = true" in text and "_uses_packed_directional = true" in text
+
+
+def test_a_godot_array_too_large_is_refused_with_the_way_out():
+    import pytest
+    from addon.core.errors import InputError
+    big = engines.EngineMap({f"O{i}": [f"O{i}"] for i in range(3)}, {f"O{i}": i for i in range(3)},
+                            {0: np.zeros((4, 4, 3)), 1: np.zeros((4, 4, 3)), 2: np.zeros((4, 4, 3))})
+    engines.check_godot_size(big)
+    small_limit = engines.GODOT_MAX_BYTES
+    try:
+        engines.GODOT_MAX_BYTES = 3 * 16 * 12 - 1
+        with pytest.raises(InputError, match="--atlas"):
+            engines.check_godot_size(big)
+    finally:
+        engines.GODOT_MAX_BYTES = small_limit

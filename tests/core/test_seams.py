@@ -150,3 +150,15 @@ def test_a_stitch_works_on_every_channel():
     fixed = seams.stitch(rgb, s)
     fig = seams.measure(fixed, s, mask, source)
     assert fig.rms < 0.05 * 0.2 and fixed.shape == rgb.shape
+
+
+def test_split_vertices_are_joined_so_an_imported_meshs_chart_borders_are_seams():
+    """Two triangles of a quad whose vertices an importer duplicated along the diagonal: no shared edge until the
+    coincident vertices are welded; then the diagonal is a seam when the UVs differ across it."""
+    pos = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    tris = np.array([[0, 1, 2], [3, 4, 5]])
+    uv = np.array([[[0, 0], [8, 0], [8, 8]], [[20, 0], [28, 8], [20, 8]]], float)
+    assert len(seams.seam_edges(tris, uv)) == 0
+    ids = seams.welded(pos)
+    assert ids[0] == ids[3] and ids[2] == ids[4] and len(set(ids)) == 4
+    assert len(seams.seam_edges(ids[tris], uv)) == 1

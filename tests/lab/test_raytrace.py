@@ -134,7 +134,7 @@ def test_an_il_material_is_traced_with_its_models_parameters(tmp_path):
         scenes.remove(scene)
 
 
-def _textured_plane(tmp_path, srgb):
+def _textured_plane(tmp_path, srgb, mirrored=False):
     """A plane made with Blender's operator, a Diffuse BSDF whose Color is an 8x8 checker Image Texture (8-bit sRGB
     saved as PNG, or float), a point light and a camera looking down at it."""
     from addon.blender import compat
@@ -142,6 +142,8 @@ def _textured_plane(tmp_path, srgb):
     scene = bpy.context.scene
     bpy.ops.mesh.primitive_plane_add(size=4.0)
     plane = bpy.context.active_object
+    if mirrored:
+        plane.scale.x = -1.0                   # its triangles are reversed in world space, their UVs must follow
     bpy.ops.object.light_add(type="POINT", location=(0.5, -0.5, 3.0))
     bpy.context.active_object.data.energy = 300.0
     bpy.context.active_object.data.shadow_soft_size = 0.0
@@ -170,11 +172,12 @@ def _textured_plane(tmp_path, srgb):
 
 
 @pytest.mark.both_versions
-@pytest.mark.parametrize("srgb", [True, False])
-def test_an_image_texture_is_read_through_the_uvs_as_cycles_reads_it(tmp_path, srgb):
-    """k_d from an Image Texture on the plane's UVs (bilinear, repeat; an 8-bit sRGB PNG decoded to linear): ray
-    casting equals Cycles within its noise, where the texture's unlinked value would be a flat grey."""
-    scene = _textured_plane(tmp_path, srgb)
+@pytest.mark.parametrize("srgb, mirrored", [(True, False), (False, False), (False, True)])
+def test_an_image_texture_is_read_through_the_uvs_as_cycles_reads_it(tmp_path, srgb, mirrored):
+    """k_d from an Image Texture on the plane's UVs (bilinear, repeat; an 8-bit sRGB PNG decoded to linear; a
+    mirrored object): ray casting equals Cycles within its noise, where the texture's unlinked value would be a flat
+    grey."""
+    scene = _textured_plane(tmp_path, srgb, mirrored)
     r = raytrace.run(scene, str(tmp_path), RaytraceOptions(method="raycast", resolution=RES, samples=SAMPLES))
     w, c = _rgb(tmp_path / "raycast.exr"), _rgb(tmp_path / "cycles.exr")
     sigma = r["cycles"]["noise_rmse"]

@@ -22,6 +22,7 @@ import math
 import numpy as np
 
 from .. import directional
+from ..errors import InputError
 
 GODOT_INVALID = '.:@/"%'
 """Characters Godot replaces with "_" in node names (String::get_invalid_node_name_characters)."""
@@ -52,6 +53,20 @@ def godot_node_name(name):
 def _node_path(parts):
     path = "/".join(godot_node_name(p) for p in parts)
     return "../" + path.replace("\\", "\\\\")
+
+
+GODOT_MAX_BYTES = 1 << 30
+"""The largest stacked Godot texture written (float32 RGB): every map is padded to the largest side."""
+
+
+def check_godot_size(em, layers=1):
+    """InputError when the stacked Texture2DArray of ``em`` (``layers`` per map) would exceed GODOT_MAX_BYTES."""
+    keys = em.keys()
+    side = max(max(em.maps[k].shape[:2]) for k in keys)
+    size = layers * len(keys) * side * side * 12
+    if size > GODOT_MAX_BYTES:
+        raise InputError(f"the Godot light-map array would be {size / 2 ** 30:.1f} GiB ({len(keys)} maps padded to "
+                         f"{side}x{side}): bake the objects into a shared atlas (--atlas) or at smaller sizes")
 
 
 def godot_layers(em):

@@ -27,6 +27,7 @@ class Material:
     radiance used instead of ``model`` (a shading model's numpy twin); ``texture``: k_d as an image (H, W, 3), linear,
     row 0 at the top, read through the triangles' UVs (:func:`sample_texture`) instead of the constant k_d;
     ``texture_srgb``: its texels are sRGB-encoded and decoded after filtering, as Cycles does with 8-bit images;
+    ``texture_tint``: the factor k_d = texel × tint (1 − Metallic for a Principled BSDF);
     ``uv_map``: the UV layer that feeds it (the adapter's; "" = the render-active one)."""
     name: str = "default"
     model: str = "LAMBERT"
@@ -39,6 +40,7 @@ class Material:
     twin: object = None
     texture: object = None
     texture_srgb: bool = False
+    texture_tint: tuple = (1.0, 1.0, 1.0)
     uv_map: str = None
 
     def local(self, n, l, v, I, kd=None):
@@ -147,4 +149,4 @@ class Scene:
             return None
         uv = np.einsum("nk,nkc->nc", self.barycentric(tri, p), self.uvs[tri])
         kd = sample_texture(mat.texture, uv)
-        return srgb_decode(kd) if mat.texture_srgb else kd
+        return (srgb_decode(kd) if mat.texture_srgb else kd) * np.asarray(mat.texture_tint, np.float64)

@@ -133,9 +133,9 @@ def material(mat, notes):
     full = {k: (np.asarray(v[:3], float) if isinstance(v, tuple) else v) for k, v in full.items()}
     if not s.specular:
         return Material(name, params={"kd": tuple(full["Kd"])}, emission=emission, texture=texture,
-                        texture_srgb=srgb, uv_map=uv_map)
+                        texture_srgb=srgb, texture_tint=tuple(full["Kd"]), uv_map=uv_map)
     return Material(name, model="BLINN_PHONG", params={}, emission=emission, texture=texture, texture_srgb=srgb,
-                    uv_map=uv_map,
+                    texture_tint=tuple(full["Kd"]), uv_map=uv_map,
                     twin=lambda n, l, v, I, kd=None, p=full: blinn.twin(n, l, v, I, p if kd is None else
                                                                          {**p, "Kd": kd}))
 
@@ -227,7 +227,8 @@ def read(scene, accel=None):
             nm = np.linalg.inv(mw[:3, :3]).T
             nrm = nrm @ nm.T
             nrm /= np.maximum(np.linalg.norm(nrm, axis=-1, keepdims=True), 1e-300)
-            if np.linalg.det(mw[:3, :3]) < 0:
+            mirrored = np.linalg.det(mw[:3, :3]) < 0
+            if mirrored:
                 corners, nrm = corners[:, ::-1], nrm[:, ::-1]
             tri_mats = np.asarray(ids)[np.clip(mi, 0, len(ids) - 1)]
             tri_uvs = np.zeros((len(corners), 3, 2))
@@ -240,7 +241,7 @@ def read(scene, accel=None):
                                  "texture is read at UV (0, 0)")
                     continue
                 sel = tri_mats == i
-                tri_uvs[sel] = layers[m_.uv_map][sel]
+                tri_uvs[sel] = layers[m_.uv_map][sel][:, ::-1] if mirrored else layers[m_.uv_map][sel]
             tris.append(corners)
             normals.append(nrm)
             mats.append(tri_mats)
