@@ -123,6 +123,9 @@ def test_zip_installs_and_its_buttons_work_without_scipy_and_matplotlib(tmp_path
     assert built.returncode == 0, built.stderr
     zip_path = built.stdout.strip().splitlines()[-1]
     assert os.path.isfile(zip_path)
+    import zipfile
+    names = zipfile.ZipFile(zip_path).namelist()
+    assert not [n for n in names if n.split("/")[0] in ("web", "tests", "scripts", "out", "node_modules")], names
     home = tmp_path / "home"
     home.mkdir()
     out = tmp_path / "out"
