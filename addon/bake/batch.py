@@ -133,12 +133,7 @@ class _Proxy:
         try:
             for target in self.batch:
                 for o in target.group:
-                    me = bpy.data.meshes.new_from_object(o.evaluated_get(depsgraph), preserve_all_data_layers=True,
-                                                         depsgraph=depsgraph)
-                    try:
-                        tri = _triangulated(me, self.layers[o.name], o.matrix_world)
-                    finally:
-                        bpy.data.meshes.remove(me)
+                    tri = _triangulated(o.evaluated_get(depsgraph).data, self.layers[o.name], o.matrix_world)
                     try:
                         slots = self.temporary.batch_slots(o, self.kind, target.name, self.images[target.name])
                         index = np.zeros(len(tri.polygons), np.int32)

@@ -15,9 +15,13 @@ def chart_count(me, layer):
     face = np.repeat(np.arange(len(poly)), np.diff(np.append(poly, n)))
     uv = np.zeros(n * 2, np.float32)
     me.uv_layers[layer].data.foreach_get("uv", uv)
-    key = np.column_stack([vert, uv.view(np.int32).reshape(-1, 2)])
-    _, corner = np.unique(key, axis=0, return_inverse=True)
-    corner = corner.ravel()
+    bits = uv.view(np.uint32).reshape(-1, 2).astype(np.uint64)
+    uv_key = (bits[:, 0] << np.uint64(32)) | bits[:, 1]
+    order = np.lexsort((uv_key, vert))            # corners of one vertex with equal UVs: one id
+    first = np.ones(n, bool)
+    first[1:] = (vert[order][1:] != vert[order][:-1]) | (uv_key[order][1:] != uv_key[order][:-1])
+    corner = np.empty(n, np.int64)
+    corner[order] = np.cumsum(first) - 1
     label = np.arange(len(poly))
     while True:
         low = np.full(corner.max() + 1, len(poly))

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..blender import compat, interrupt, render, scene as sc
 from ..blender.state import rna_settings, world_settings
-from ..core import errors, lightmap
+from ..core import errors
 from ..core.errors import ILError, InputError
 from . import orientation, uv as uvmod
 from .kinds import KINDS
@@ -258,5 +258,5 @@ def centre_texels(group, layers, size):
     w, h = size
     inside = np.zeros((h, w), bool)
     for o in group:
-        inside |= lightmap.coverage_mask(uvmod.triangles_uv(o, layers[o.name]), w, h)
+        inside |= uvmod.coverage(uvmod.triangles_uv(o, layers[o.name]), w, h)
     return inside

@@ -128,6 +128,16 @@ def stored_hash(path):
     return None if stored is None else header_text(stored[0].get(HASH_KEY))
 
 
+def stored_header(path):
+    """The header of a map file on disk (pixels unread), or None when it is missing or cannot be read."""
+    if not os.path.exists(path):
+        return None
+    try:
+        return exr.read_header(path)
+    except (OSError, RuntimeError, ValueError):
+        return None
+
+
 def stored_map(path):
     """(header, (width, height)) of a map file on disk, or None when it is missing or cannot be read."""
     if not os.path.exists(path):

@@ -87,23 +87,9 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
         if options.target == "image":
             run.step("light-map UVs")
             run.light_map_uvs(objects, groups)
-        targets = plan(scene, [(n, g) for n, g in groups if n not in failed], maps, run.layers, run.sides,
-                       options, run.fail)
-        if not targets:
-            raise run.errors[0]
-        run.check_fill(targets)
-        if options.texel_density is not None and not options.sizes:
-            check_time([t.size for t in targets if t.size], maps, options, "max resolution", speed(scene, options))
-        batched, singles = batching.batches(scene, targets, run.layers, state, options, maps)
-        run.tracker = Tracker(targets, maps, unchanged, options)
-        run.pace = speed(scene, options)
-        for m in maps:
-            run.temporary.assign(everyone, m)      # every object shows the same materials to the others' bakes
-            alone = []
-            for batch in batched:
-                alone += run.bake_batch(batch, m)
-            for target in alone + singles:
-                run.bake_alone(target, m)
+            scene.view_layers[0].update()      # the evaluated meshes carry the layers (also those from the cache)
+        with uvmod.fixed_layouts():
+            run.bake_all(groups, maps, everyone, unchanged)
         if run.errors and not report["objects"]:
             raise run.errors[0]
         if options.keep_products:       # products stay only when the whole bake succeeded (failed objects aside)
@@ -176,6 +162,27 @@ class _Run:
                 self.fail(name, e)
                 continue
             self.record(made)
+
+    def bake_all(self, groups, maps, everyone, unchanged):
+        """Plan, check and bake every map of ``groups`` (their light-map layers in place)."""
+        scene, options = self.scene, self.options
+        targets = plan(scene, [(n, g) for n, g in groups if n not in self.report["failed"]], maps, self.layers,
+                       self.sides, options, self.fail)
+        if not targets:
+            raise self.errors[0]
+        self.check_fill(targets)
+        if options.texel_density is not None and not options.sizes:
+            check_time([t.size for t in targets if t.size], maps, options, "max resolution", speed(scene, options))
+        batched, singles = batching.batches(scene, targets, self.layers, self.state, options, maps)
+        self.tracker = Tracker(targets, maps, unchanged, options)
+        self.pace = speed(scene, options)
+        for m in maps:
+            self.temporary.assign(everyone, m)      # every object shows the same materials to the others' bakes
+            alone = []
+            for batch in batched:
+                alone += self.bake_batch(batch, m)
+            for target in alone + singles:
+                self.bake_alone(target, m)
 
     def record(self, made):
         """Keep a :class:`uv.Layouts`' layers, sides, margins and unwrappers."""

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..core.io import exr, png as io_png
 from . import report as reports, uv as uvmod, write
-from .inputs import HASH_KEY, group_map_file, header_text, stored_map
+from .inputs import HASH_KEY, group_map_file, header_text, stored_header, stored_map
 from .kinds import KINDS
 from .passes import BakeResult
 from .plan import map_file
@@ -23,7 +23,11 @@ def unchanged_maps(groups, maps, digests, out, options, stems, report_path):
                    reports.read_objects(os.path.join(out, reports.REPORT))]
     for name, group in groups:
         for m in maps:
-            stored = stored_map(group_map_file(name, m, out, options, group, stems))
+            path = group_map_file(name, m, out, options, group, stems)
+            header = stored_header(path)      # a map baked from other inputs is not read further
+            if header is None or header_text(header.get(HASH_KEY)) != digests[(name, m)]:
+                continue
+            stored = stored_map(path)         # the whole file reads (a damaged one is baked again)
             if stored is not None and header_text(stored[0].get(HASH_KEY)) == digests[(name, m)]:
                 unchanged.setdefault(name, []).append(m)
                 for o, e in _kept_entries(name, group, m, out, options, stems, stored, old_reports).items():

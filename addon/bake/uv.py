@@ -55,9 +55,37 @@ _LIGHTMAP_PACK_MAX_MARGIN = 0.01   # the operator's largest margin: 1 % of the s
 
 # ------------------------------------------------------------------ reading layers
 
+_FIXED = None      # {(what, pointer, layer): value} while the layouts are fixed (:func:`fixed_layouts`), else None
+
+
+@contextlib.contextmanager
+def fixed_layouts():
+    """A scope in which no mesh, UV layer or transform of the baked objects changes (after the UV step, through
+    the bakes and files): :func:`triangles_uv` and :func:`world_area` are read once per object in it."""
+    global _FIXED
+    _FIXED = {}
+    try:
+        yield
+    finally:
+        _FIXED = None
+
+
+def _remembered(key, make):
+    if _FIXED is None:
+        return make()
+    if key not in _FIXED:
+        _FIXED[key] = make()
+    return _FIXED[key]
+
+
 def triangles_uv(obj, layer):
-    """(T, 3, 2) UV coordinates of the mesh's loop triangles in ``layer``."""
-    return mesh_triangles_uv(obj.data, layer)
+    """(T, 3, 2) UV coordinates of the mesh's loop triangles in ``layer`` (read-only inside :func:`fixed_layouts`)."""
+    def make():
+        tri = mesh_triangles_uv(obj.data, layer)
+        if _FIXED is not None:
+            tri.flags.writeable = False
+        return tri
+    return _remembered(("uv", obj.data.as_pointer(), layer), make)
 
 
 def mesh_triangles_uv(me, layer):
@@ -72,6 +100,10 @@ def mesh_triangles_uv(me, layer):
 
 def world_area(obj):
     """Surface area in m² of the mesh in world space (object scale included)."""
+    return _remembered(("area", obj.as_pointer(), obj.data.as_pointer()), lambda: _world_area(obj))
+
+
+def _world_area(obj):
     me = obj.data
     me.calc_loop_triangles()
     n = len(me.vertices)
@@ -150,12 +182,33 @@ def _disjoint(tri_uv):
     _DISJOINT[_area_key(tri)] = lightmap.uv_area(tri)
 
 
+_MASKS = collections.OrderedDict()   # (layout digest, W, H) -> its coverage mask
+_MASKS_BYTES = 64 << 20
+
+
+def coverage(tri_uv, width, height):
+    """``lightmap.coverage_mask`` of ``tri_uv`` in a ``width`` × ``height`` map (read-only), remembered per layout and
+    size (the plan, the fill check, the bake's centre mask and the files ask for the same ones), up to _MASKS_BYTES."""
+    tri = np.ascontiguousarray(tri_uv)
+    key = (hashlib.blake2b(tri.tobytes(), digest_size=16).digest(), str(tri.dtype), tri.shape, int(width), int(height))
+    mask = _MASKS.get(key)
+    if mask is not None:
+        _MASKS.move_to_end(key)
+        return mask
+    mask = lightmap.coverage_mask(tri, width, height)
+    mask.flags.writeable = False
+    _MASKS[key] = mask
+    while sum(m.nbytes for m in _MASKS.values()) > _MASKS_BYTES and len(_MASKS) > 1:
+        _MASKS.popitem(last=False)
+    return mask
+
+
 def coverage_ratio(tri_uv, width, height):
     """(covered texels / (W H × chart area), chart area); (0, 0) for charts without area."""
     area = chart_area(tri_uv)
     if area <= 0:
         return 0.0, 0.0
-    return float(lightmap.coverage_mask(tri_uv, width, height).sum()) / (area * width * height), area
+    return float(coverage(tri_uv, width, height).sum()) / (area * width * height), area
 
 
 def _outside(tri_uv):
@@ -252,7 +305,7 @@ def too_few_texels(obj, tri, size):
     """The warning for a layout whose faces share texels only because the map is too small for the mesh: covered
     texels against triangles, and the side (and texel density) that gives each triangle TEXELS_PER_TRIANGLE."""
     w, h = size
-    covered = max(1, int(lightmap.coverage_mask(tri, w, h).sum()))
+    covered = max(1, int(coverage(tri, w, h).sum()))
     n = len(tri)
     side = min(lightmap.MAX_RESOLUTION, math.ceil(max(w, h) * math.sqrt(TEXELS_PER_TRIANGLE * n / covered)))
     area = world_area(obj)
@@ -466,7 +519,7 @@ FILL_HINT = 0.5
 def fill(group, side):
     """Covered texels (centre rule) / map texels of the group's "Lightmap" layers in a side² map."""
     tri = np.concatenate([triangles_uv(o, LIGHTMAP) for o in group])
-    return float(lightmap.coverage_mask(tri, side, side).mean())
+    return float(coverage(tri, side, side).mean())
 
 
 def low_fill(group, side, margin, options):
@@ -662,15 +715,15 @@ class _Copies:
                                      area_weight=0.0, correct_aspect=True, scale_to_bounds=False)
         best = self._uvs(temps)
         if len(temps) > 1:
-            tris = [_copy_triangles(obj.data) for obj in temps]
-            have = _covered(best, tris, side)
+            tris = [_copy_triangles(o.data) for o, _ in self.copies]     # the triangles each mesh is baked with
+            have = _covered(best, tris, side, self.loops)
             for _ in range(self.REPACKS):
                 with _edit(ctx, lead):
                     bpy.ops.uv.select_all(action="SELECT")
                     bpy.ops.uv.pack_islands(margin=float(margin_uv), margin_method="FRACTION", rotate=True,
                                             shape_method="AABB", udim_source="CLOSEST_UDIM")
                 packed = self._uvs(temps)
-                covered = _covered(packed, tris, side)
+                covered = _covered(packed, tris, side, self.loops)
                 if covered <= have:
                     break
                 best, have = packed, covered
@@ -819,10 +872,16 @@ def _copy_triangles(me):
     return loops.reshape(-1, 3)
 
 
-def _covered(uvs, tris, side):
-    """Texel centres of a ``side``² map inside the charts of :meth:`_Copies._uvs` arrays (triangles ``tris`` per
-    copy), -1 when a UV lies outside the unit square (the packer failed)."""
-    tri = np.concatenate([uv.reshape(-1, 2)[t] for (uv, *_), t in zip(uvs, tris)])
+def _covered(uvs, tris, side, loops):
+    """Texel centres of a ``side``² map inside the charts of :meth:`_Copies._uvs` arrays carried to the original
+    meshes' loops (``loops``: per copy, the original loop of each of its loops) and their loop triangles ``tris``, -1
+    when a UV lies outside the unit square (the packer failed)."""
+    parts = []
+    for (uv, *_), t, back in zip(uvs, tris, loops):
+        out = np.empty_like(uv).reshape(-1, 2)
+        out[back] = uv.reshape(-1, 2)
+        parts.append(out[t])
+    tri = np.concatenate(parts)
     if _outside(tri):
         return -1
     return int(lightmap.coverage_mask(tri, side, side).sum())

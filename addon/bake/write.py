@@ -114,7 +114,7 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
     uv_name = layers.get(group[0].name)
     h, w = result.mask.shape
     areas = {o.name: uvmod.chart_area(uvmod.triangles_uv(o, layers[o.name])) for o in group}
-    covered = {o.name: float((lightmap.coverage_mask(uvmod.triangles_uv(o, layers[o.name]), w, h) & result.mask).mean())
+    covered = {o.name: float((uvmod.coverage(uvmod.triangles_uv(o, layers[o.name]), w, h) & result.mask).mean())
                for o in group} if len(group) > 1 else {group[0].name: float(result.mask.mean())}
     attrs = _attributes(kind, result, options, uv_name)
     if digest:

@@ -148,6 +148,25 @@ def test_solidify_overlap_is_named_as_the_modifier(tmp_path):
                        scene=bpy.context.scene)
 
 
+def test_a_cached_layout_reaches_the_evaluated_mesh_before_the_overlap_check(tmp_path, unwraps):
+    """The Solidify shell shares its base's texels in the evaluated mesh: the rerun whose layout comes from the cache
+    measures the same overlap as the bake that unwrapped (a stale evaluated mesh without the layer measured 0)."""
+    bpy.ops.mesh.primitive_grid_add(size=1, x_subdivisions=4, y_subdivisions=4)
+    grid = bpy.context.object
+    grid.modifiers.new("Shell", "SOLIDIFY").thickness = 0.1
+    overlaps = []
+    for _ in range(2):
+        unwraps.clear()
+        if uvmod.LIGHTMAP in grid.data.uv_layers:
+            grid.data.uv_layers.remove(grid.data.uv_layers[uvmod.LIGHTMAP])
+        with pytest.warns(Warning, match=r"Solidify copies share the light-map texels"):
+            rep = bake_lightmaps([grid], ["ao"], str(tmp_path), BakeOptions(**dict(OPTIONS, resolution=32)),
+                                 scene=bpy.context.scene)
+        overlaps.append(rep["objects"][grid.name]["ao"]["overlap"])
+    assert unwraps == []
+    assert overlaps[0] > uvmod.MAX_OVERLAP and overlaps[1] == overlaps[0]
+
+
 def test_the_uv_step_reports_objects_done_out_of_all(tmp_path, monkeypatch):
     seen = []
     monkeypatch.setattr(progress.Progress, "note", lambda self, message, fraction=None: seen.append((message,

@@ -81,6 +81,13 @@ def read_exr(path):
     return channels, header
 
 
+def read_header(path):
+    """The header dict of an EXR file, its pixels left unread."""
+    OpenEXR = _openexr()
+    with OpenEXR.File(str(path), header_only=True) as f:
+        return dict(f.header())
+
+
 def read_multipart(path):
     """Return ``{part name: {channel: array}}`` of a multi-part EXR (Blender's multilayer output).
 

@@ -132,13 +132,16 @@ def _umask():
 def write_json(path, data):
     """Write ``data`` as indented JSON, atomically; a NaN or infinite number is refused (ILError naming
     the file and the key) before anything is written."""
-    where = non_finite(data)
-    if where:
-        raise ILError(f"not writing {path}: non-finite number at {where}")
+    try:
+        text = json.dumps(data, indent=2, sort_keys=False, allow_nan=False)   # one string: json.dump writes each token
+    except ValueError:
+        where = non_finite(data)
+        if where:
+            raise ILError(f"not writing {path}: non-finite number at {where}") from None
+        raise
     with atomic_path(path) as tmp:
         with open(tmp, "w", encoding="utf-8") as f:
-            json.dump(data, f, indent=2, sort_keys=False, allow_nan=False)
-            f.write("\n")
+            f.write(text + "\n")
 
 
 def non_finite(data, where=""):

@@ -4,7 +4,8 @@ a collection instance) baked AO + irradiance per object and as an atlas.
 Measured in one run: the pipeline's wall time against Blender's bare ``object.bake`` calls for the same maps
 (same UV layers, image sizes, samples) and against its own time inside Cycles, a rerun with unchanged meshes, the
 median fill of the maps and how many warned of a low fill, peak RSS, texels per second, and the atlas's utilisation
-(covered texels / map texels) against Blender's ``uv.pack_islands`` on the same charts. The per-object bake is
+(covered texels / map texels: baked, and of its layout) against Blender's ``uv.pack_islands`` on the same charts
+(measured alike: :func:`layout_utilisation`, :func:`pack_islands_utilisation`). The per-object bake is
 also run at production samples (:data:`PRODUCTION_SAMPLES`), and each is redone with its meshes unchanged but a
 light changed (irradiance rebaked, AO resumed) and the "Lightmap" layers gone, as a new process finds an unsaved
 file: the layouts come from the UV cache (``bake/uvcache.py``); the time outside Cycles over the time inside is
@@ -213,21 +214,35 @@ def bare_bakes(scene, objects, report, options):
     return seconds
 
 
+def layout_utilisation(objects, side):
+    """Covered texels (centre rule) / map texels of the objects' "Lightmap" layers in a ``side``² map, over the
+    triangles each mesh is baked with (its own loop triangles)."""
+    tri = np.concatenate([uvmod.triangles_uv(o, uvmod.LIGHTMAP) for o in objects])
+    return float(lightmap.coverage_mask(tri, side, side).mean())
+
+
 def pack_islands_utilisation(objects, side, margin):
-    """Covered texels / map texels of the objects' "Lightmap" charts re-packed together by Blender's
+    """:func:`layout_utilisation` of the objects' "Lightmap" charts re-packed together by Blender's
     ``uv.pack_islands`` (same margin as a fraction of the side, bounding boxes, rotation; concave and convex shapes
-    took minutes for a few hundred charts) in a ``side``² map. Packed on copies of the meshes in the context's
-    scene (edit mode works on the context's view layer)."""
+    took minutes for a few hundred charts) in a ``side``² map: packed as the pipeline packs, on the canonical copies
+    of the meshes (``uv._canonical_copy``, the same scale; the packer's result depends on the face order, which
+    Blender's UV sphere changes from process to process), the charts carried back to the meshes' own loops."""
     scene = bpy.context.scene
     vl = bpy.context.view_layer
-    copies = []
+    copies, loops = [], []
+    scale = uvmod.unwrap_scale(o.data for o in objects)
     try:
         for o in objects:
-            me = o.data.copy()
-            me.uv_layers.active = me.uv_layers[uvmod.LIGHTMAP]
+            me = bpy.data.meshes.new(f"IL pack {o.name}")
             copy = bpy.data.objects.new(f"IL pack {o.name}", me)
-            scene.collection.objects.link(copy)
             copies.append(copy)
+            loops.append(uvmod._canonical_copy(o.data, me, scale))
+            uv = np.zeros(len(o.data.loops) * 2, np.float32)
+            o.data.uv_layers[uvmod.LIGHTMAP].data.foreach_get("uv", uv)
+            me.uv_layers.new(name=uvmod.LIGHTMAP, do_init=False).data.foreach_set(
+                "uv", uv.reshape(-1, 2)[loops[-1]].ravel())
+            copy.matrix_world = o.matrix_world
+            scene.collection.objects.link(copy)
         for o in vl.objects:
             o.select_set(o in copies)
         vl.objects.active = copies[0]
@@ -239,8 +254,17 @@ def pack_islands_utilisation(objects, side, margin):
                                     rotate=True, shape_method="AABB")
         finally:
             bpy.ops.object.mode_set(mode="OBJECT")
-        tri = np.concatenate([uvmod.triangles_uv(o, uvmod.LIGHTMAP) for o in copies])
-        return float(lightmap.coverage_mask(tri, side, side).mean())
+        tri = []
+        for o, copy, back in zip(objects, copies, loops):
+            packed = np.zeros(len(back) * 2, np.float32)
+            copy.data.uv_layers[uvmod.LIGHTMAP].data.foreach_get("uv", packed)
+            uv = np.empty_like(packed).reshape(-1, 2)
+            uv[back] = packed.reshape(-1, 2)
+            o.data.calc_loop_triangles()
+            t = np.zeros(len(o.data.loop_triangles) * 3, np.int64)
+            o.data.loop_triangles.foreach_get("loops", t)
+            tri.append(uv[t].reshape(-1, 3, 2))
+        return float(lightmap.coverage_mask(np.concatenate(tri), side, side).mean())
     finally:
         for copy in copies:
             me = copy.data
@@ -354,10 +378,12 @@ def run(output_dir, quick=False, props=None, texel_density=None, samples=None):
         entry = atlas["objects"][members[0].name]["ao"]
         side = entry["resolution"][0]
         used = float(sum(atlas["objects"][o.name]["ao"]["coverage"] for o in members))
+        layout = layout_utilisation(members, side)
         packed = pack_islands_utilisation(members, side, entry["margin"])
         rows.append({"run": "atlas", "objects": len(members), "triangles": tris, "map_texels": 2 * side * side,
                      "pipeline_seconds": round(atlas_wall, 3), "texels_per_second": round(2 * side * side / atlas_wall),
-                     "atlas_side": side, "utilisation": round(used, 4), "pack_islands_utilisation": round(packed, 4),
+                     "atlas_side": side, "utilisation": round(used, 4), "layout_utilisation": round(layout, 4),
+                     "pack_islands_utilisation": round(packed, 4),
                      "peak_rss_mib": round(peak_rss() / 2 ** 20, 1)})
         figures.update({"pipeline_over_bare": wall / bare_total, "peak_rss_before_bake_mib": rss0 / 2 ** 20,
                         "peak_rss_pipeline_mib": rss_pipeline / 2 ** 20, "peak_rss_bare_mib": rss_bare / 2 ** 20,
