@@ -13,11 +13,18 @@ import math
 import numpy as np
 
 from ..core import lightmap, seams as core
+from . import uv as uvmod
 
 
 def mesh_seams(obj, layer, depsgraph, width, height):
     """:class:`core.seams.Seams` of ``obj``'s evaluated mesh in UV layer ``layer``, in texels of a ``width`` ×
-    ``height`` map; None when the evaluated mesh lacks the layer."""
+    ``height`` map; None when the evaluated mesh lacks the layer. Found once per object and map size while the
+    layouts are fixed (every map kind of an object has the same seams)."""
+    return uvmod.remembered(("seams", obj.as_pointer(), layer, width, height),
+                            lambda: _mesh_seams(obj, layer, depsgraph, width, height))
+
+
+def _mesh_seams(obj, layer, depsgraph, width, height):
     ev = obj.evaluated_get(depsgraph)
     me = ev.to_mesh()
     try:

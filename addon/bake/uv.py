@@ -70,7 +70,8 @@ def fixed_layouts():
         _FIXED = None
 
 
-def _remembered(key, make):
+def remembered(key, make):
+    """``make()``, once per ``key`` inside :func:`fixed_layouts` (every call outside it)."""
     if _FIXED is None:
         return make()
     if key not in _FIXED:
@@ -85,7 +86,7 @@ def triangles_uv(obj, layer):
         if _FIXED is not None:
             tri.flags.writeable = False
         return tri
-    return _remembered(("uv", obj.data.as_pointer(), layer), make)
+    return remembered(("uv", obj.data.as_pointer(), layer), make)
 
 
 def mesh_triangles_uv(me, layer):
@@ -100,7 +101,7 @@ def mesh_triangles_uv(me, layer):
 
 def world_area(obj):
     """Surface area in m² of the mesh in world space (object scale included)."""
-    return _remembered(("area", obj.as_pointer(), obj.data.as_pointer()), lambda: _world_area(obj))
+    return remembered(("area", obj.as_pointer(), obj.data.as_pointer()), lambda: _world_area(obj))
 
 
 def _world_area(obj):

@@ -47,6 +47,12 @@ class IL_PG_lightmaps(bpy.types.PropertyGroup):
         return props.options(BakeOptions, self, **off)
 
 
+def _selected_meshes_and_folder(cls, context):
+    """Object Mode, selected meshes and an output folder that resolves (Bake and Preview)."""
+    return (polls.has_scene(cls, context) and polls.object_mode(cls, context) and polls.selected_meshes(cls, context)
+            and polls.saved_or_absolute(cls, context.scene.illumination.lightmaps.output_dir))
+
+
 class IL_OT_bake_lightmaps(JobOperator, bpy.types.Operator):
     """Bake AO and irradiance light maps of the selected meshes with Cycles (CPU)"""
 
@@ -56,9 +62,7 @@ class IL_OT_bake_lightmaps(JobOperator, bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return (polls.has_scene(cls, context) and polls.object_mode(cls, context)
-                and polls.selected_meshes(cls, context)
-                and polls.saved_or_absolute(cls, context.scene.illumination.lightmaps.output_dir))
+        return _selected_meshes_and_folder(cls, context)
 
     def job(self, context):
         from ..bake import bake_lightmaps
@@ -85,9 +89,7 @@ class IL_OT_apply_lightmaps(JobOperator, bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return (polls.has_scene(cls, context) and polls.object_mode(cls, context)
-                and polls.selected_meshes(cls, context)
-                and polls.saved_or_absolute(cls, context.scene.illumination.lightmaps.output_dir))
+        return _selected_meshes_and_folder(cls, context)
 
     def job(self, context):
         folder = bpy.path.abspath(context.scene.illumination.lightmaps.output_dir)
