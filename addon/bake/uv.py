@@ -813,7 +813,8 @@ def _canonical_copy(me, tmp, scale):
     start, total = np.zeros(nf, np.int64), np.zeros(nf, np.int64)
     me.polygons.foreach_get("loop_start", start)
     me.polygons.foreach_get("loop_total", total)
-    lv = _welded(co, lv, start, total)
+    co, lv = _welded(co, lv, start, total)
+    nv = len(co) // 3
     if nf:
         face_of = np.repeat(np.arange(nf), total)          # face offsets ascend (Blender 4+)
         low = np.full(nf, np.iinfo(np.int64).max)
@@ -854,23 +855,51 @@ def _canonical_copy(me, tmp, scale):
 
 
 def _welded(co, lv, start, total):
-    """Loop vertices ``lv`` with every vertex replaced by the first vertex at its position (``first_at_position``),
-    except in faces that would then repeat a vertex. A triangle soup (an imported mesh whose faces share no vertex) is unwrapped as
-    the surface it is: measured on the level benchmark's 1,280-triangle soup, 1,280 one-triangle charts become 6,
-    and the quick level's atlas covers 0.63 of its map instead of 0.49. Meshes without coincident vertices are
-    unchanged (their layouts too)."""
+    """(positions, loop vertices) of the unwrap copy: every vertex replaced by the first vertex at its position
+    (``first_at_position``), so that a triangle soup (an imported mesh whose faces share no vertex) is unwrapped as
+    the surface it is. Measured on the level benchmark's 1,280-triangle soup: 1,280 one-triangle charts become 6,
+    and the quick level's atlas covers 0.63 of its map instead of 0.49.
+
+    A face that would repeat a vertex keeps its own. A face over the same welded vertices as an earlier one (a
+    double-sided copy, a duplicate) is welded into a second copy of the vertices (a third one keeps its own), so
+    no two faces of one surface coincide: joined, Smart UV Project lays them over each other or fails to fit a
+    map. Meshes without coincident vertices are unchanged (their layouts too)."""
+    nv = len(co) // 3
     if not len(lv):
-        return lv
+        return co, lv
     rep = first_at_position(co)
-    if np.array_equal(rep, np.arange(len(rep))):
-        return lv
+    if np.array_equal(rep, np.arange(nv)):
+        return co, lv
     welded = rep[lv]
-    face_of = np.repeat(np.arange(len(start)), total)
+    nf = len(start)
+    face_of = np.repeat(np.arange(nf), total)
     order = np.lexsort((welded, face_of))
-    repeat = np.zeros(len(start), bool)
-    same = (welded[order][1:] == welded[order][:-1]) & (face_of[order][1:] == face_of[order][:-1])
-    repeat[face_of[order][1:][same]] = True
-    return np.where(repeat[face_of], lv, welded)
+    ws, fs = welded[order], face_of[order]
+    repeat = np.zeros(nf, bool)
+    repeat[fs[1:][(ws[1:] == ws[:-1]) & (fs[1:] == fs[:-1])]] = True
+    width = int(min(total.max(), _FACE_KEY))
+    rank = np.arange(len(lv)) - start[fs]          # each corner's place among its face's sorted vertices
+    key = np.full((nf, width + 2), -1, np.int64)
+    keep = rank < width
+    key[fs[keep], rank[keep]] = ws[keep]
+    key[:, width] = total
+    key[:, width + 1] = np.bincount(face_of, welded, nf).astype(np.int64)
+    _, first, group = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    group = group.ravel()
+    seen = np.zeros(nf, np.int64)                     # earlier faces over the same vertices
+    by_group = np.argsort(group, kind="stable")
+    g = group[by_group]
+    run_start = np.r_[0, np.flatnonzero(g[1:] != g[:-1]) + 1]
+    seen[by_group] = np.arange(nf) - np.repeat(run_start, np.diff(np.r_[run_start, nf]))
+    layer = np.where(repeat, -1, np.minimum(seen, 2))
+    corner = layer[face_of]
+    out = np.where(corner == 0, welded, np.where(corner == 1, welded + nv, lv))
+    return (np.concatenate([co, co]) if (layer == 1).any() else co), out
+
+
+_FACE_KEY = 16
+"""Sorted vertices of a face that tell duplicates apart (with its corner count and vertex sum): a longer face
+matching another on them only goes to the second copy."""
 
 
 @contextlib.contextmanager

@@ -376,7 +376,35 @@ def test_a_triangle_soup_is_unwrapped_as_the_surface_it_is(tmp_path, monkeypatch
     assert _fill(soup, 64) >= 0.95 * _fill(sphere, 64), (_fill(soup, 64), _fill(sphere, 64))
     assert rep["objects"]["Soup"]["ao"]["overlap"] == 0.0
     joined = _fill(soup, 64)
-    monkeypatch.setattr(uvmod, "_welded", lambda co, lv, start, total: lv)
+    monkeypatch.setattr(uvmod, "_welded", lambda co, lv, start, total: (co, lv))
     soup.data.uv_layers.remove(soup.data.uv_layers["Lightmap"])
     bake_lightmaps([soup], ["ao"], tmp_path / "b", opts, scene=scene)
     assert chart_count(soup.data, "Lightmap") == 320 or _fill(soup, 64) < 0.8 * joined
+
+
+@pytest.mark.parametrize("flip", [False, True], ids=["duplicated", "double_sided"])
+def test_faces_over_the_same_vertices_get_texels_of_their_own(tmp_path, flip):
+    """A cube whose faces are all duplicated on separate vertices (as some downloaded files are), the copies flipped
+    (double-sided) or not: welded for the unwrap, each face would coincide with its copy; the copies are unwrapped
+    as a surface of their own, so the map has no overlap and covers the charts' area (at least MIN_COVERAGE)."""
+    from addon.bake import uv as uvmod
+    scene = bpy.context.scene
+    cube = added(bpy.ops.mesh.primitive_cube_add)
+    bm = bmesh.new()
+    bm.from_mesh(cube.data)
+    ret = bmesh.ops.duplicate(bm, geom=bm.faces[:] + bm.edges[:] + bm.verts[:])
+    if flip:
+        bmesh.ops.reverse_faces(bm, faces=[g for g in ret["geom"] if isinstance(g, bmesh.types.BMFace)])
+    bm.to_mesh(cube.data)
+    bm.free()
+    rep = bake_lightmaps([cube], ["ao"], tmp_path, BakeOptions(resolution=64, samples=1, margin=1), scene=scene)
+    entry = rep["objects"]["Cube"]["ao"]
+    assert entry["overlap"] == 0.0
+    assert entry["coverage"] >= uvmod.MIN_COVERAGE * entry["chart_area"]
+    tri = uvmod.triangles_uv(cube, "Lightmap")
+    assert lightmap_overlap(tri, 64) == 0.0
+
+
+def lightmap_overlap(tri, side):
+    from addon.core import lightmap
+    return lightmap.overlap_fraction(tri, side, side)
