@@ -3,6 +3,7 @@ import math
 
 import numpy as np
 
+from ..core.memo import FIGURES
 from ..core.seams import welded
 
 
@@ -24,11 +25,16 @@ def chart_count(me, layer):
     me.loops.foreach_get("vertex_index", vert)
     co = np.zeros(len(me.vertices) * 3, np.float32)
     me.vertices.foreach_get("co", co)
-    vert = first_at_position(co)[vert]
     me.polygons.foreach_get("loop_start", poly)
-    face = np.repeat(np.arange(len(poly)), np.diff(np.append(poly, n)))
     uv = np.zeros(n * 2, np.float32)
     me.uv_layers[layer].data.foreach_get("uv", uv)
+    return FIGURES.call(_charts, co, vert, poly, uv)
+
+
+def _charts(co, vert, poly, uv):
+    n = len(vert)
+    vert = first_at_position(co)[vert]
+    face = np.repeat(np.arange(len(poly)), np.diff(np.append(poly, n)))
     bits = uv.view(np.uint32).reshape(-1, 2).astype(np.uint64)
     uv_key = (bits[:, 0] << np.uint64(32)) | bits[:, 1]
     order = np.lexsort((uv_key, vert))            # corners of one vertex with equal UVs: one id

@@ -19,6 +19,7 @@ import numpy as np
 from mathutils import Vector
 
 from ..core import lightmap
+from ..core.memo import FIGURES
 from ..blender import scene as sc
 
 FIX = "Mesh > Normals > Recalculate Outside in edit mode"
@@ -72,7 +73,7 @@ def empty_inward_shells(scene, obj):
     co, tris = sc.evaluated_triangles(obj, vl.depsgraph)
     if not len(tris):
         return 0.0, 0
-    labels, inward, _ = lightmap.inward_shells(co, tris)
+    labels, inward, _ = FIGURES.call(lightmap.inward_shells, co, tris)
     if not inward.any() or _emits(obj):
         return 0.0, 0
     mw = np.array(obj.matrix_world, float)

@@ -12,7 +12,9 @@ import math
 
 import numpy as np
 
+from ..blender.scene import evaluated_mesh
 from ..core import lightmap, seams as core
+from ..core.memo import FIGURES
 from . import uv as uvmod
 
 
@@ -25,10 +27,8 @@ def mesh_seams(obj, layer, depsgraph, width, height):
 
 
 def _mesh_seams(obj, layer, depsgraph, width, height):
-    ev = obj.evaluated_get(depsgraph)
-    me = ev.to_mesh()
-    try:
-        if layer not in me.uv_layers:
+    with evaluated_mesh(obj, depsgraph) as me:
+        if me is None or layer not in me.uv_layers:
             return None
         me.calc_loop_triangles()
         n = len(me.loop_triangles)
@@ -42,8 +42,11 @@ def _mesh_seams(obj, layer, depsgraph, width, height):
         me.uv_layers[layer].data.foreach_get("uv", uv)
         normals = np.zeros(len(me.loops) * 3, np.float32)
         me.corner_normals.foreach_get("vector", normals)
-    finally:
-        ev.to_mesh_clear()
+    return FIGURES.call(_seam_edges, co, verts, loops, uv, normals, width, height)
+
+
+def _seam_edges(co, verts, loops, uv, normals, width, height):
+    """``core.seam_edges`` of a mesh's arrays (loop-triangle vertices and loops, per-loop UVs and normals)."""
     uv = uv.reshape(-1, 2).astype(float) * (width, height)
     return core.seam_edges(core.welded(co)[verts].reshape(-1, 3), uv[loops].reshape(-1, 3, 2),
                            normals.reshape(-1, 3)[loops].reshape(-1, 3, 3))

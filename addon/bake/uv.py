@@ -17,7 +17,6 @@ not fit (Blender's packer then leaves charts outside the unit square, or shrinks
 the margin is halved down to half a texel; a layout is accepted only when its charts cover the map
 (:data:`MIN_COVERAGE`).
 """
-import collections
 import contextlib
 import dataclasses
 import hashlib
@@ -28,7 +27,9 @@ import bmesh
 import bpy
 import numpy as np
 
+from ..blender.scene import evaluated_mesh
 from ..core import errors, lightmap
+from ..core.memo import FIGURES
 from ..core.errors import InputError
 from . import uvcache
 from .charts import chart_count, first_at_position, side_for_fill
@@ -144,8 +145,6 @@ UNION_SIDE = 1024
 """Side of the raster that measures the area of overlapping charts (their union)."""
 
 
-_AREAS = collections.OrderedDict()    # digest of a layout's UVs -> its chart area (the raster is the costly part)
-_AREAS_KEPT = 512
 _DISJOINT = {}    # digest -> Σ |triangle area| of the layouts an unwrapper made (charts that never overlap)
 
 
@@ -163,16 +162,13 @@ def chart_area(tri_uv):
     key = _area_key(tri)
     if key in _DISJOINT:
         return _DISJOINT[key]
-    if key in _AREAS:
-        _AREAS.move_to_end(key)
-        return _AREAS[key]
+    return FIGURES.call(_union_area, tri)
+
+
+def _union_area(tri):
     total = lightmap.uv_area(tri)
     union = float(lightmap.coverage_mask(tri, UNION_SIDE, UNION_SIDE).mean()) if total > 0 else 0.0
-    area = total if total <= union * 1.02 else union
-    _AREAS[key] = area
-    while len(_AREAS) > _AREAS_KEPT:
-        _AREAS.popitem(last=False)
-    return area
+    return total if total <= union * 1.02 else union
 
 
 def _disjoint(tri_uv):
@@ -183,25 +179,10 @@ def _disjoint(tri_uv):
     _DISJOINT[_area_key(tri)] = lightmap.uv_area(tri)
 
 
-_MASKS = collections.OrderedDict()   # (layout digest, W, H) -> its coverage mask
-_MASKS_BYTES = 64 << 20
-
-
 def coverage(tri_uv, width, height):
     """``lightmap.coverage_mask`` of ``tri_uv`` in a ``width`` × ``height`` map (read-only), remembered per layout and
-    size (the plan, the fill check, the bake's centre mask and the files ask for the same ones), up to _MASKS_BYTES."""
-    tri = np.ascontiguousarray(tri_uv)
-    key = (hashlib.blake2b(tri.tobytes(), digest_size=16).digest(), str(tri.dtype), tri.shape, int(width), int(height))
-    mask = _MASKS.get(key)
-    if mask is not None:
-        _MASKS.move_to_end(key)
-        return mask
-    mask = lightmap.coverage_mask(tri, width, height)
-    mask.flags.writeable = False
-    _MASKS[key] = mask
-    while sum(m.nbytes for m in _MASKS.values()) > _MASKS_BYTES and len(_MASKS) > 1:
-        _MASKS.popitem(last=False)
-    return mask
+    size (the plan, the fill check, the bake's centre mask and the files ask for the same ones)."""
+    return FIGURES.call(lightmap.coverage_mask, np.ascontiguousarray(tri_uv), int(width), int(height))
 
 
 def coverage_ratio(tri_uv, width, height):
@@ -251,12 +232,8 @@ _COPIES = {"ARRAY": "Array", "MIRROR": "Mirror", "SOLIDIFY": "Solidify"}
 def evaluated_triangles_uv(obj, layer, depsgraph):
     """(T, 3, 2) UVs in ``layer`` of the loop triangles of ``obj``'s evaluated mesh (modifiers applied, what
     Cycles bakes), or None when the evaluated mesh does not carry the layer."""
-    ev = obj.evaluated_get(depsgraph)
-    me = ev.to_mesh()
-    try:
-        return mesh_triangles_uv(me, layer) if layer in me.uv_layers else None
-    finally:
-        ev.to_mesh_clear()
+    with evaluated_mesh(obj, depsgraph) as me:
+        return mesh_triangles_uv(me, layer) if me is not None and layer in me.uv_layers else None
 
 
 def check_overlap(scene, objects, layers, size):
@@ -276,22 +253,22 @@ def check_overlap(scene, objects, layers, size):
         if tri is None:
             tri = triangles_uv(o, layer)
         every.append(tri)
-        fractions[o.name] = frac = lightmap.overlap_fraction(tri, w, h)
+        fractions[o.name] = frac = FIGURES.call(lightmap.overlap_fraction, tri, w, h)
         if frac <= MAX_OVERLAP:
             continue
         copies = [m for m in o.modifiers if m.type in _COPIES and m.show_render]
-        if copies and lightmap.overlap_fraction(triangles_uv(o, layer), w, h) <= MAX_OVERLAP:
+        if copies and FIGURES.call(lightmap.overlap_fraction, triangles_uv(o, layer), w, h) <= MAX_OVERLAP:
             kinds = " and ".join(dict.fromkeys(_COPIES[m.type] for m in copies))
             names = ", ".join(f"'{m.name}'" for m in copies)
             errors.warn(f"'{o.name}': {kinds} copies share the light-map texels ({100 * frac:.0f} % of its texels "
                         f"hold several faces, modifier {names}): apply the modifier to give each copy its own")
-        elif lightmap.overlap_fraction(tri, FINE_SIDE, FINE_SIDE) <= MAX_OVERLAP:
+        elif FIGURES.call(lightmap.overlap_fraction, tri, FINE_SIDE, FINE_SIDE) <= MAX_OVERLAP:
             errors.warn(too_few_texels(o, tri, size))
         else:
             errors.warn(f"'{o.name}': faces share texels of UV layer '{layer}' ({100 * frac:.0f} % of its texels "
                         f"hold several faces, which get one value): use a layer without overlapping charts, or let "
                         f"the bake generate one")
-    group = lightmap.overlap_fraction(np.concatenate(every), w, h) if len(objects) > 1 else fractions[objects[0].name]
+    group = FIGURES.call(lightmap.overlap_fraction, np.concatenate(every), w, h) if len(objects) > 1 else fractions[objects[0].name]
     return fractions, group
 
 

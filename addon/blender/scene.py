@@ -1,4 +1,5 @@
 """Minimal scene building blocks from bpy.data and bmesh (no operators, no context needed)."""
+import contextlib
 import math
 
 import bmesh
@@ -140,22 +141,32 @@ def remove_scene(scene, materials=()):
             bpy.data.materials.remove(m)
 
 
+@contextlib.contextmanager
+def evaluated_mesh(obj, depsgraph):
+    """``obj``'s evaluated mesh (modifiers applied, what Cycles renders), read-only: the depsgraph's own for a mesh
+    object (no copy: ``to_mesh`` copies it, 0.3 s for the quick level's 31 objects), else ``to_mesh()`` (cleared on
+    exit); None when it has none."""
+    ev = obj.evaluated_get(depsgraph)
+    if ev.type == "MESH" and ev.data is not None:
+        yield ev.data
+        return
+    try:
+        yield ev.to_mesh()
+    finally:
+        ev.to_mesh_clear()
+
+
 def evaluated_triangles(obj, depsgraph):
     """(object-space vertices (V, 3) float64, loop-triangle vertex indices (T, 3)) of ``obj``'s evaluated mesh
     (modifiers applied, what Cycles renders); empty arrays when it has no mesh."""
-    ev = obj.evaluated_get(depsgraph)
-    me = ev.to_mesh()
-    if me is None:
-        ev.to_mesh_clear()
-        return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
-    try:
+    with evaluated_mesh(obj, depsgraph) as me:
+        if me is None:
+            return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
         me.calc_loop_triangles()
         co = np.zeros(len(me.vertices) * 3, np.float64)
         me.vertices.foreach_get("co", co)
         tris = np.zeros(len(me.loop_triangles) * 3, np.int64)
         me.loop_triangles.foreach_get("vertices", tris)
-    finally:
-        ev.to_mesh_clear()
     return co.reshape(-1, 3), tris.reshape(-1, 3)
 
 
