@@ -125,28 +125,18 @@ class _Proxy:
         self.obj, self.hidden = None, []
 
     def __enter__(self):
-        import bmesh
         self.scene.view_layers[0].update()       # the light-map UVs written since the last evaluation
         depsgraph = self.scene.view_layers[0].depsgraph
-        bm = bmesh.new()
-        materials_ = []
-        try:
-            for target in self.batch:
-                for o in target.group:
-                    tri = _triangulated(o.evaluated_get(depsgraph).data, self.layers[o.name], o.matrix_world)
-                    try:
-                        slots = self.temporary.batch_slots(o, self.kind, target.name, self.images[target.name])
-                        index = np.zeros(len(tri.polygons), np.int32)
-                        tri.polygons.foreach_get("material_index", index)
-                        tri.polygons.foreach_set("material_index", len(materials_) + np.clip(index, 0, len(slots) - 1))
-                        materials_ += slots
-                        bm.from_mesh(tri)
-                    finally:
-                        bpy.data.meshes.remove(tri)
-            mesh = self.state.track(bpy.data.meshes, bpy.data.meshes.new(PROXY))
-            bm.to_mesh(mesh)
-        finally:
-            bm.free()
+        parts, materials_ = [], []
+        for target in self.batch:
+            for o in target.group:
+                part = _Part.of(o.evaluated_get(depsgraph).data, self.layers[o.name], o.matrix_world)
+                slots = self.temporary.batch_slots(o, self.kind, target.name, self.images[target.name])
+                part.material = len(materials_) + np.clip(part.material, 0, len(slots) - 1)
+                materials_ += slots
+                parts.append(part)
+        mesh = self.state.track(bpy.data.meshes, bpy.data.meshes.new(PROXY))
+        _Part.joined(parts, mesh)
         for mat in materials_:
             mesh.materials.append(mat)
         self.obj = self.state.track(bpy.data.objects, bpy.data.objects.new(PROXY, mesh))
@@ -169,50 +159,72 @@ class _Proxy:
         return False
 
 
-def _triangulated(me, layer, matrix):
-    """A mesh of ``me``'s loop triangles (the triangles Blender bakes, chosen in object space) in world space
-    (``matrix``): UVs of ``layer`` as PROXY_UV, material indices, flat faces and sharp edges kept."""
-    me.calc_loop_triangles()
-    t = len(me.loop_triangles)
-    tv = np.zeros(t * 3, np.int64)
-    tl = np.zeros(t * 3, np.int64)
-    tp = np.zeros(t, np.int64)
-    me.loop_triangles.foreach_get("vertices", tv)
-    me.loop_triangles.foreach_get("loops", tl)
-    me.loop_triangles.foreach_get("polygon_index", tp)
-    co = np.zeros(len(me.vertices) * 3, np.float32)
-    me.vertices.foreach_get("co", co)
-    uv = np.zeros(len(me.loops) * 2, np.float32)
-    me.uv_layers[layer].data.foreach_get("uv", uv)
-    mat = np.zeros(len(me.polygons), np.int32)
-    me.polygons.foreach_get("material_index", mat)
-    smooth = np.zeros(len(me.polygons), bool)
-    me.polygons.foreach_get("use_smooth", smooth)
-    ev = np.zeros(len(me.edges) * 2, np.int64)
-    me.edges.foreach_get("vertices", ev)
-    sharp = np.zeros(len(me.edges), bool)
-    me.edges.foreach_get("use_edge_sharp", sharp)
-    out = bpy.data.meshes.new("IL bake batch part")
-    out.vertices.add(len(me.vertices))
-    out.vertices.foreach_set("co", co)
-    out.loops.add(3 * t)
-    out.loops.foreach_set("vertex_index", tv)
-    out.polygons.add(t)
-    out.polygons.foreach_set("loop_start", np.arange(0, 3 * t, 3))
-    out.update(calc_edges=True)
-    out.polygons.foreach_set("material_index", mat[tp])
-    out.polygons.foreach_set("use_smooth", smooth[tp])
-    layer_out = out.uv_layers.new(name=PROXY_UV, do_init=False)
-    layer_out.data.foreach_set("uv", uv.reshape(-1, 2)[tl].ravel())
-    if sharp.any():
-        key = lambda e: np.minimum(e[:, 0], e[:, 1]) * (len(co) + 1) + np.maximum(e[:, 0], e[:, 1])
-        sharp_keys = set(key(ev.reshape(-1, 2)[sharp]).tolist())
-        new = np.zeros(len(out.edges) * 2, np.int64)
-        out.edges.foreach_get("vertices", new)
-        out.edges.foreach_set("use_edge_sharp", np.isin(key(new.reshape(-1, 2)), list(sharp_keys)))
-    out.transform(matrix)
-    out.update()
-    return out
+@dataclasses.dataclass
+class _Part:
+    """One object's loop triangles (the triangles Blender bakes, chosen in object space) as arrays: world-space
+    positions (V, 3), triangle vertices (T, 3), UVs of its light-map layer per corner (T, 3, 2), per triangle its
+    material index and smooth flag, the sharp edges (E, 2)."""
+    co: np.ndarray
+    tris: np.ndarray
+    uv: np.ndarray
+    material: np.ndarray
+    smooth: np.ndarray
+    sharp: np.ndarray
+
+    @classmethod
+    def of(cls, me, layer, matrix):
+        me.calc_loop_triangles()
+        t = len(me.loop_triangles)
+        tv, tl, tp = np.zeros(t * 3, np.int64), np.zeros(t * 3, np.int64), np.zeros(t, np.int64)
+        me.loop_triangles.foreach_get("vertices", tv)
+        me.loop_triangles.foreach_get("loops", tl)
+        me.loop_triangles.foreach_get("polygon_index", tp)
+        co = np.zeros(len(me.vertices) * 3, np.float32)
+        me.vertices.foreach_get("co", co)
+        uv = np.zeros(len(me.loops) * 2, np.float32)
+        me.uv_layers[layer].data.foreach_get("uv", uv)
+        mat = np.zeros(len(me.polygons), np.int32)
+        me.polygons.foreach_get("material_index", mat)
+        smooth = np.zeros(len(me.polygons), bool)
+        me.polygons.foreach_get("use_smooth", smooth)
+        ev = np.zeros(len(me.edges) * 2, np.int64)
+        me.edges.foreach_get("vertices", ev)
+        sharp = np.zeros(len(me.edges), bool)
+        me.edges.foreach_get("use_edge_sharp", sharp)
+        m = np.array(matrix, np.float64)
+        world = (co.reshape(-1, 3).astype(np.float64) @ m[:3, :3].T + m[:3, 3]).astype(np.float32)
+        return cls(world, tv.reshape(-1, 3), uv.reshape(-1, 2)[tl].reshape(-1, 3, 2), mat[tp], smooth[tp],
+                   ev.reshape(-1, 2)[sharp])
+
+    @staticmethod
+    def joined(parts, mesh):
+        """Fill the empty ``mesh`` with every part (vertices offset, one triangle per loop triangle), UVs as
+        PROXY_UV, material indices, flat faces and sharp edges kept."""
+        offsets = np.cumsum([0] + [len(p.co) for p in parts])
+        co = np.concatenate([p.co for p in parts]) if parts else np.zeros((0, 3), np.float32)
+        tris = np.concatenate([p.tris + k for p, k in zip(parts, offsets)]) if parts else np.zeros((0, 3), np.int64)
+        sharp = np.concatenate([p.sharp + k for p, k in zip(parts, offsets)]) if parts else np.zeros((0, 2), np.int64)
+        t = len(tris)
+        mesh.vertices.add(len(co))
+        mesh.vertices.foreach_set("co", co.ravel())
+        mesh.loops.add(3 * t)
+        mesh.loops.foreach_set("vertex_index", tris.ravel())
+        mesh.polygons.add(t)
+        mesh.polygons.foreach_set("loop_start", np.arange(0, 3 * t, 3))
+        mesh.update(calc_edges=True)
+        if not t:
+            return
+        mesh.polygons.foreach_set("material_index", np.concatenate([p.material for p in parts]).astype(np.int32))
+        mesh.polygons.foreach_set("use_smooth", np.concatenate([p.smooth for p in parts]))
+        mesh.uv_layers.new(name=PROXY_UV, do_init=False).data.foreach_set(
+            "uv", np.concatenate([p.uv for p in parts]).ravel())
+        if len(sharp):
+            n = len(co) + 1
+            key = lambda e: np.minimum(e[:, 0], e[:, 1]) * n + np.maximum(e[:, 0], e[:, 1])
+            edges = np.zeros(len(mesh.edges) * 2, np.int64)
+            mesh.edges.foreach_get("vertices", edges)
+            mesh.edges.foreach_set("use_edge_sharp", np.isin(key(edges.reshape(-1, 2)), key(sharp)))
+        mesh.update()
 
 
 def bake_batch(scene, batch, kind, options, layers, temporary, state):
