@@ -22,6 +22,7 @@ import dataclasses
 import hashlib
 import io
 import math
+import warnings
 
 import bmesh
 import bpy
@@ -326,6 +327,7 @@ class _Made:
     margin: float
     unwrap: str
     enlarged_from: int = 0
+    welded: bool = False
 
 
 def prepare(scene, objects, state, options, together=False, cache=None):
@@ -433,7 +435,35 @@ def _margins(margin):
 
 
 def _unwrap_with_margin(scene, group, state, options, names):
-    """Generate "Lightmap" for ``group``; return its :class:`_Made` (side, margin in texels, unwrapper).
+    """Generate "Lightmap" for ``group``; return its :class:`_Made` (side, margin in texels, unwrapper): by
+    :func:`_search` on copies whose coincident vertices are welded (:func:`_welded`), or again on copies as the
+    meshes are when the weld joined faces that cover each other (the welded layout fails, or puts texels under
+    several faces: MAX_OVERLAP at the map's side, up to OVERLAP_SIDE); the warnings of the layout not kept are
+    dropped."""
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        try:
+            made, welded = _search(scene, group, state, options, names, weld=True), None
+        except InputError as e:
+            made, welded = None, e
+    if made is not None and not (made.welded and _overlapping(group, made.side)):
+        for w in said:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        return made
+    if made is None and welded is not None and not getattr(welded, "welded", False):
+        raise welded
+    return _search(scene, group, state, options, names, weld=False)
+
+
+def _overlapping(group, side):
+    """Some object of ``group`` has more than MAX_OVERLAP of its "Lightmap" texels under several of its faces."""
+    s = min(int(side), OVERLAP_SIDE)
+    return any(FIGURES.call(lightmap.overlap_fraction, triangles_uv(o, LIGHTMAP), s, s) > MAX_OVERLAP
+               for o in group)
+
+
+def _search(scene, group, state, options, names, weld=True):
+    """Generate "Lightmap" for ``group`` on its unwrap copies (welded with ``weld``); return its :class:`_Made`.
 
     A fixed resolution gives the side at once; the margin is lowered (down to half a texel, with a
     warning) until the charts lie inside the unit square and cover the map (MIN_COVERAGE), else the
@@ -444,48 +474,59 @@ def _unwrap_with_margin(scene, group, state, options, names):
     """
     label = ", ".join(f"'{o.name}'" for o in group)
     fixed = fixed_side(group[0], options)
-    with _Copies(scene, group, state) as copies:
-        if fixed:
-            margin = _fit(copies, group, fixed, options.margin)
-            if margin is None:
-                need = _fit_side(copies, group, fixed)
-                hint = (f"use a resolution of at least {need}" if need else
-                        "the charts do not fit even the largest map: bake the parts separately")
-                raise InputError(f"{label}: the light-map charts do not fit {article(f'{fixed}x{fixed}')} map (they would "
-                                 f"cover under {100 * MIN_COVERAGE:.0f} % of their UV area): {hint}")
-            return _Made(fixed, _dilation(label, options.margin, margin, fixed), copies.unwrapper)
-        side = resolution(group, names, options, coverage=1.0)
-        made = None
-        for _ in range(3):
-            margin = _fit(copies, group, side, options.margin)
-            if margin is None:
-                break
-            made = side
-            need = resolution(group, names, options)
-            if side <= need <= 1.05 * side:
-                if len(group) > 1 and need > side:     # an atlas packed for the side its map gets
-                    refit = _fit(copies, group, need, options.margin)
-                    if refit is not None:
-                        made, margin = need, refit
-                    else:
-                        margin = _fit(copies, group, side, options.margin)
-                break
-            side = need
+    with _Copies(scene, group, state, weld) as copies:
+        try:
+            made = _search_copies(copies, group, options, names, label, fixed)
+        except InputError as e:
+            e.welded = copies.welded
+            raise
+        made.welded = copies.welded
+        return made
+
+
+def _search_copies(copies, group, options, names, label, fixed):
+    """The search of :func:`_search` on the open ``copies`` (``fixed``: the fixed side, or None)."""
+    if fixed:
+        margin = _fit(copies, group, fixed, options.margin)
         if margin is None:
-            asked = side
-            while margin is None and side < int(options.max_resolution):
-                side = min(2 * side, int(options.max_resolution))
-                margin = _fit(copies, group, side, options.margin)
-            if margin is None:
-                raise InputError(f"{label}: the light-map charts do not fit a map of the maximum resolution "
-                                 f"{options.max_resolution} (they would cover under {100 * MIN_COVERAGE:.0f} % "
-                                 f"of their UV area): raise the maximum resolution or the texel density")
-            _say_enlarged(label, asked, side)
-            made = side
-        else:
-            asked = 0
-        side = made
-        return _Made(side, _dilation(label, options.margin, margin, side), copies.unwrapper, asked)
+            need = _fit_side(copies, group, fixed)
+            hint = (f"use a resolution of at least {need}" if need else
+                    "the charts do not fit even the largest map: bake the parts separately")
+            raise InputError(f"{label}: the light-map charts do not fit {article(f'{fixed}x{fixed}')} map (they would "
+                             f"cover under {100 * MIN_COVERAGE:.0f} % of their UV area): {hint}")
+        return _Made(fixed, _dilation(label, options.margin, margin, fixed), copies.unwrapper)
+    side = resolution(group, names, options, coverage=1.0)
+    made = None
+    for _ in range(3):
+        margin = _fit(copies, group, side, options.margin)
+        if margin is None:
+            break
+        made = side
+        need = resolution(group, names, options)
+        if side <= need <= 1.05 * side:
+            if len(group) > 1 and need > side:     # an atlas packed for the side its map gets
+                refit = _fit(copies, group, need, options.margin)
+                if refit is not None:
+                    made, margin = need, refit
+                else:
+                    margin = _fit(copies, group, side, options.margin)
+            break
+        side = need
+    if margin is None:
+        asked = side
+        while margin is None and side < int(options.max_resolution):
+            side = min(2 * side, int(options.max_resolution))
+            margin = _fit(copies, group, side, options.margin)
+        if margin is None:
+            raise InputError(f"{label}: the light-map charts do not fit a map of the maximum resolution "
+                             f"{options.max_resolution} (they would cover under {100 * MIN_COVERAGE:.0f} % "
+                             f"of their UV area): raise the maximum resolution or the texel density")
+        _say_enlarged(label, asked, side)
+        made = side
+    else:
+        asked = 0
+    side = made
+    return _Made(side, _dilation(label, options.margin, margin, side), copies.unwrapper, asked)
 
 
 FILL = 0.55
@@ -629,11 +670,12 @@ class _Copies:
     map to the original loops). ``unwrapper`` names the layout in place (SMART or LIGHTMAP_PACK). Removed on
     exit, also on errors."""
 
-    def __init__(self, scene, group, state):
-        self.scene, self.group, self.state = scene, list(group), state
+    def __init__(self, scene, group, state, weld=True):
+        self.scene, self.group, self.state, self.weld = scene, list(group), state, weld
         self.copies = []
         self.loops = []          # per copy: the original mesh's loop of each of the copy's loops
         self.unwrapper = SMART
+        self.welded = False      # the weld joined vertices of some copy
 
     def __enter__(self):
         for o in self.group:
@@ -648,7 +690,9 @@ class _Copies:
             scale = unwrap_scale(o.data for o in self.group)
             for o in self.group:
                 tmp = self.state.track(bpy.data.meshes, bpy.data.meshes.new(f"IL unwrap {o.data.name}"))
-                self.loops.append(_canonical_copy(o.data, tmp, scale))
+                loops, welded = _canonical_copy(o.data, tmp, scale, self.weld)
+                self.loops.append(loops)
+                self.welded |= welded
                 tmp.uv_layers.new(name=LIGHTMAP, do_init=False)
                 tmp.uv_layers.active_index = 0
                 obj = self.state.track(bpy.data.objects, bpy.data.objects.new(f"IL unwrap {o.name}", tmp))
@@ -773,11 +817,12 @@ class _Copies:
         return out
 
 
-def _canonical_copy(me, tmp, scale):
+def _canonical_copy(me, tmp, scale, weld=True):
     """Fill the empty mesh ``tmp`` with ``me``'s vertices (× ``scale``) and faces, every face starting at its
     lowest vertex index and the faces sorted by their first three vertices (then corner count, then their order),
     all revealed and selected (through bmesh: see the module's note on ``.select_edge``); return, for each of
-    ``tmp``'s loops, ``me``'s loop it copies. Vertices at the same position are welded (:func:`_welded`).
+    ``tmp``'s loops, ``me``'s loop it copies, and whether ``weld`` joined any vertices at one position
+    (:func:`_welded`).
 
     The unwrappers' layouts depend on face order and on each face's first corner: Blender 5.3's UV sphere
     primitive makes the same faces in a different order in every process, and Smart UV Project then packs
@@ -790,8 +835,9 @@ def _canonical_copy(me, tmp, scale):
     start, total = np.zeros(nf, np.int64), np.zeros(nf, np.int64)
     me.polygons.foreach_get("loop_start", start)
     me.polygons.foreach_get("loop_total", total)
-    co, lv = _welded(co, lv, start, total)
-    nv = len(co) // 3
+    welded_co, welded_lv = _welded(co, lv, start, total) if weld else (co, lv)
+    changed = welded_lv is not lv
+    co, lv, nv = welded_co, welded_lv, len(welded_co) // 3
     if nf:
         face_of = np.repeat(np.arange(nf), total)          # face offsets ascend (Blender 4+)
         low = np.full(nf, np.iinfo(np.int64).max)
@@ -828,7 +874,7 @@ def _canonical_copy(me, tmp, scale):
         bm.free()
     while len(tmp.uv_layers):
         tmp.uv_layers.remove(tmp.uv_layers[0])
-    return loops
+    return loops, changed
 
 
 def _welded(co, lv, start, total):
@@ -837,10 +883,11 @@ def _welded(co, lv, start, total):
     the surface it is. Measured on the level benchmark's 1,280-triangle soup: 1,280 one-triangle charts become 6,
     and the quick level's atlas covers 0.63 of its map instead of 0.49.
 
-    A face that would repeat a vertex keeps its own. A face over the same welded vertices as an earlier one (a
-    double-sided copy, a duplicate) is welded into a second copy of the vertices (a third one keeps its own), so
-    no two faces of one surface coincide: joined, Smart UV Project lays them over each other or fails to fit a
-    map. Meshes without coincident vertices are unchanged (their layouts too)."""
+    A face that would repeat a vertex keeps its own vertices. The k-th face over the same welded vertices (a
+    double-sided copy, a duplicate) is welded into a k-th copy of the vertices, so that faces over the same
+    vertices never join one surface (joined, Smart UV Project lays them over each other or fails to fit a map);
+    faces that cover each other but are split differently are caught after the unwrap (:func:`_unwrap_with_margin`).
+    Meshes without coincident vertices are unchanged (their layouts too)."""
     nv = len(co) // 3
     if not len(lv):
         return co, lv
@@ -861,22 +908,23 @@ def _welded(co, lv, start, total):
     key[fs[keep], rank[keep]] = ws[keep]
     key[:, width] = total
     key[:, width + 1] = np.bincount(face_of, welded, nf).astype(np.int64)
-    _, first, group = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    key[repeat, width] = -2 - np.flatnonzero(repeat)            # never a duplicate of another face
+    _, group = np.unique(key, axis=0, return_inverse=True)
     group = group.ravel()
-    seen = np.zeros(nf, np.int64)                     # earlier faces over the same vertices
     by_group = np.argsort(group, kind="stable")
     g = group[by_group]
     run_start = np.r_[0, np.flatnonzero(g[1:] != g[:-1]) + 1]
+    seen = np.zeros(nf, np.int64)                     # earlier faces over the same vertices
     seen[by_group] = np.arange(nf) - np.repeat(run_start, np.diff(np.r_[run_start, nf]))
-    layer = np.where(repeat, -1, np.minimum(seen, 2))
-    corner = layer[face_of]
-    out = np.where(corner == 0, welded, np.where(corner == 1, welded + nv, lv))
-    return (np.concatenate([co, co]) if (layer == 1).any() else co), out
+    corner_copy = np.where(repeat, -1, seen)[face_of]
+    vertex = np.where(corner_copy < 0, lv, welded)
+    _, first, ids = np.unique(np.stack([vertex, corner_copy], 1), axis=0, return_index=True, return_inverse=True)
+    return co.reshape(-1, 3)[vertex[first]].ravel(), ids.ravel()
 
 
 _FACE_KEY = 16
 """Sorted vertices of a face that tell duplicates apart (with its corner count and vertex sum): a longer face
-matching another on them only goes to the second copy."""
+matching another on them only goes to another copy of the vertices."""
 
 
 @contextlib.contextmanager

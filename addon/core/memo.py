@@ -49,7 +49,8 @@ def _frozen(value):
 
 
 class Memo:
-    """At most ``kept`` results and ``max_bytes`` of arrays, least recently used dropped first."""
+    """At most ``kept`` results and ``max_bytes`` of arrays (the newest result is kept even when larger), least
+    recently used dropped first."""
 
     def __init__(self, kept=1024, max_bytes=64 << 20):
         self.kept, self.max_bytes = kept, max_bytes

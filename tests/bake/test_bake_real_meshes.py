@@ -408,3 +408,41 @@ def test_faces_over_the_same_vertices_get_texels_of_their_own(tmp_path, flip):
 def lightmap_overlap(tri, side):
     from addon.core import lightmap
     return lightmap.overlap_fraction(tri, side, side)
+
+
+def _from_faces(name, verts, faces):
+    me = bpy.data.meshes.new(name)
+    me.from_pydata(verts, [], faces)
+    me.update()
+    obj = bpy.data.objects.new(name, me)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def test_a_third_copy_of_every_face_gets_vertices_of_its_own(tmp_path):
+    """A cube stored three times on its own vertices, the copy on the lowest vertex ids last: welded, the third
+    copy would land on the first's vertices (a mesh Blender reports invalid, "face 1 is a duplicate of 0", and
+    texels under two faces); each copy gets its own, the unwrap copy is valid and the map has no overlap."""
+    from addon.bake import uv as uvmod
+    corners = [(x, y, z) for x in (0, 1) for y in (0, 1) for z in (0, 1)]
+    box = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
+    obj = _from_faces("Triple", corners * 3, [[v + 8 * k for v in f] for k in (1, 2, 0) for f in box])
+    tmp = bpy.data.meshes.new("copy")
+    loops, welded = uvmod._canonical_copy(obj.data, tmp, 1.0)
+    assert welded and not tmp.validate(verbose=False)
+    assert sorted(loops) == list(range(len(obj.data.loops)))
+    rep = bake_lightmaps([obj], ["ao"], tmp_path, BakeOptions(resolution=64, samples=1, margin=1),
+                         scene=bpy.context.scene)
+    assert rep["objects"]["Triple"]["ao"]["overlap"] == 0.0
+    assert lightmap_overlap(uvmod.triangles_uv(obj, "Lightmap"), 64) == 0.0
+
+
+def test_faces_that_cover_each_other_split_differently_are_unwrapped_unwelded(tmp_path):
+    """A quad and the same quad as two triangles on their own vertices: welded they are one surface folded on itself
+    (texels under two faces); the layout is made again without the weld, so no texel is under two faces."""
+    from addon.bake import uv as uvmod
+    obj = _from_faces("Folded", [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)] * 2, [[0, 1, 2, 3], [4, 5, 6], [4, 6, 7]])
+    rep = bake_lightmaps([obj], ["ao"], tmp_path, BakeOptions(resolution=32, samples=1, margin=1),
+                         scene=bpy.context.scene)
+    assert rep["objects"]["Folded"]["ao"]["overlap"] == 0.0
+    assert lightmap_overlap(uvmod.triangles_uv(obj, "Lightmap"), 32) == 0.0

@@ -236,7 +236,7 @@ def pack_islands_utilisation(objects, side, margin):
             me = bpy.data.meshes.new(f"IL pack {o.name}")
             copy = bpy.data.objects.new(f"IL pack {o.name}", me)
             copies.append(copy)
-            loops.append(uvmod._canonical_copy(o.data, me, scale))
+            loops.append(uvmod._canonical_copy(o.data, me, scale)[0])
             uv = np.zeros(len(o.data.loops) * 2, np.float32)
             o.data.uv_layers[uvmod.LIGHTMAP].data.foreach_get("uv", uv)
             me.uv_layers.new(name=uvmod.LIGHTMAP, do_init=False).data.foreach_set(
