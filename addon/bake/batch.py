@@ -6,6 +6,7 @@ import time
 import bpy
 import numpy as np
 
+from ..blender.scene import read
 from . import cost, cycles
 from .passes import BakeResult, PassSum, denoised, estimated, fixed_calls, sample_passes
 from .plan import speed
@@ -174,23 +175,15 @@ class _Part:
     @classmethod
     def of(cls, me, layer, matrix):
         me.calc_loop_triangles()
-        t = len(me.loop_triangles)
-        tv, tl, tp = np.zeros(t * 3, np.int64), np.zeros(t * 3, np.int64), np.zeros(t, np.int64)
-        me.loop_triangles.foreach_get("vertices", tv)
-        me.loop_triangles.foreach_get("loops", tl)
-        me.loop_triangles.foreach_get("polygon_index", tp)
-        co = np.zeros(len(me.vertices) * 3, np.float32)
-        me.vertices.foreach_get("co", co)
-        uv = np.zeros(len(me.loops) * 2, np.float32)
-        me.uv_layers[layer].data.foreach_get("uv", uv)
-        mat = np.zeros(len(me.polygons), np.int32)
-        me.polygons.foreach_get("material_index", mat)
-        smooth = np.zeros(len(me.polygons), bool)
-        me.polygons.foreach_get("use_smooth", smooth)
-        ev = np.zeros(len(me.edges) * 2, np.int64)
-        me.edges.foreach_get("vertices", ev)
-        sharp = np.zeros(len(me.edges), bool)
-        me.edges.foreach_get("use_edge_sharp", sharp)
+        tv = read(me.loop_triangles, "vertices", np.int64, 3)
+        tl = read(me.loop_triangles, "loops", np.int64, 3)
+        tp = read(me.loop_triangles, "polygon_index", np.int64)
+        co = read(me.vertices, "co", np.float32, 3)
+        uv = read(me.uv_layers[layer].data, "uv", np.float32, 2)
+        mat = read(me.polygons, "material_index", np.int32)
+        smooth = read(me.polygons, "use_smooth", bool)
+        ev = read(me.edges, "vertices", np.int64, 2)
+        sharp = read(me.edges, "use_edge_sharp", bool)
         m = np.array(matrix, np.float64)
         world = (co.reshape(-1, 3).astype(np.float64) @ m[:3, :3].T + m[:3, 3]).astype(np.float32)
         return cls(world, tv.reshape(-1, 3), uv.reshape(-1, 2)[tl].reshape(-1, 3, 2), mat[tp], smooth[tp],
@@ -221,8 +214,7 @@ class _Part:
         if len(sharp):
             n = len(co) + 1
             key = lambda e: np.minimum(e[:, 0], e[:, 1]) * n + np.maximum(e[:, 0], e[:, 1])
-            edges = np.zeros(len(mesh.edges) * 2, np.int64)
-            mesh.edges.foreach_get("vertices", edges)
+            edges = read(mesh.edges, "vertices", np.int64, 2)
             mesh.edges.foreach_set("use_edge_sharp", np.isin(key(edges.reshape(-1, 2)), key(sharp)))
         mesh.update()
 

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from ..blender.scene import evaluated_mesh
+from ..blender.scene import evaluated_mesh, read
 from ..core import lightmap, seams as core
 from ..core.memo import FIGURES
 from . import uv as uvmod
@@ -31,17 +31,11 @@ def _mesh_seams(obj, layer, depsgraph, width, height):
         if me is None or layer not in me.uv_layers:
             return None
         me.calc_loop_triangles()
-        n = len(me.loop_triangles)
-        loops = np.zeros(n * 3, np.int64)
-        verts = np.zeros(n * 3, np.int64)
-        me.loop_triangles.foreach_get("loops", loops)
-        me.loop_triangles.foreach_get("vertices", verts)
-        co = np.zeros(len(me.vertices) * 3, np.float64)
-        me.vertices.foreach_get("co", co)
-        uv = np.zeros(len(me.loops) * 2, np.float32)
-        me.uv_layers[layer].data.foreach_get("uv", uv)
-        normals = np.zeros(len(me.loops) * 3, np.float32)
-        me.corner_normals.foreach_get("vector", normals)
+        loops = read(me.loop_triangles, "loops", np.int64, 3)
+        verts = read(me.loop_triangles, "vertices", np.int64, 3)
+        co = read(me.vertices, "co", np.float64, 3)
+        uv = read(me.uv_layers[layer].data, "uv", np.float32, 2)
+        normals = read(me.corner_normals, "vector", np.float32, 3)
     return FIGURES.call(_seam_edges, co, verts, loops, uv, normals, width, height)
 
 

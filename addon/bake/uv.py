@@ -19,7 +19,6 @@ the margin is halved down to half a texel; a layout is accepted only when its ch
 """
 import contextlib
 import dataclasses
-import hashlib
 import io
 import math
 import warnings
@@ -28,9 +27,9 @@ import bmesh
 import bpy
 import numpy as np
 
-from ..blender.scene import evaluated_mesh
+from ..blender.scene import evaluated_mesh, read
 from ..core import errors, lightmap
-from ..core.memo import FIGURES
+from ..core.memo import FIGURES, digest
 from ..core.errors import InputError
 from . import uvcache
 from .charts import chart_count, first_at_position, side_for_fill
@@ -94,10 +93,8 @@ def triangles_uv(obj, layer):
 def mesh_triangles_uv(me, layer):
     """(T, 3, 2) UV coordinates of mesh ``me``'s loop triangles in ``layer``."""
     me.calc_loop_triangles()
-    loops = np.zeros(len(me.loop_triangles) * 3, np.int64)
-    me.loop_triangles.foreach_get("loops", loops)
-    uv = np.zeros(len(me.loops) * 2, np.float32)
-    me.uv_layers[layer].data.foreach_get("uv", uv)
+    loops = read(me.loop_triangles, "loops", np.int64, 3)
+    uv = read(me.uv_layers[layer].data, "uv", np.float32, 2)
     return uv.reshape(-1, 2)[loops].reshape(-1, 3, 2)
 
 
@@ -149,10 +146,6 @@ UNION_SIDE = 1024
 _DISJOINT = {}    # digest -> Σ |triangle area| of the layouts an unwrapper made (charts that never overlap)
 
 
-def _area_key(tri):
-    return hashlib.blake2b(tri.tobytes(), digest_size=16).digest() + bytes(str(tri.shape), "ascii")
-
-
 def chart_area(tri_uv):
     """The charts' UV area inside the unit square, overlapping charts counted once: Σ |triangle area| of the
     clipped UVs, or, when that exceeds the fraction of a UNION_SIDE² raster's texel centres they cover (a
@@ -160,7 +153,7 @@ def chart_area(tri_uv):
     overlap: :func:`_disjoint`) gets Σ |triangle area| without the raster. Remembered per layout (the unwrap, the
     side and the files ask for the same layout several times)."""
     tri = np.ascontiguousarray(np.clip(tri_uv, 0.0, 1.0), np.float32)
-    key = _area_key(tri)
+    key = digest(tri)
     if key in _DISJOINT:
         return _DISJOINT[key]
     return FIGURES.call(_union_area, tri)
@@ -177,7 +170,7 @@ def _disjoint(tri_uv):
     pack_islands'): its chart area is Σ |triangle area| (kept for the process: the same layout always gets the same
     area, whatever else was measured in between)."""
     tri = np.ascontiguousarray(np.clip(tri_uv, 0.0, 1.0), np.float32)
-    _DISJOINT[_area_key(tri)] = lightmap.uv_area(tri)
+    _DISJOINT[digest(tri)] = lightmap.uv_area(tri)
 
 
 def coverage(tri_uv, width, height):

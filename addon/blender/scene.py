@@ -141,6 +141,13 @@ def remove_scene(scene, materials=()):
             bpy.data.materials.remove(m)
 
 
+def read(seq, attr, dtype, width=1):
+    """``seq``'s ``attr`` (``width`` values an item) as a flat numpy array, through ``foreach_get``."""
+    out = np.zeros(len(seq) * width, dtype)
+    seq.foreach_get(attr, out)
+    return out
+
+
 @contextlib.contextmanager
 def evaluated_mesh(obj, depsgraph):
     """``obj``'s evaluated mesh (modifiers applied, what Cycles renders), read-only: the depsgraph's own for a mesh
@@ -163,10 +170,8 @@ def evaluated_triangles(obj, depsgraph):
         if me is None:
             return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
         me.calc_loop_triangles()
-        co = np.zeros(len(me.vertices) * 3, np.float64)
-        me.vertices.foreach_get("co", co)
-        tris = np.zeros(len(me.loop_triangles) * 3, np.int64)
-        me.loop_triangles.foreach_get("vertices", tris)
+        co = read(me.vertices, "co", np.float64, 3)
+        tris = read(me.loop_triangles, "vertices", np.int64, 3)
     return co.reshape(-1, 3), tris.reshape(-1, 3)
 
 
