@@ -124,6 +124,7 @@ class _Run:
     sides: dict = dataclasses.field(default_factory=dict)
     margins: dict = dataclasses.field(default_factory=dict)
     unwraps: dict = dataclasses.field(default_factory=dict)
+    windows: dict = dataclasses.field(default_factory=dict)
     fills: dict = dataclasses.field(default_factory=dict)
     errors: list = dataclasses.field(default_factory=list)
     tracker: Tracker = None
@@ -167,7 +168,7 @@ class _Run:
         """Plan, check and bake every map of ``groups`` (their light-map layers in place)."""
         scene, options = self.scene, self.options
         targets = plan(scene, [(n, g) for n, g in groups if n not in self.report["failed"]], maps, self.layers,
-                       self.sides, options, self.fail)
+                       self.sides, options, self.fail, self.windows)
         if not targets:
             raise self.errors[0]
         self.check_fill(targets)
@@ -185,9 +186,9 @@ class _Run:
                 self.bake_alone(target, m)
 
     def record(self, made):
-        """Keep a :class:`uv.Layouts`' layers, sides, margins and unwrappers."""
+        """Keep a :class:`uv.Layouts`' layers, sides, margins, unwrappers and windows."""
         for have, new in ((self.layers, made.layers), (self.sides, made.sides), (self.margins, made.margins),
-                          (self.unwraps, made.unwraps)):
+                          (self.unwraps, made.unwraps), (self.windows, made.windows)):
             have.update(new)
 
     def check_fill(self, targets):
@@ -196,9 +197,9 @@ class _Run:
         for t in targets:
             first = t.group[0].name
             if t.size and first in self.sides:
-                side = t.size[0]
+                side = self.windows[first][2] if first in self.windows else t.size[0]
                 margin = self.margins[first] * side / self.sides[first]
-                line = uvmod.low_fill(t.group, side, margin, self.options)
+                line = uvmod.low_fill(t.group, t.size, margin, self.options)
                 if line:
                     self.fills.update((o.name, line) for o in t.group)
 

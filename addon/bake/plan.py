@@ -282,13 +282,17 @@ def _size_option(options):
     return "resolution" if options.texel_density is None or options.sizes else "max resolution"
 
 
-def _map_size(group, layers, sides, options):
-    """(width, height) of the group's image map (None for the vertex target): ``options.sizes``, else the
-    fixed resolution or the texel-density side, never below the side a generated layout's margin was made for."""
+def _map_size(group, layers, sides, options, windows=None):
+    """(width, height) of the group's image map (None for the vertex target): ``options.sizes``, else the window
+    a generated layout was carried into (``windows``: uv.Layouts.windows), else the fixed resolution or the
+    texel-density side, never below the side a generated layout's margin was made for."""
     if options.target != "image":
         return None
     if options.sizes and group[0].name in options.sizes:
         w, h = options.sizes[group[0].name]
+        return int(w), int(h)
+    if windows and group[0].name in windows:
+        w, h, _ = windows[group[0].name]
         return int(w), int(h)
     res = max(uvmod.resolution(group, layers, options), sides.get(group[0].name, 0))
     return res, res
@@ -310,13 +314,13 @@ class Target:
         return self.size[0] * self.size[1] if self.size else sum(len(o.data.vertices) for o in self.group)
 
 
-def plan(scene, groups, maps, layers, sides, options, fail):
+def plan(scene, groups, maps, layers, sides, options, fail, windows=None):
     """[:class:`Target`] of ``groups`` [(name, objects)] not failed yet, every size and coverage check done before
     the first bake; a group that fails a check is passed to ``fail(name, error)`` and left out."""
     targets = []
     for name, group in groups:
         try:
-            target = Target(name, group, _map_size(group, layers, sides, options))
+            target = Target(name, group, _map_size(group, layers, sides, options, windows))
             if target.size is not None:
                 refusal = cost.check(target.size[0], target.size[1], maps, options.denoise,
                                      what=_size_option(options))

@@ -104,18 +104,18 @@ def world_area(obj):
 
 
 def _world_area(obj):
+    t = world_triangles(obj)
+    return float(0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum())
+
+
+def world_triangles(obj):
+    """(T, 3, 3) world positions of the corners of the mesh's loop triangles (the order of :func:`triangles_uv`)."""
     me = obj.data
     me.calc_loop_triangles()
-    n = len(me.vertices)
-    co = np.zeros(n * 3, np.float32)
-    me.vertices.foreach_get("co", co)
-    co = co.reshape(-1, 3).astype(float)
+    co = read(me.vertices, "co", np.float32, 3).reshape(-1, 3).astype(float)
     mw = np.array(obj.matrix_world, float)
     co = co @ mw[:3, :3].T + mw[:3, 3]
-    tv = np.zeros(len(me.loop_triangles) * 3, np.int64)
-    me.loop_triangles.foreach_get("vertices", tv)
-    t = co[tv].reshape(-1, 3, 3)
-    return float(0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum())
+    return co[read(me.loop_triangles, "vertices", np.int64, 3)].reshape(-1, 3, 3)
 
 
 def check_valid(obj):
@@ -305,22 +305,25 @@ class Layouts:
     """The light-map layers of a set of objects, by object name: ``layers`` the UV layer each is baked through,
     ``sides`` the side a generated layout was made for, ``margins`` its margin in texels (possibly lowered to
     half a texel; else the asked one; :func:`dilation` gives the texels the map is dilated by), ``unwraps`` the
-    unwrapper of a generated layout (SMART or LIGHTMAP_PACK)."""
+    unwrapper of a generated layout (SMART or LIGHTMAP_PACK), ``windows`` (width, height, side) of a generated
+    layout carried into a window of its map (:func:`_cut_window`): its map is width x height."""
     layers: dict = dataclasses.field(default_factory=dict)
     sides: dict = dataclasses.field(default_factory=dict)
     margins: dict = dataclasses.field(default_factory=dict)
     unwraps: dict = dataclasses.field(default_factory=dict)
+    windows: dict = dataclasses.field(default_factory=dict)
 
 
 @dataclasses.dataclass
 class _Made:
     """A generated layout: the side it was made for, its margin in texels, its unwrapper, the side asked before it
-    was enlarged (0: not enlarged)."""
+    was enlarged (0: not enlarged), the window (width, height, side) it was carried into (None: the square)."""
     side: int
     margin: float
     unwrap: str
     enlarged_from: int = 0
     welded: bool = False
+    window: tuple = None
 
 
 def prepare(scene, objects, state, options, together=False, cache=None):
@@ -352,6 +355,8 @@ def prepare(scene, objects, state, options, together=False, cache=None):
             layout = _unwrap_cached(scene, group, state, options, names, together, cache)
             for o in group:
                 made.sides[o.name], margins[o.name], made.unwraps[o.name] = layout.side, layout.margin, layout.unwrap
+                if layout.window:
+                    made.windows[o.name] = layout.window
     return made
 
 
@@ -359,17 +364,13 @@ def _unwrap_cached(scene, group, state, options, names, together, cache):
     """:func:`_unwrap_with_margin`, or the layout ``cache`` holds for the group (the same UVs, side, margin,
     unwrapper and warnings as unwrapping again)."""
     if cache is None:
-        return _unwrap_with_margin(scene, group, state, options, names)
+        return _cut_window(group, _unwrap_with_margin(scene, group, state, options, names), state, names, options)
     digest = uvcache.key(group, scene.view_layers[0].depsgraph, options, together)
     entry = cache.get(digest, [o.data for o in group])
     if entry is None:
-        made = _unwrap_with_margin(scene, group, state, options, names)
-        uvs = []
-        for o in group:
-            uv = np.zeros(len(o.data.loops) * 2, np.float32)
-            o.data.uv_layers[LIGHTMAP].data.foreach_get("uv", uv)
-            uvs.append(uv)
-        cache.put(digest, uvcache.Entry(uvs, made.side, made.margin, made.unwrap, made.enlarged_from))
+        made = _cut_window(group, _unwrap_with_margin(scene, group, state, options, names), state, names, options)
+        uvs = [read(o.data.uv_layers[LIGHTMAP].data, "uv", np.float32, 2) for o in group]
+        cache.put(digest, uvcache.Entry(uvs, made.side, made.margin, made.unwrap, made.enlarged_from, made.window))
         return made
     label = ", ".join(f"'{o.name}'" for o in group)
     for o, uv in zip(group, entry.uvs):
@@ -378,7 +379,38 @@ def _unwrap_cached(scene, group, state, options, names, together, cache):
     if entry.enlarged_from:
         _say_enlarged(label, entry.enlarged_from, entry.side)
     return _Made(entry.side, _dilation(label, options.margin, entry.margin, entry.side), entry.unwrap,
-                 entry.enlarged_from)
+                 entry.enlarged_from, window=entry.window)
+
+
+WINDOW_ASPECT = 0.9
+"""A layout is carried into a window of its map (:func:`_cut_window`) when the window's sides differ by more than
+this ratio (Blender's packers fill one side of the square: a UV sphere's Smart UV Project layout 0.70 of the other,
+a cylinder's 0.83)."""
+REUSE_ASPECT = 1.05
+"""An earlier "Lightmap" layer is reused for a square map only when its texels are square to this ratio
+(:func:`core.lightmap.texel_aspect`; measured 0.968-1.003 on Smart UV Project layouts made for a square, 0.71-0.83
+on layouts carried into windows)."""
+
+
+def _cut_window(group, made, state, names, options):
+    """With a texel density (the bake chooses the map's size), carry the group's generated layout into the window
+    of whole texels that holds its charts and their margins (:func:`core.lightmap.chart_window`) at the side S its
+    map gets (the texel-density side, at least the layout's): the map becomes width x height, the same texels
+    (every texel centre keeps its place against the charts) without the empty strip the packer left. Kept square
+    when the window's sides are within WINDOW_ASPECT (a fixed resolution is always square)."""
+    if options.texel_density is None or options.sizes:
+        return made
+    side = max(resolution(group, names, options), made.side)
+    tri = np.concatenate([triangles_uv(o, LIGHTMAP) for o in group])
+    lo, size = lightmap.chart_window(tri, side, made.margin * side / made.side)
+    if min(size) > WINDOW_ASPECT * max(size):
+        return made
+    for o in group:
+        uv = read(o.data.uv_layers[LIGHTMAP].data, "uv", np.float32, 2)
+        _write_layer(state, o.data, lightmap.to_window(uv, side, lo, size).ravel())
+        _disjoint(triangles_uv(o, LIGHTMAP))
+    made.window = (int(size[0]), int(size[1]), int(side))
+    return made
 
 
 def _say_enlarged(label, asked, side):
@@ -398,9 +430,12 @@ def _write_layer(state, me, uv):
 
 
 def _reusable(obj, options):
-    """An earlier bake's "Lightmap" layer is reused when it covers the map it will get."""
+    """An earlier bake's "Lightmap" layer is reused when it covers the square map it will get and its texels are
+    square on it (REUSE_ASPECT: a layout carried into a window is made again, from the UV cache when it has it)."""
     tri = triangles_uv(obj, LIGHTMAP)
     if _outside(tri):
+        return False
+    if abs(math.log(lightmap.texel_aspect(tri, world_triangles(obj)))) > math.log(REUSE_ASPECT):
         return False
     side = fixed_side(obj, options) or resolution([obj], {obj.name: LIGHTMAP}, options)
     return coverage_ratio(tri, side, side)[0] >= MIN_COVERAGE
@@ -528,24 +563,27 @@ FILL_HINT = 0.5
 """The fill the suggested resolution reaches."""
 
 
-def fill(group, side):
-    """Covered texels (centre rule) / map texels of the group's "Lightmap" layers in a side² map."""
+def fill(group, width, height=None):
+    """Covered texels (centre rule) / map texels of the group's "Lightmap" layers in a width x height map (square
+    without ``height``)."""
     tri = np.concatenate([triangles_uv(o, LIGHTMAP) for o in group])
-    return float(coverage(tri, side, side).mean())
+    return float(coverage(tri, width, height or width).mean())
 
 
-def low_fill(group, side, margin, options):
-    """The warning line (also warned) when the group's generated layout fills under FILL of its ``side``² map
-    (the map's final size; ``margin`` the charts' margin in its texels), else None:
+def low_fill(group, size, margin, options):
+    """The warning line (also warned) when the group's generated layout fills under FILL of its map of ``size``
+    (width, height: the map's final size; ``margin`` the charts' margin in its texels), else None:
     its fill, covered texels per triangle or per chart, and the side (and texel density) that reaches FILL_HINT
-    (FILL from above FILL_HINT) by :func:`charts.side_for_fill`."""
-    have = fill(group, side)
+    (FILL from above FILL_HINT) by :func:`charts.side_for_fill` (of a square map of as many texels)."""
+    w, h = size
+    have = fill(group, w, h)
     if have >= FILL:
         return None
+    side = max(1, round(math.sqrt(w * h)))
     label = ", ".join(f"'{o.name}'" for o in group)
     tris = sum(len(o.data.loop_triangles) for o in group)
     charts = sum(chart_count(o.data, LIGHTMAP) for o in group)
-    covered = have * side * side
+    covered = have * w * h
     goal = FILL_HINT if have < FILL_HINT else FILL
     need = side_for_fill(have, side, covered / max(charts, 1), margin, float(options.margin), goal)
     cause = (f"{covered / max(tris, 1):.2g} texels per triangle" if covered < 4 * tris else
@@ -557,7 +595,7 @@ def low_fill(group, side, margin, options):
         hint = f"a resolution of about {need}{density} fills {100 * goal:.0f} %"
     else:
         hint = f"no resolution fills {100 * goal:.0f} % (merge or simplify the faces, or use an atlas)"
-    line = f"{label}: light-map charts cover only {100 * have:.1f} % of the {side}x{side} map ({cause}); {hint}"
+    line = f"{label}: light-map charts cover only {100 * have:.1f} % of the {w}x{h} map ({cause}); {hint}"
     errors.warn(line)
     return line
 

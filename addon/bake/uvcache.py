@@ -7,7 +7,8 @@ faces' first loops and corner counts: what the unwrappers see, and the loop orde
 evaluated mesh (the modifiers' result), the metric MᵀM of its world matrix (world area, hence the side chosen from a
 texel density; the matrix itself for an atlas; both to 6 digits), and the layout options (margin, resolution, texel density, maximum
 resolution, fixed sizes, atlas), :data:`LAYOUT_VERSION` and Blender's version (the unwrappers may change). An
-entry holds each object's UVs (float32, its loop order), the side, margin and unwrapper; a file that cannot be read,
+entry holds each object's UVs (float32, its loop order), the side, margin and unwrapper, and the window the layout
+was carried into (width, height and the side it was cut from; 0 0 0 for none); a file that cannot be read,
 or whose arrays do not match the meshes (shape, dtype, finite values inside the unit square), is ignored and
 rebuilt. Files are written (atomically) only after a map of the run is written, never outside the output folder,
 named by the digest only.
@@ -22,7 +23,7 @@ import numpy as np
 
 from ..core.io.files import write_bytes
 
-LAYOUT_VERSION = 4
+LAYOUT_VERSION = 5
 """Raised whenever the layout search (uv.py) changes what it makes for the same input."""
 DIR = ".il-uv-cache"
 _SLACK = 1e-4
@@ -31,12 +32,14 @@ _SLACK = 1e-4
 @dataclasses.dataclass
 class Entry:
     """A generated layout: per object its "Lightmap" UVs (flat float32, 2 per loop), the side it was made for,
-    the margin in texels, the unwrapper, the side asked before it was enlarged (0: not enlarged)."""
+    the margin in texels, the unwrapper, the side asked before it was enlarged (0: not enlarged), the window
+    (width, height, side cut from) the layout was carried into (None: the square)."""
     uvs: list
     side: int
     margin: float
     unwrap: str
     enlarged_from: int = 0
+    window: tuple = None
 
 
 def _arrays(me):
@@ -104,6 +107,7 @@ class UVCache:
             buf = io.BytesIO()
             np.savez(buf, side=np.int64(entry.side), margin=np.float64(entry.margin),
                      unwrap=np.array(entry.unwrap), enlarged_from=np.int64(entry.enlarged_from),
+                     window=np.array(entry.window or (0, 0, 0), np.int64),
                      **{f"uv{i}": uv for i, uv in enumerate(entry.uvs)})
             try:
                 write_bytes(self.path(digest), buf.getvalue())
@@ -115,18 +119,22 @@ def _read(path):
     try:
         with np.load(path, allow_pickle=False) as z:
             n = sum(1 for k in z.files if k.startswith("uv"))
+            window = tuple(int(x) for x in z["window"])
             return Entry([np.asarray(z[f"uv{i}"]) for i in range(n)], int(z["side"]), float(z["margin"]),
-                         str(z["unwrap"]), int(z["enlarged_from"]))
+                         str(z["unwrap"]), int(z["enlarged_from"]), window if all(window) else None)
     except Exception:      # missing, truncated, not an npz, a field missing or of another kind: rebuilt
         return None
 
 
 def _fits(entry, meshes):
     """The entry's arrays match the meshes: one float32 array of 2 × loops finite UVs in the unit square each,
-    a positive side and margin."""
+    a positive side and margin, a window (if any) of three positive sides no wider than the side it was cut from."""
     from .uv import LIGHTMAP_PACK, SMART
     if len(entry.uvs) != len(meshes) or entry.side < 1 or not entry.margin > 0 or entry.unwrap not in (SMART,
                                                                                                        LIGHTMAP_PACK):
+        return False
+    if entry.window is not None and (len(entry.window) != 3 or min(entry.window) < 1
+                                     or max(entry.window[:2]) > entry.window[2]):
         return False
     for uv, me in zip(entry.uvs, meshes):
         if uv.dtype != np.float32 or uv.shape != (2 * len(me.loops),) or not np.isfinite(uv).all():

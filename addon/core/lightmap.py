@@ -33,6 +33,53 @@ def uv_area(tri_uv):
     return float(0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum())
 
 
+def chart_window(tri_uv, side, margin):
+    """(lo, size), each (x, y) ints: the window [lo, lo + size) of whole texels of a ``side``² map that holds every
+    chart of ``tri_uv`` (T, 3, 2) with ``margin`` texels around it (clipped to the map)."""
+    p = np.asarray(tri_uv, float).reshape(-1, 2) * side
+    if not len(p):
+        return np.zeros(2, np.int64), np.full(2, int(side), np.int64)
+    lo = np.clip(np.floor(p.min(0) - margin), 0, side).astype(np.int64)
+    hi = np.clip(np.ceil(p.max(0) + margin), 0, side).astype(np.int64)
+    return lo, np.maximum(hi - lo, 1)
+
+
+def to_window(uv, side, lo, size):
+    """UVs (..., 2) of a ``side``² map carried into its :func:`chart_window` (lo, size): u' = (u side - lo) / size.
+    The window's texels are the map's texels: every texel centre keeps its place relative to the charts."""
+    uv = np.asarray(uv, np.float64).reshape(-1, 2)
+    return ((uv * side - lo) / size).astype(np.float32)
+
+
+def texel_aspect(tri_uv, tri_world):
+    """Area-weighted median over triangles of |∇u| / |∇v| (∇ on the surface, UVs against positions (T, 3, 3)):
+    the ratio h / w of the map sides that gives square texels on the surface. 1 for a layout made for a square map
+    from isometric charts; h / w for such a layout carried into a w x h window (:func:`to_window`)."""
+    t = np.asarray(tri_world, float)
+    d = np.asarray(tri_uv, float)
+    e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    n1 = np.linalg.norm(e1, axis=1)
+    cross = np.linalg.norm(np.cross(e1, e2), axis=1)
+    ok = (n1 > 0) & (cross > 1e-12 * np.maximum(n1, 1e-30) ** 2)
+    if not ok.any():
+        return 1.0
+    e1, e2, n1, cross, d = e1[ok], e2[ok], n1[ok], cross[ok], d[ok]
+    x2 = np.einsum("ij,ij->i", e1, e2) / n1                       # e2 in the frame (e1 / |e1|, n x e1 / |e1|)
+    y2 = cross / n1
+    f1, f2 = d[:, 1] - d[:, 0], d[:, 2] - d[:, 0]                  # J [n1, x2; 0, y2] = [f1 f2]
+    gx = f1 / n1[:, None]
+    gy = (f2 - gx * x2[:, None]) / y2[:, None]
+    grad_u = np.hypot(gx[:, 0], gy[:, 0])
+    grad_v = np.hypot(gx[:, 1], gy[:, 1])
+    keep = (grad_u > 0) & (grad_v > 0)
+    if not keep.any():
+        return 1.0
+    r, w = np.log(grad_u[keep] / grad_v[keep]), cross[keep]
+    order = np.argsort(r)
+    c = np.cumsum(w[order])
+    return float(np.exp(r[order][np.searchsorted(c, 0.5 * c[-1])]))
+
+
 def _texels_inside(tri_uv, width, height, strict=False, chunk=1 << 20):
     """Yield flat texel indices (row · W + column, row 0 at v = 0) of the texel centres inside each UV triangle,
     a block of triangles at a time (a centre inside k triangles is yielded k times).

@@ -235,7 +235,7 @@ def test_an_atlas_is_one_call_with_the_same_image(tmp_path, monkeypatch):
     from addon.lab.bench.level import pack_islands_utilisation
     entry = rep["objects"]["Floor"]["ao"]
     used = sum(rep["objects"][o.name]["ao"]["coverage"] for o in objects)
-    assert used >= pack_islands_utilisation(objects, entry["resolution"][0], entry["margin"]) - 0.005
+    assert used >= pack_islands_utilisation(objects, tuple(entry["resolution"]), entry["margin"]) - 0.005
 
 
 # ------------------------------------------------------------------ reports of resumed and sharded bakes

@@ -290,6 +290,36 @@ def test_each_mesh_keeps_the_unwrapper_that_fills_its_map_more(tmp_path, monkeyp
     assert fills["Torus"][0] == "lightmap_pack", fills
 
 
+@pytest.mark.both_versions
+def test_a_texel_density_map_is_cut_to_the_window_of_its_charts(tmp_path):
+    """With a texel density the bake chooses the map's size: a UV sphere's layout (Smart UV Project leaves 30 % of
+    the square empty) is carried into the window of whole texels holding its charts. Its map is w x h (the EXR too),
+    fills at least 55 % of it, keeps the texel density (covered texels = T² A within the rasterised borders) and
+    square texels on the surface; a rerun finds it unchanged, and a bake into another folder (the layer is not
+    reused for a square map) makes the same window and the same pixels."""
+    from addon.bake import uv as uvmod
+    from addon.core import lightmap
+    scene = bpy.context.scene
+    sphere = added(bpy.ops.mesh.primitive_uv_sphere_add)
+    density = 24.0
+    opts = BakeOptions(texel_density=density, samples=1, margin=1, overwrite=True)
+    rep = bake_lightmaps([sphere], ["ao"], tmp_path / "a", opts, scene=scene)
+    entry = rep["objects"][sphere.name]["ao"]
+    w, h = entry["resolution"]
+    pixels = exr.read_exr(tmp_path / "a" / f"{sphere.name}_ao.exr")[0]["Y"]
+    assert pixels.shape == (h, w) and min(w, h) < uvmod.WINDOW_ASPECT * max(w, h)
+    tri = uvmod.triangles_uv(sphere, "Lightmap")
+    covered = lightmap.coverage_mask(tri, w, h)
+    assert covered.mean() >= 0.55
+    assert covered.sum() == pytest.approx(density ** 2 * uvmod.world_area(sphere), rel=0.06)
+    assert lightmap.texel_aspect(tri, uvmod.world_triangles(sphere)) * w / h == pytest.approx(1.0, abs=0.04)
+    again = bake_lightmaps([sphere], ["ao"], tmp_path / "a", opts, scene=scene)
+    assert again["unchanged"] == {sphere.name: ["ao"]}
+    other = bake_lightmaps([sphere], ["ao"], tmp_path / "b", opts, scene=scene)
+    assert other["objects"][sphere.name]["ao"]["resolution"] == [w, h]
+    assert np.array_equal(exr.read_exr(tmp_path / "b" / f"{sphere.name}_ao.exr")[0]["Y"], pixels)
+
+
 @pytest.mark.parametrize("side", [64, 256])
 def test_a_layout_depends_on_the_faces_not_on_their_order(tmp_path, side):
     """The unwrap copy is canonical (faces sorted by their vertices, each starting at its lowest vertex): the same

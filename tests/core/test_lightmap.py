@@ -285,3 +285,32 @@ def test_inward_shells_find_a_closed_surface_wound_inside_out():
     mixed = tris[:, ::-1].copy()
     mixed[0] = mixed[0, ::-1]                                                  # inconsistent winding: not judged
     assert not lm.inward_shells(co, mixed)[1].any()
+
+
+def test_a_chart_window_keeps_every_texel_of_the_charts():
+    """The window's map is the full map's texels inside it: the same texel centres covered, none lost."""
+    rng = np.random.default_rng(5)
+    side, margin = 64, 2
+    tri = rng.uniform([0.1, 0.05], [0.9, 0.6], (40, 3, 2))
+    lo, size = lm.chart_window(tri, side, margin)
+    full = lm.coverage_mask(tri, side, side)
+    cut = lm.coverage_mask(lm.to_window(tri, side, lo, size).reshape(-1, 3, 2), int(size[0]), int(size[1]))
+    assert full.sum() == cut.sum() > 0
+    np.testing.assert_array_equal(full[lo[1]:lo[1] + size[1], lo[0]:lo[0] + size[0]], cut)
+    p = tri.reshape(-1, 2) * side                    # every chart at least the margin inside the window
+    assert (p.min(0) - lo >= margin).all() and (lo + size - p.max(0) >= margin).all()
+    assert size[1] < 0.7 * side
+
+
+def test_texel_aspect_of_a_stretched_layout_is_its_stretch():
+    """A tilted 3 x 2 m rectangle mapped isometrically (1/4 UV per metre) has square texels on a square map
+    (aspect 1); its UVs scaled by (s/w, s/h), as :func:`to_window` does, give h / w."""
+    u, v = np.meshgrid(np.linspace(0, 3, 7), np.linspace(0, 2, 5))
+    quads = [((i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)) for i in range(6) for j in range(4)]
+    tris = np.array([[q[0], q[1], q[2]] for q in quads] + [[q[0], q[2], q[3]] for q in quads])
+    uv2 = np.stack([u[tris[..., 1], tris[..., 0]], v[tris[..., 1], tris[..., 0]]], -1) / 4
+    c, s_ = math.cos(0.7), math.sin(0.7)
+    world = np.stack([uv2[..., 0] * 4, uv2[..., 1] * 4 * c, uv2[..., 1] * 4 * s_ + 1.0], -1)
+    assert lm.texel_aspect(uv2, world) == pytest.approx(1.0, abs=1e-9)
+    w, h, side = 40, 28, 40
+    assert lm.texel_aspect(uv2 * [side / w, side / h], world) == pytest.approx(h / w, rel=1e-9)

@@ -457,7 +457,8 @@ def test_a_full_disk_is_one_line_and_keeps_what_was_finished(tmp_path, small_dis
     assert sorted(set(os.listdir(out)) - {".il-uv-cache"}) == ["Small_ao.exr", "Small_ao.png", "bake_report.json"]
     report = json.loads((out / "bake_report.json").read_text())
     assert list(report["objects"]) == ["Small"]
-    assert exr.read_exr(out / "Small_ao.exr")[0]["Y"].shape == tuple(report["objects"]["Small"]["ao"]["resolution"])
+    w, h = report["objects"]["Small"]["ao"]["resolution"]
+    assert exr.read_exr(out / "Small_ao.exr")[0]["Y"].shape == (h, w)
 
 
 def test_stdout_and_stderr_carry_the_projects_lines_only(tmp_path):

@@ -214,19 +214,23 @@ def bare_bakes(scene, objects, report, options):
     return seconds
 
 
-def layout_utilisation(objects, side):
-    """Covered texels (centre rule) / map texels of the objects' "Lightmap" layers in a ``side``² map, over the
-    triangles each mesh is baked with (its own loop triangles)."""
+def layout_utilisation(objects, size):
+    """Covered texels (centre rule) / map texels of the objects' "Lightmap" layers in a map of ``size`` (width,
+    height), over the triangles each mesh is baked with (its own loop triangles)."""
     tri = np.concatenate([uvmod.triangles_uv(o, uvmod.LIGHTMAP) for o in objects])
-    return float(lightmap.coverage_mask(tri, side, side).mean())
+    return float(lightmap.coverage_mask(tri, size[0], size[1]).mean())
 
 
-def pack_islands_utilisation(objects, side, margin):
+def pack_islands_utilisation(objects, size, margin):
     """:func:`layout_utilisation` of the objects' "Lightmap" charts re-packed together by Blender's
     ``uv.pack_islands`` (same margin as a fraction of the side, bounding boxes, rotation; concave and convex shapes
-    took minutes for a few hundred charts) in a ``side``² map: packed as the pipeline packs, on the canonical copies
+    took minutes for a few hundred charts) in a square of the map's longer side, then cut to the window of its
+    charts as the pipeline cuts its own (``uv._cut_window``): packed as the pipeline packs, on the canonical copies
     of the meshes (``uv._canonical_copy``, the same scale; the packer's result depends on the face order, which
-    Blender's UV sphere changes from process to process), the charts carried back to the meshes' own loops."""
+    Blender's UV sphere changes from process to process), the charts carried back to the meshes' own loops (UVs of
+    a w x h map given to the packer in texels / the longer side, so that its charts keep their shape)."""
+    side = max(size)
+    iso = np.array(size, np.float32) / side
     scene = bpy.context.scene
     vl = bpy.context.view_layer
     copies, loops = [], []
@@ -240,7 +244,7 @@ def pack_islands_utilisation(objects, side, margin):
             uv = np.zeros(len(o.data.loops) * 2, np.float32)
             o.data.uv_layers[uvmod.LIGHTMAP].data.foreach_get("uv", uv)
             me.uv_layers.new(name=uvmod.LIGHTMAP, do_init=False).data.foreach_set(
-                "uv", uv.reshape(-1, 2)[loops[-1]].ravel())
+                "uv", (uv.reshape(-1, 2)[loops[-1]] * iso).ravel())
             copy.matrix_world = o.matrix_world
             scene.collection.objects.link(copy)
         for o in vl.objects:
@@ -264,7 +268,12 @@ def pack_islands_utilisation(objects, side, margin):
             t = np.zeros(len(o.data.loop_triangles) * 3, np.int64)
             o.data.loop_triangles.foreach_get("loops", t)
             tri.append(uv[t].reshape(-1, 3, 2))
-        return float(lightmap.coverage_mask(np.concatenate(tri), side, side).mean())
+        tri = np.concatenate(tri)
+        lo, cut = lightmap.chart_window(tri, side, margin)
+        if min(cut) > uvmod.WINDOW_ASPECT * max(cut):
+            lo, cut = np.zeros(2, np.int64), np.array([side, side])
+        inside = lightmap.to_window(tri.reshape(-1, 2), side, lo, cut).reshape(-1, 3, 2)
+        return float(lightmap.coverage_mask(inside, int(cut[0]), int(cut[1])).mean())
     finally:
         for copy in copies:
             me = copy.data
@@ -376,13 +385,14 @@ def run(output_dir, quick=False, props=None, texel_density=None, samples=None):
         print(f"level: atlas bake {atlas_wall:.1f} s", flush=True)
         members = [o for o in objects if o.name in atlas["objects"]]
         entry = atlas["objects"][members[0].name]["ao"]
-        side = entry["resolution"][0]
+        size = tuple(entry["resolution"])
         used = float(sum(atlas["objects"][o.name]["ao"]["coverage"] for o in members))
-        layout = layout_utilisation(members, side)
-        packed = pack_islands_utilisation(members, side, entry["margin"])
-        rows.append({"run": "atlas", "objects": len(members), "triangles": tris, "map_texels": 2 * side * side,
-                     "pipeline_seconds": round(atlas_wall, 3), "texels_per_second": round(2 * side * side / atlas_wall),
-                     "atlas_side": side, "utilisation": round(used, 4), "layout_utilisation": round(layout, 4),
+        layout = layout_utilisation(members, size)
+        packed = pack_islands_utilisation(members, size, entry["margin"])
+        texels = size[0] * size[1]
+        rows.append({"run": "atlas", "objects": len(members), "triangles": tris, "map_texels": 2 * texels,
+                     "pipeline_seconds": round(atlas_wall, 3), "texels_per_second": round(2 * texels / atlas_wall),
+                     "atlas_side": "x".join(map(str, size)), "utilisation": round(used, 4), "layout_utilisation": round(layout, 4),
                      "pack_islands_utilisation": round(packed, 4),
                      "peak_rss_mib": round(peak_rss() / 2 ** 20, 1)})
         figures.update({"pipeline_over_bare": wall / bare_total, "peak_rss_before_bake_mib": rss0 / 2 ** 20,
