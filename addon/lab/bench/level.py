@@ -221,11 +221,11 @@ def layout_utilisation(objects, size):
     return float(lightmap.coverage_mask(tri, size[0], size[1]).mean())
 
 
-def pack_islands_utilisation(objects, size, margin):
+def pack_islands_utilisation(objects, size, margin, cut=True):
     """:func:`layout_utilisation` of the objects' "Lightmap" charts re-packed together by Blender's
     ``uv.pack_islands`` (same margin as a fraction of the side, bounding boxes, rotation; concave and convex shapes
-    took minutes for a few hundred charts) in a square of the map's longer side, then cut to the window of its
-    charts as the pipeline cuts its own (``uv._cut_window``): packed as the pipeline packs, on the canonical copies
+    took minutes for a few hundred charts) in a square of the map's longer side, then (``cut``: a texel-density
+    map) cut to the window of its charts as the pipeline cuts its own (``uv._cut_window``): packed as the pipeline packs, on the canonical copies
     of the meshes (``uv._canonical_copy``, the same scale; the packer's result depends on the face order, which
     Blender's UV sphere changes from process to process), the charts carried back to the meshes' own loops (UVs of
     a w x h map given to the packer in texels / the longer side, so that its charts keep their shape)."""
@@ -269,11 +269,11 @@ def pack_islands_utilisation(objects, size, margin):
             o.data.loop_triangles.foreach_get("loops", t)
             tri.append(uv[t].reshape(-1, 3, 2))
         tri = np.concatenate(tri)
-        lo, cut = lightmap.chart_window(tri, side, margin)
-        if min(cut) > uvmod.WINDOW_ASPECT * max(cut):
-            lo, cut = np.zeros(2, np.int64), np.array([side, side])
-        inside = lightmap.to_window(tri.reshape(-1, 2), side, lo, cut).reshape(-1, 3, 2)
-        return float(lightmap.coverage_mask(inside, int(cut[0]), int(cut[1])).mean())
+        lo, window = lightmap.chart_window(tri, side, margin)
+        if not cut or min(window) > uvmod.WINDOW_ASPECT * max(window):
+            lo, window = np.zeros(2, np.int64), np.array([side, side])
+        inside = lightmap.to_window(tri.reshape(-1, 2), side, lo, window).reshape(-1, 3, 2)
+        return float(lightmap.coverage_mask(inside, int(window[0]), int(window[1])).mean())
     finally:
         for copy in copies:
             me = copy.data
