@@ -47,6 +47,25 @@ margin wider than that wastes most texels of a small map."""
 _OUTSIDE = 1e-4       # UVs this far outside [0, 1]: the packer failed
 SMART, LIGHTMAP_PACK = "smart_project", "lightmap_pack"
 """The unwrappers a generated layout comes from (the report entries' "unwrap")."""
+ANGLE = 1.15192
+"""Smart UV Project's angle limit (66°, its default)."""
+WIDE_ANGLE = math.radians(75)
+"""The angle limit also tried on a single mesh's layout that fills under FILL (:meth:`_Copies.try_wide_angle`):
+fewer, larger charts, hence fewer margins. Measured (fill of the window at the side, margin 1-2 texels; density
+spread): an ico sphere (3 subdivisions) 0.44 -> 0.67 at 128², 0.32 -> 0.49 at 64², spread 0.92 both; a torus 0.31
+-> 0.39 at 128²; a UV sphere 0.69 -> 0.55 and a cylinder unchanged (kept at 66°). 85° and 89° fill more by
+foreshortening: spread 0.35-0.75."""
+SPREAD_SLACK = 0.05
+MIN_SPREAD = 0.8
+"""A layout that would replace another (:meth:`_Copies.try_wide_angle`, :meth:`_Copies.try_lightmap_pack`) must be
+about as even (:func:`density_spread`): at least the other's less SPREAD_SLACK, or at least MIN_SPREAD. Measured:
+Smart UV Project 0.90-0.93 on the primitives; Lightmap Pack 0.83 (UV sphere), 0.89 (torus), 0.95 (ico sphere),
+0.45-0.46 (cylinder: its caps get half the density of its side); Smart UV Project at 85-89° 0.35-0.75."""
+
+
+def even_enough(spread, other):
+    """A layout of density spread ``spread`` may replace one of ``other`` (SPREAD_SLACK, MIN_SPREAD)."""
+    return spread >= min(other - SPREAD_SLACK, MIN_SPREAD)
 LIGHTMAP_PACK_TRIANGLES = 10000
 """Lightmap Pack (Python: measured 0.06 s for 1,280 triangles, 0.28 s for 5,120, 0.31 s for 10,000 quads, 1.6 s
 for 40,000 quads, against 0.001-0.07 s for Smart UV Project) is tried only on single meshes up to this many
@@ -483,6 +502,12 @@ def _unwrap_with_margin(scene, group, state, options, names):
     return _search(scene, group, state, options, names, weld=False)
 
 
+def _overlap(group, side):
+    """Fraction of the group's "Lightmap" texels (at ``side``, up to OVERLAP_SIDE) under several of its faces."""
+    s = min(int(side), OVERLAP_SIDE)
+    return FIGURES.call(lightmap.overlap_fraction, np.concatenate([triangles_uv(o, LIGHTMAP) for o in group]), s, s)
+
+
 def _overlapping(group, side):
     """Some object of ``group`` has more than MAX_OVERLAP of its "Lightmap" texels under several of its faces."""
     s = min(int(side), OVERLAP_SIDE)
@@ -515,7 +540,7 @@ def _search(scene, group, state, options, names, weld=True):
 def _search_copies(copies, group, options, names, label, fixed):
     """The search of :func:`_search` on the open ``copies`` (``fixed``: the fixed side, or None)."""
     if fixed:
-        margin = _fit(copies, group, fixed, options.margin)
+        margin = _fit(copies, group, fixed, options.margin, cut=False)
         if margin is None:
             need = _fit_side(copies, group, fixed)
             hint = (f"use a resolution of at least {need}" if need else
@@ -526,25 +551,25 @@ def _search_copies(copies, group, options, names, label, fixed):
     side = resolution(group, names, options, coverage=1.0)
     made = None
     for _ in range(3):
-        margin = _fit(copies, group, side, options.margin)
+        margin = _fit(copies, group, side, options.margin, cut=True)
         if margin is None:
             break
         made = side
         need = resolution(group, names, options)
         if side <= need <= 1.05 * side:
             if len(group) > 1 and need > side:     # an atlas packed for the side its map gets
-                refit = _fit(copies, group, need, options.margin)
+                refit = _fit(copies, group, need, options.margin, cut=True)
                 if refit is not None:
                     made, margin = need, refit
                 else:
-                    margin = _fit(copies, group, side, options.margin)
+                    margin = _fit(copies, group, side, options.margin, cut=True)
             break
         side = need
     if margin is None:
         asked = side
         while margin is None and side < int(options.max_resolution):
             side = min(2 * side, int(options.max_resolution))
-            margin = _fit(copies, group, side, options.margin)
+            margin = _fit(copies, group, side, options.margin, cut=True)
         if margin is None:
             raise InputError(f"{label}: the light-map charts do not fit a map of the maximum resolution "
                              f"{options.max_resolution} (they would cover under {100 * MIN_COVERAGE:.0f} % "
@@ -623,11 +648,13 @@ def margin_value(margin):
     return int(m) if m.is_integer() else m
 
 
-def _fit(copies, group, side, margin):
+def _fit(copies, group, side, margin, cut):
     """Unwrap at ``side`` with the largest margin (texels) of :func:`_margins` whose layout fits and whose charts
     fill at least MIN_CHART_AREA of the map (else the fitting layout that fills most); leave it in place and
-    return that margin, or None when none fits. A single mesh's layout is then also tried by Lightmap Pack with
-    that margin (:meth:`_Copies.try_lightmap_pack`), kept when it fills more of the map."""
+    return that margin, or None when none fits. A single mesh's layout is then also tried by Smart UV Project at
+    WIDE_ANGLE (:meth:`_Copies.try_wide_angle`) and by Lightmap Pack with that margin
+    (:meth:`_Copies.try_lightmap_pack`), each kept when it fills more of the map as it is baked (``cut``: cut to
+    its window, :func:`baked_fill`)."""
     best = None
     for m in _margins(margin):
         copies.unwrap(margin_fraction(m, side), side)
@@ -643,8 +670,27 @@ def _fit(copies, group, side, margin):
             copies.unwrap(margin_fraction(best[0], side), side)
     if best is None:
         return None
-    copies.try_lightmap_pack(margin_fraction(best[0], side), side)
+    copies.try_wide_angle(margin_fraction(best[0], side), side, best[0], cut)
+    copies.try_lightmap_pack(margin_fraction(best[0], side), side, best[0], cut)
     return best[0]
+
+
+def baked_fill(group, side, margin, cut):
+    """Covered texels / texels of the map the group's "Lightmap" layout made for a ``side``² map is baked into:
+    the square, or with ``cut`` the window :func:`_cut_window` would cut (``margin`` texels around the charts)."""
+    tri = np.concatenate([triangles_uv(o, LIGHTMAP) for o in group])
+    covered = float(coverage(tri, side, side).sum())
+    if cut:
+        _, size = lightmap.chart_window(tri, side, margin)
+        if min(size) <= WINDOW_ASPECT * max(size):
+            return covered / float(size[0] * size[1])
+    return covered / float(side * side)
+
+
+def density_spread(group):
+    """:func:`core.lightmap.density_spread` of the group's "Lightmap" layout on its world-space triangles."""
+    return lightmap.density_spread(np.concatenate([triangles_uv(o, LIGHTMAP) for o in group]),
+                                   np.concatenate([world_triangles(o) for o in group]))
 
 
 def _fit_side(copies, group, side):
@@ -752,19 +798,20 @@ class _Copies:
     REPACKS = 3
     """Most re-packs of an atlas layout by ``uv.pack_islands`` (each kept only when it covers more texels)."""
 
-    def unwrap(self, margin_uv, side):
+    def unwrap(self, margin_uv, side, angle=None):
         """Smart UV Project of every copy in one edit session (one UV square) into "Lightmap"; for several copies
         (an atlas) the charts are then re-packed by ``uv.pack_islands`` (bounding boxes, rotation, the same margin
         as a fraction of the map) while a re-pack covers more texel centres of a ``side``² map (up to REPACKS
         times), so the layout kept covers at least as many as ``pack_islands`` of it. Measured on the quick level's
         atlas (29 meshes, 273², 1-texel margins): convex and concave shapes cover the same texels as bounding boxes
-        for 10x the time; margin_method ADD or SCALED does not keep the margin in texels."""
+        for 10x the time; margin_method ADD or SCALED does not keep the margin in texels. ``angle``: Smart UV
+        Project's angle limit (radians, ANGLE by default)."""
         temps = [obj for _, obj in self.copies]
         lead = temps[0]
         ctx = self._context()
         self.unwrapper = SMART
         with _edit(ctx, lead):
-            bpy.ops.uv.smart_project(angle_limit=1.15192, island_margin=float(margin_uv), margin_method="FRACTION",
+            bpy.ops.uv.smart_project(angle_limit=ANGLE if angle is None else angle, island_margin=float(margin_uv), margin_method="FRACTION",
                                      area_weight=0.0, correct_aspect=True, scale_to_bounds=False)
         best = self._uvs(temps)
         if len(temps) > 1:
@@ -795,18 +842,42 @@ class _Copies:
         return dict(scene=self.scene, view_layer=vl, active_object=lead, object=lead,
                     selected_objects=temps, selected_editable_objects=temps)
 
-    def try_lightmap_pack(self, margin_uv, side):
+    def try_wide_angle(self, margin_uv, side, margin, cut):
+        """For one copy whose layout fills under FILL of its map as baked (:func:`baked_fill`): Smart UV Project at
+        WIDE_ANGLE (fewer, larger charts) with the same margin; kept when it fits a ``side``² map, fills more of it
+        as baked, its texel density is as even (:func:`even_enough`) and no more of its texels lie under several
+        faces (a wider chart may fold over itself in its projection: Suzanne's ears)."""
+        if len(self.copies) != 1 or self.unwrapper != SMART:
+            return
+        have = baked_fill(self.group, side, margin, cut)
+        if have >= FILL:
+            return
+        spread, shared = density_spread(self.group), _overlap(self.group, side)
+        before = self._uvs([self.copies[0][1]])
+        self.unwrap(margin_uv, side, WIDE_ANGLE)
+        if (_fits(self, self.group, side) and baked_fill(self.group, side, margin, cut) > have
+                and even_enough(density_spread(self.group), spread) and _overlap(self.group, side) <= shared):
+            return
+        self.copies[0][1].data.uv_layers[LIGHTMAP].data.foreach_set("uv", before[0][0])
+        self._write(before)
+
+    def try_lightmap_pack(self, margin_uv, side, margin=None, cut=False):
         """For one copy of at most LIGHTMAP_PACK_TRIANGLES triangles: Blender's Lightmap Pack with the same margin
         (its margin, a whole fraction 1/k of the square, at least ``margin_uv``); its layout replaces Smart UV
-        Project's (in place) when it fits a ``side``² map and fills more of it (:func:`fill`). Return the fills
-        (smart, lightmap pack; None for what was not measured)."""
+        Project's (in place) when it fits a ``side``² map, fills more of it as baked (:func:`baked_fill`, cut
+        to its window with ``cut``, ``margin`` texels around the charts) and its texel density is as even
+        (:func:`even_enough`: Lightmap Pack gives a cylinder's caps about half the density of
+        its side, spread 0.45 against Smart UV Project's 0.92). Return the fills (smart, lightmap pack;
+        None for what was not measured)."""
         if len(self.copies) != 1 or self.unwrapper != SMART or not 0 < margin_uv <= _LIGHTMAP_PACK_MAX_MARGIN:
             return None, None
         lead = self.copies[0][1]
         lead.data.calc_loop_triangles()
         if len(lead.data.loop_triangles) > LIGHTMAP_PACK_TRIANGLES:
             return None, None
-        smart_fill = fill(self.group, side)
+        margin = margin_uv * side if margin is None else margin
+        smart_fill = baked_fill(self.group, side, margin, cut)
+        spread = density_spread(self.group)
         smart = self._uvs([lead])
         # in object mode it unwraps the selected objects (in edit mode the window's scene's objects in edit mode,
         # not the context's: a bake of another scene than the window's would find none); it prints its steps
@@ -815,8 +886,8 @@ class _Copies:
             bpy.ops.uv.lightmap_pack(PREF_CONTEXT="ALL_FACES", PREF_PACK_IN_ONE=True, PREF_NEW_UVLAYER=False,
                                      PREF_BOX_DIV=12, PREF_MARGIN_DIV=float(100.0 * margin_uv))
         self._write(self._uvs([lead]))
-        packed = fill(self.group, side) if _fits(self, self.group, side) else None
-        if packed is not None and packed > smart_fill:
+        packed = baked_fill(self.group, side, margin, cut) if _fits(self, self.group, side) else None
+        if packed is not None and packed > smart_fill and even_enough(density_spread(self.group), spread):
             self.unwrapper = LIGHTMAP_PACK
         else:
             self._write(smart)

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..core.io.files import write_bytes
 
-LAYOUT_VERSION = 5
+LAYOUT_VERSION = 6
 """Raised whenever the layout search (uv.py) changes what it makes for the same input."""
 DIR = ".il-uv-cache"
 _SLACK = 1e-4

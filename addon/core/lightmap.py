@@ -51,6 +51,26 @@ def to_window(uv, side, lo, size):
     return ((uv * side - lo) / size).astype(np.float32)
 
 
+def density_spread(tri_uv, tri_world, quantile=0.1):
+    """Texel density of the surface's lowest ``quantile`` (by area) over its median: densities √(UV area / world
+    area) per triangle, area-weighted quantiles; 1 for a layout of uniform density, lower where charts are
+    foreshortened (a projection onto a plane at an angle θ to the surface gives √cos θ)."""
+    t = np.asarray(tri_world, float)
+    d = np.asarray(tri_uv, float)
+    world = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+    e1, e2 = d[:, 1] - d[:, 0], d[:, 2] - d[:, 0]
+    uv = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    keep = world > 0
+    if not keep.any():
+        return 1.0
+    density = np.sqrt(uv[keep] / world[keep])
+    order = np.argsort(density)
+    c = np.cumsum(world[keep][order])
+    at = lambda q: density[order][min(np.searchsorted(c, q * c[-1]), len(c) - 1)]
+    median = at(0.5)
+    return float(at(quantile) / median) if median > 0 else 0.0
+
+
 def texel_aspect(tri_uv, tri_world):
     """Area-weighted median over triangles of |∇u| / |∇v| (∇ on the surface, UVs against positions (T, 3, 3)):
     the ratio h / w of the map sides that gives square texels on the surface. 1 for a layout made for a square map

@@ -320,6 +320,52 @@ def test_a_texel_density_map_is_cut_to_the_window_of_its_charts(tmp_path):
     assert np.array_equal(exr.read_exr(tmp_path / "b" / f"{sphere.name}_ao.exr")[0]["Y"], pixels)
 
 
+@pytest.mark.both_versions
+def test_a_wider_angle_layout_is_kept_when_it_fills_more_with_even_texels(tmp_path, monkeypatch):
+    """An ico sphere (3 subdivisions) at 12 texels/m: Smart UV Project at 66° fills under 55 % of its map (its
+    charts follow the icosahedron's faces), at 75° (uv.WIDE_ANGLE) at least 55 % with the same texel density spread
+    (core.lightmap.density_spread within 0.05, the same covered texels per m² within the rasterised borders)."""
+    from addon.bake import uv as uvmod
+    scene = bpy.context.scene
+    ico = added(bpy.ops.mesh.primitive_ico_sphere_add, subdivisions=3)
+    opts = BakeOptions(texel_density=12, samples=1, margin=1)
+
+    def bake(out):
+        if "Lightmap" in ico.data.uv_layers:
+            ico.data.uv_layers.remove(ico.data.uv_layers["Lightmap"])
+        entry = bake_lightmaps([ico], ["ao"], tmp_path / out, opts, scene=scene)["objects"][ico.name]["ao"]
+        w, h = entry["resolution"]
+        return entry, float(lightmap.coverage_mask(uvmod.triangles_uv(ico, "Lightmap"), w, h).sum()), \
+            uvmod.density_spread([ico])
+    from addon.core import lightmap
+    with monkeypatch.context() as m:
+        m.setattr(uvmod, "WIDE_ANGLE", uvmod.ANGLE)
+        narrow, narrow_texels, narrow_spread = bake("narrow")
+    wide, wide_texels, wide_spread = bake("wide")
+    assert narrow["coverage"] < 0.55 <= wide["coverage"], (narrow, wide)
+    assert wide_spread >= narrow_spread - 0.05 and wide_texels == pytest.approx(narrow_texels, rel=0.08)
+
+
+@pytest.mark.both_versions
+def test_lightmap_pack_is_refused_where_it_gives_uneven_texels(tmp_path, monkeypatch):
+    """Lightmap Pack fills more of a cylinder's 256² map than Smart UV Project (0.78 against 0.72) by giving its
+    caps about half the density of its side (density spread 0.45): the layout kept is Smart UV Project's, whose
+    density is even (spread at least uv.MIN_SPREAD)."""
+    from addon.bake import uv as uvmod
+    scene = bpy.context.scene
+    cyl = added(bpy.ops.mesh.primitive_cylinder_add)
+    opts = BakeOptions(resolution=256, samples=1, margin=1)
+    with monkeypatch.context() as m:
+        m.setattr(uvmod, "even_enough", lambda spread, other: True)
+        packed = bake_lightmaps([cyl], ["ao"], tmp_path / "any", opts, scene=scene)["objects"][cyl.name]["ao"]
+        packed_spread = uvmod.density_spread([cyl])
+    cyl.data.uv_layers.remove(cyl.data.uv_layers["Lightmap"])
+    kept = bake_lightmaps([cyl], ["ao"], tmp_path / "even", opts, scene=scene)["objects"][cyl.name]["ao"]
+    assert packed["unwrap"] == "lightmap_pack" and packed_spread < 0.6
+    assert kept["unwrap"] == "smart_project" and uvmod.density_spread([cyl]) >= uvmod.MIN_SPREAD
+    assert kept["coverage"] >= 0.55
+
+
 @pytest.mark.parametrize("side", [64, 256])
 def test_a_layout_depends_on_the_faces_not_on_their_order(tmp_path, side):
     """The unwrap copy is canonical (faces sorted by their vertices, each starting at its lowest vertex): the same

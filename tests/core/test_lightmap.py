@@ -314,3 +314,19 @@ def test_texel_aspect_of_a_stretched_layout_is_its_stretch():
     assert lm.texel_aspect(uv2, world) == pytest.approx(1.0, abs=1e-9)
     w, h, side = 40, 28, 40
     assert lm.texel_aspect(uv2 * [side / w, side / h], world) == pytest.approx(h / w, rel=1e-9)
+
+
+def test_density_spread_is_the_low_quantile_density_over_the_median():
+    """Three unit squares side by side on the surface, laid out at UV scales 1, 1 and 1/2 (densities 1, 1, 0.5 in
+    UV length per metre): the lowest tenth of the area has density 0.5, the median 1; a uniform layout gives 1."""
+    def square(x, scale):
+        quad = np.array([[x, 0], [x + 1, 0], [x + 1, 1], [x, 1]], float)
+        world = np.c_[quad, np.zeros(4)]
+        uv = quad * scale
+        idx = [[0, 1, 2], [0, 2, 3]]
+        return uv[idx], world[idx]
+    parts = [square(0, 1.0), square(1, 1.0), square(2, 0.5)]
+    uv = np.concatenate([p[0] for p in parts])
+    world = np.concatenate([p[1] for p in parts])
+    assert lm.density_spread(uv, world) == pytest.approx(0.5)
+    assert lm.density_spread(world[..., :2] * 0.1, world) == pytest.approx(1.0)
