@@ -67,6 +67,7 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     unchanged, kept = {}, {}
     if options.overwrite and not options.force:
         unchanged, kept = unchanged_maps(groups, maps, digests, out, options, stems, report_path)
+    requested = objects
     groups = [(name, group) for name, group in groups if len(unchanged.get(name, ())) < len(maps)]
     objects = [o for _, group in groups for o in group]
     steps = (1 if options.target == "image" and groups else 0) + sum(len(maps) - len(unchanged.get(n, ()))
@@ -86,7 +87,7 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
         cycles.setup_render(scene, options, state)
         if options.target == "image":
             run.step("light-map UVs")
-            run.light_map_uvs(objects, groups)
+            run.light_map_uvs(objects, groups, _sharing(requested, objects))
             scene.view_layers[0].update()      # the evaluated meshes carry the layers (also those from the cache)
         with uvmod.fixed_layouts():
             run.bake_all(groups, maps, everyone, unchanged)
@@ -100,6 +101,14 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     if failed:
         merge_report(report_path, {"objects": {}, "seconds": report["seconds"], "failed": failed})
     return JobResult(report, report_path, summary(report) + progress_line)
+
+
+def _sharing(requested, baked):
+    """The objects of ``requested`` not in ``baked`` whose mesh a baked object shares (linked duplicates whose maps
+    are unchanged), in ``requested`` order."""
+    meshes = {o.data.as_pointer() for o in baked}
+    names = {o.name for o in baked}
+    return [o for o in requested if o.name not in names and o.data.as_pointer() in meshes]
 
 
 @dataclasses.dataclass
@@ -146,9 +155,17 @@ class _Run:
         """Map ``kind`` of ``target`` is still to bake (not unchanged, not failed)."""
         return kind not in self.report["unchanged"].get(target.name, ()) and target.name not in self.report["failed"]
 
-    def light_map_uvs(self, objects, groups):
-        """The light-map UV layers of every group (one layout for the atlas); a group that fails is recorded."""
+    def light_map_uvs(self, objects, groups, leaders=()):
+        """The light-map UV layers of every group (one layout for the atlas); a group that fails is recorded.
+        ``leaders``: objects not baked in this run (their maps unchanged) that share a mesh with a baked one; their
+        layouts are settled first, so that the mesh keeps the layer their maps on disk were baked through."""
         self.uv_cache = uvcache.UVCache(os.path.join(self.out, uvcache.DIR))
+        if not self.options.atlas:
+            for o in leaders:
+                try:
+                    uvmod.prepare(self.scene, [o], self.state, self.options, cache=self.uv_cache)
+                except (InputError, ILError):
+                    pass                         # its own maps are on disk; the baked duplicate unwraps alone
         if self.options.atlas:
             self.record(uvmod.prepare(self.scene, objects, self.state, self.options, together=True,
                                       cache=self.uv_cache))

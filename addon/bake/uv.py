@@ -1,7 +1,9 @@
 """Light-map UVs: an existing layer used as it is, or a generated non-overlapping "Lightmap" layer.
 
-The generated layer comes from Blender's Smart UV Project, or for a single mesh its Lightmap Pack when that
-fills more of the map, run on temporary canonical copies of the meshes (faces in an order given by their
+The generated layer comes from Blender's Smart UV Project (at its 66° angle limit, or for a single mesh that fills
+under :data:`FILL` of its map at :data:`WIDE_ANGLE`), or for a single mesh its Lightmap Pack, each kept when it
+fills more of the map with as even a texel density (:func:`even_enough`); with a texel density the layout is then
+carried into the window of its charts (:func:`_cut_window`: a w x h map). They run on temporary canonical copies of the meshes (faces in an order given by their
 vertices, every face revealed and selected through bmesh, one UV layer): the user's meshes never enter
 edit mode and their select / hide flags are never written, only the finished UVs are copied into
 their "Lightmap" layer (the other layers, the active layer and the layer that renders stay as they
@@ -348,52 +350,74 @@ class _Made:
 def prepare(scene, objects, state, options, together=False, cache=None):
     """Return the objects' :class:`Layouts`.
 
-    ``options.uv_layer`` is used as it is; otherwise an existing "Lightmap" layer (from an earlier
-    bake) is reused as it is when it still covers the map, or one is generated. With ``together`` the
-    objects are unwrapped in one go, so their charts share one UV square (an atlas) without overlapping.
-    Only generated layouts have an entry in the sides (:func:`low_fill` checks them at the map's final size).
-    ``cache`` (:class:`uvcache.UVCache`) gives the layout of a group unwrapped before, and keeps the new ones.
+    ``options.uv_layer`` is used as it is. Otherwise each group (one object, or all of them ``together``: an atlas,
+    whose charts share one UV square without overlapping) gets, in this order: for one object whose mesh already
+    got its layer in this run (a linked duplicate), that layer as it is (a window scaled to this object's area,
+    :func:`_scaled_window`); the layout ``cache`` (:class:`uvcache.UVCache`) holds for the group (made before into
+    this output folder: its maps on disk were baked through it); for one object, an existing "Lightmap" layer
+    reused as it is when it covers a square map with square texels (:func:`_reusable`); else a generated layout,
+    kept in ``cache``. Only generated and cached layouts have an entry in the sides (:func:`low_fill` checks them
+    at the map's final size).
     """
     made = Layouts()
-    names, margins = made.layers, made.margins
-    todo = []
     for o in objects:
-        if options.uv_layer:
-            names[o.name] = options.uv_layer
-        elif LIGHTMAP in o.data.uv_layers and not together and _reusable(o, options):
-            names[o.name] = LIGHTMAP
-        else:
-            todo.append(o)
-    for o in objects:
-        margins[o.name] = float(options.margin)
-    groups = [todo] if together else [[o] for o in todo]
-    for group in groups:
-        if group:
-            for o in group:
-                names[o.name] = LIGHTMAP
-            layout = _unwrap_cached(scene, group, state, options, names, together, cache)
-            for o in group:
-                made.sides[o.name], margins[o.name], made.unwraps[o.name] = layout.side, layout.margin, layout.unwrap
-                if layout.window:
-                    made.windows[o.name] = layout.window
+        made.layers[o.name] = options.uv_layer or LIGHTMAP
+        made.margins[o.name] = float(options.margin)
+    if options.uv_layer or not objects:
+        return made
+    settled = cache.settled if cache is not None else {}
+    for group in ([list(objects)] if together else [[o] for o in objects]):
+        first = group[0]
+        if not together and first.data.as_pointer() in settled:
+            area, window = settled[first.data.as_pointer()]
+            if window:
+                made.windows[first.name] = _scaled_window(window, math.sqrt(world_area(first) / max(area, 1e-30)))
+            continue
+        layout = _layout(scene, group, state, options, made.layers, together, cache)
+        if not together:
+            settled[first.data.as_pointer()] = (world_area(first), layout.window if layout else None)
+        if layout is None:
+            continue
+        for o in group:
+            made.sides[o.name], made.margins[o.name], made.unwraps[o.name] = layout.side, layout.margin, layout.unwrap
+            if layout.window:
+                made.windows[o.name] = layout.window
     return made
 
 
-def _unwrap_cached(scene, group, state, options, names, together, cache):
-    """:func:`_unwrap_with_margin`, or the layout ``cache`` holds for the group (the same UVs, side, margin,
-    unwrapper and warnings as unwrapping again)."""
-    if cache is None:
-        return _cut_window(group, _unwrap_with_margin(scene, group, state, options, names), state, names, options)
-    digest = uvcache.key(group, scene.view_layers[0].depsgraph, options, together)
-    entry = cache.get(digest, [o.data for o in group])
-    if entry is None:
-        made = _cut_window(group, _unwrap_with_margin(scene, group, state, options, names), state, names, options)
+def _scaled_window(window, factor):
+    """A window (width, height, side) for an object ``factor`` times as large (√ of the world areas' ratio) with the
+    same layout: the same texel density and square texels."""
+    return tuple(max(1, round(x * factor)) for x in window)
+
+
+def _layout(scene, group, state, options, names, together, cache):
+    """The group's layout (:class:`_Made`): from ``cache``, else None when one object's existing layer is reused
+    (:func:`_reusable`), else generated (:func:`_unwrap_with_margin`, :func:`_cut_window`) and kept in ``cache``."""
+    digest = entry = None
+    if cache is not None:
+        digest = uvcache.key(group, scene.view_layers[0].depsgraph, options, together)
+        entry = cache.get(digest, [o.data for o in group])
+    if entry is not None:
+        return _from_entry(group, entry, state, options)
+    if not together and LIGHTMAP in group[0].data.uv_layers and _reusable(group[0], options):
+        return None
+    made = _cut_window(group, _unwrap_with_margin(scene, group, state, options, names), state, names, options)
+    if cache is not None:
         uvs = [read(o.data.uv_layers[LIGHTMAP].data, "uv", np.float32, 2) for o in group]
         cache.put(digest, uvcache.Entry(uvs, made.side, made.margin, made.unwrap, made.enlarged_from, made.window))
-        return made
+    return made
+
+
+def _from_entry(group, entry, state, options):
+    """The layout of a cache entry, written into the group's "Lightmap" layers where they differ (the same UVs,
+    side, margin, unwrapper and warnings as unwrapping again)."""
     label = ", ".join(f"'{o.name}'" for o in group)
     for o, uv in zip(group, entry.uvs):
-        _write_layer(state, o.data, uv)
+        me = o.data
+        if LIGHTMAP not in me.uv_layers or not np.array_equal(read(me.uv_layers[LIGHTMAP].data, "uv", np.float32, 2),
+                                                              uv):
+            _write_layer(state, me, uv)
         _disjoint(triangles_uv(o, LIGHTMAP))
     if entry.enlarged_from:
         _say_enlarged(label, entry.enlarged_from, entry.side)
@@ -405,10 +429,11 @@ WINDOW_ASPECT = 0.9
 """A layout is carried into a window of its map (:func:`_cut_window`) when the window's sides differ by more than
 this ratio (Blender's packers fill one side of the square: a UV sphere's Smart UV Project layout 0.70 of the other,
 a cylinder's 0.83)."""
-REUSE_ASPECT = 1.05
+REUSE_ASPECT = 1.08
 """An earlier "Lightmap" layer is reused for a square map only when its texels are square to this ratio
-(:func:`core.lightmap.texel_aspect`; measured 0.968-1.003 on Smart UV Project layouts made for a square, 0.71-0.83
-on layouts carried into windows)."""
+(:func:`core.lightmap.texel_aspect`; measured 0.968-1.003 on Smart UV Project layouts made for a square, 1.065 on a
+UV sphere's Lightmap Pack layout at 256², 0.71-0.83 on layouts carried into windows, which are at least
+1 / WINDOW_ASPECT = 1.11 from square)."""
 
 
 def _cut_window(group, made, state, names, options):
@@ -433,8 +458,8 @@ def _cut_window(group, made, state, names, options):
 
 
 def _say_enlarged(label, asked, side):
-    errors.warn(f"{label}: light map enlarged from {asked}x{asked} to {side}x{side} texels so that its "
-                f"charts cover their faces")
+    errors.warn(f"{label}: light map enlarged from a side of {asked} to {side} texels so that its charts cover their "
+                f"faces")
 
 
 def _write_layer(state, me, uv):
@@ -450,7 +475,7 @@ def _write_layer(state, me, uv):
 
 def _reusable(obj, options):
     """An earlier bake's "Lightmap" layer is reused when it covers the square map it will get and its texels are
-    square on it (REUSE_ASPECT: a layout carried into a window is made again, from the UV cache when it has it)."""
+    square on it (REUSE_ASPECT: a layout carried into a window is made again)."""
     tri = triangles_uv(obj, LIGHTMAP)
     if _outside(tri):
         return False

@@ -81,6 +81,7 @@ class UVCache:
     def __init__(self, folder=None):
         self.folder = folder
         self.memory, self.pending = {}, {}
+        self.settled = {}     # mesh pointer -> (world area, window) of the first object whose layer this run set
 
     def path(self, digest):
         return os.path.join(self.folder, f"{digest}.npz")

@@ -263,8 +263,8 @@ def _copy(obj, name, x):
 
 @pytest.mark.both_versions
 def test_each_mesh_keeps_the_unwrapper_that_fills_its_map_more(tmp_path, monkeypatch):
-    """Smart UV Project and Lightmap Pack (same margin) per mesh, the one filling more of the map kept and named in
-    the report ("unwrap"): a cylinder at 128² and a torus at 256² (charts fit, 1-texel margin) fill at least 55 %
+    """Smart UV Project and Lightmap Pack (same margin) per mesh, the one filling more of the map (with as even a
+    texel density: uv.even_enough) kept and named in the report ("unwrap"): a cylinder at 128² and a torus at 256² (charts fit, 1-texel margin) fill at least 55 %
     measured from the UVs, and no mesh (the UV sphere at 128², where Smart UV Project wins, included) fills less
     than with Smart UV Project alone."""
     from addon.bake import uv as uvmod
@@ -318,6 +318,67 @@ def test_a_texel_density_map_is_cut_to_the_window_of_its_charts(tmp_path):
     other = bake_lightmaps([sphere], ["ao"], tmp_path / "b", opts, scene=scene)
     assert other["objects"][sphere.name]["ao"]["resolution"] == [w, h]
     assert np.array_equal(exr.read_exr(tmp_path / "b" / f"{sphere.name}_ao.exr")[0]["Y"], pixels)
+
+
+def _baked_through(path, obj):
+    """Agreement (intersection over union) of the texels a map on disk covers (its alpha) with the texels the
+    mesh's "Lightmap" layer covers at the map's size (centre rule): 1 when the map was baked through that layer."""
+    from addon.bake import uv as uvmod
+    from addon.core import lightmap
+    alpha = np.flipud(exr.read_exr(path)[0]["A"]) > 0
+    h, w = alpha.shape
+    mask = lightmap.coverage_mask(uvmod.triangles_uv(obj, "Lightmap"), w, h)
+    return (alpha & mask).sum() / max((alpha | mask).sum(), 1)
+
+
+def test_linked_duplicates_at_other_scales_share_one_layout_in_windows_of_their_own(tmp_path):
+    """Two objects sharing an ico sphere's mesh, scaled 1 and 4, at 12 texels/m: the mesh gets one layout (cut to
+    a window), each map is baked through it at its own texel density with square texels. A rerun with the second
+    scaled 0.3 (the first's map unchanged) keeps that layout: both maps on disk still match the mesh's layer."""
+    from addon.bake import uv as uvmod
+    from addon.core import lightmap
+    scene = bpy.context.scene
+    a = added(bpy.ops.mesh.primitive_ico_sphere_add, subdivisions=3)
+    b = a.copy()
+    scene.collection.objects.link(b)
+    a.name, b.name = "A", "B"
+    b.location, b.scale = (6, 0, 0), (4, 4, 4)
+    density, out = 12.0, tmp_path / "maps"
+    opts = BakeOptions(texel_density=density, samples=1, margin=1, overwrite=True)
+
+    def check(rep, names):
+        for o in (a, b):
+            assert _baked_through(out / f"{o.name}_ao.exr", o) > 0.97, o.name
+        for name in names:
+            w, h = rep["objects"][name]["ao"]["resolution"]
+            o = bpy.data.objects[name]
+            tri = uvmod.triangles_uv(o, "Lightmap")
+            assert lightmap.coverage_mask(tri, w, h).sum() == pytest.approx(density ** 2 * uvmod.world_area(o), rel=0.06)
+            assert lightmap.texel_aspect(tri, uvmod.world_triangles(o)) * w / h == pytest.approx(1.0, abs=0.04)
+    first = bake_lightmaps([a, b], ["ao"], out, opts, scene=scene)
+    sizes = [first["objects"][n]["ao"]["resolution"] for n in "AB"]
+    assert sizes[0][0] != sizes[0][1] and sizes[1][0] == pytest.approx(4 * sizes[0][0], abs=1)
+    check(first, "AB")
+    b.scale = (0.3, 0.3, 0.3)
+    again = bake_lightmaps([a, b], ["ao"], out, opts, scene=scene)
+    assert again["unchanged"] == {"A": ["ao"]} and "B" in again["objects"]
+    check(again, "B")
+
+
+def test_a_square_bake_elsewhere_does_not_change_the_layout_of_maps_kept(tmp_path):
+    """A UV sphere baked at 24 texels/m into one folder (a window), then at a fixed 64² into another (a square
+    layout), then again at 24 texels/m into the first with one map more: the first folder's UV cache gives the
+    mesh its layout back, so the map kept unchanged and the new one are baked through the layer the mesh has."""
+    scene = bpy.context.scene
+    sphere = added(bpy.ops.mesh.primitive_uv_sphere_add)
+    density = BakeOptions(texel_density=24, samples=1, margin=1, overwrite=True)
+    first = bake_lightmaps([sphere], ["ao"], tmp_path / "a", density, scene=scene)
+    bake_lightmaps([sphere], ["ao"], tmp_path / "b", BakeOptions(resolution=64, samples=1, margin=1), scene=scene)
+    again = bake_lightmaps([sphere], ["ao", "irradiance"], tmp_path / "a", density, scene=scene)
+    size = first["objects"][sphere.name]["ao"]["resolution"]
+    assert again["unchanged"] == {sphere.name: ["ao"]}
+    assert again["objects"][sphere.name]["irradiance"]["resolution"] == size and size[0] != size[1]
+    assert _baked_through(tmp_path / "a" / f"{sphere.name}_ao.exr", sphere) > 0.97
 
 
 @pytest.mark.both_versions
