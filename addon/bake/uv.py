@@ -92,13 +92,33 @@ def fixed_layouts():
         _FIXED = None
 
 
-def remembered(key, make):
-    """``make()``, once per ``key`` inside :func:`fixed_layouts` (every call outside it)."""
-    if _FIXED is None:
+_GEOMETRY = None   # {(what, pointer): value} while only UV layers change (:func:`fixed_geometry`), else None
+
+
+@contextlib.contextmanager
+def fixed_geometry():
+    """A scope in which the objects' meshes and transforms do not change, only their UV layers (the UV step):
+    :func:`world_area` and :func:`world_triangles` are read once per object in it."""
+    global _GEOMETRY
+    if _GEOMETRY is not None:
+        yield
+        return
+    _GEOMETRY = {}
+    try:
+        yield
+    finally:
+        _GEOMETRY = None
+
+
+def remembered(key, make, geometry=False):
+    """``make()``, once per ``key`` inside :func:`fixed_layouts` (and, for ``geometry``, inside
+    :func:`fixed_geometry`); every call outside them."""
+    store = _FIXED if _FIXED is not None else (_GEOMETRY if geometry else None)
+    if store is None:
         return make()
-    if key not in _FIXED:
-        _FIXED[key] = make()
-    return _FIXED[key]
+    if key not in store:
+        store[key] = make()
+    return store[key]
 
 
 def triangles_uv(obj, layer):
@@ -121,7 +141,7 @@ def mesh_triangles_uv(me, layer):
 
 def world_area(obj):
     """Surface area in m² of the mesh in world space (object scale included)."""
-    return remembered(("area", obj.as_pointer(), obj.data.as_pointer()), lambda: _world_area(obj))
+    return remembered(("area", obj.as_pointer(), obj.data.as_pointer()), lambda: _world_area(obj), geometry=True)
 
 
 def _world_area(obj):
@@ -130,7 +150,16 @@ def _world_area(obj):
 
 
 def world_triangles(obj):
-    """(T, 3, 3) world positions of the corners of the mesh's loop triangles (the order of :func:`triangles_uv`)."""
+    """(T, 3, 3) world positions of the corners of the mesh's loop triangles (the order of :func:`triangles_uv`),
+    read-only."""
+    def make():
+        t = _world_triangles(obj)
+        t.flags.writeable = False
+        return t
+    return remembered(("world", obj.as_pointer(), obj.data.as_pointer()), make, geometry=True)
+
+
+def _world_triangles(obj):
     me = obj.data
     me.calc_loop_triangles()
     co = read(me.vertices, "co", np.float32, 3).reshape(-1, 3).astype(float)
@@ -365,6 +394,13 @@ def prepare(scene, objects, state, options, together=False, cache=None):
         made.margins[o.name] = float(options.margin)
     if options.uv_layer or not objects:
         return made
+    with fixed_geometry():
+        _prepare_groups(scene, objects, state, options, together, cache, made)
+    return made
+
+
+def _prepare_groups(scene, objects, state, options, together, cache, made):
+    """The loop of :func:`prepare` over its groups, filling ``made``."""
     settled = cache.settled if cache is not None else {}
     for group in ([list(objects)] if together else [[o] for o in objects]):
         first = group[0]
@@ -382,7 +418,6 @@ def prepare(scene, objects, state, options, together=False, cache=None):
             made.sides[o.name], made.margins[o.name], made.unwraps[o.name] = layout.side, layout.margin, layout.unwrap
             if layout.window:
                 made.windows[o.name] = layout.window
-    return made
 
 
 def _scaled_window(window, factor):
@@ -778,6 +813,7 @@ class _Copies:
         self.loops = []          # per copy: the original mesh's loop of each of the copy's loops
         self.unwrapper = SMART
         self.welded = False      # the weld joined vertices of some copy
+        self.angle = None        # Smart UV Project's angle limit once :meth:`try_wide_angle` decided it
 
     def __enter__(self):
         for o in self.group:
@@ -836,7 +872,7 @@ class _Copies:
         ctx = self._context()
         self.unwrapper = SMART
         with _edit(ctx, lead):
-            bpy.ops.uv.smart_project(angle_limit=ANGLE if angle is None else angle, island_margin=float(margin_uv), margin_method="FRACTION",
+            bpy.ops.uv.smart_project(angle_limit=angle or self.angle or ANGLE, island_margin=float(margin_uv), margin_method="FRACTION",
                                      area_weight=0.0, correct_aspect=True, scale_to_bounds=False)
         best = self._uvs(temps)
         if len(temps) > 1:
@@ -871,8 +907,9 @@ class _Copies:
         """For one copy whose layout fills under FILL of its map as baked (:func:`baked_fill`): Smart UV Project at
         WIDE_ANGLE (fewer, larger charts) with the same margin; kept when it fits a ``side``² map, fills more of it
         as baked, its texel density is as even (:func:`even_enough`) and no more of its texels lie under several
-        faces (a wider chart may fold over itself in its projection: Suzanne's ears)."""
-        if len(self.copies) != 1 or self.unwrapper != SMART:
+        faces (a wider chart may fold over itself in its projection: Suzanne's ears). Decided once per copies, at
+        the first side the search tries: the later unwraps of the search use the angle kept."""
+        if len(self.copies) != 1 or self.unwrapper != SMART or self.angle is not None:
             return
         have = baked_fill(self.group, side, margin, cut)
         if have >= FILL:
@@ -882,7 +919,9 @@ class _Copies:
         self.unwrap(margin_uv, side, WIDE_ANGLE)
         if (_fits(self, self.group, side) and baked_fill(self.group, side, margin, cut) > have
                 and even_enough(density_spread(self.group), spread) and _overlap(self.group, side) <= shared):
+            self.angle = WIDE_ANGLE
             return
+        self.angle = ANGLE
         self.copies[0][1].data.uv_layers[LIGHTMAP].data.foreach_set("uv", before[0][0])
         self._write(before)
 
@@ -902,7 +941,6 @@ class _Copies:
             return None, None
         margin = margin_uv * side if margin is None else margin
         smart_fill = baked_fill(self.group, side, margin, cut)
-        spread = density_spread(self.group)
         smart = self._uvs([lead])
         # in object mode it unwraps the selected objects (in edit mode the window's scene's objects in edit mode,
         # not the context's: a bake of another scene than the window's would find none); it prints its steps
@@ -910,10 +948,15 @@ class _Copies:
             # the operator's margin is a percentage p of the square, applied as 1 / int(100 / p): at least p / 100
             bpy.ops.uv.lightmap_pack(PREF_CONTEXT="ALL_FACES", PREF_PACK_IN_ONE=True, PREF_NEW_UVLAYER=False,
                                      PREF_BOX_DIV=12, PREF_MARGIN_DIV=float(100.0 * margin_uv))
-        self._write(self._uvs([lead]))
+        pack = self._uvs([lead])
+        self._write(pack)
         packed = baked_fill(self.group, side, margin, cut) if _fits(self, self.group, side) else None
-        if packed is not None and packed > smart_fill and even_enough(density_spread(self.group), spread):
-            self.unwrapper = LIGHTMAP_PACK
+        if packed is not None and packed > smart_fill:
+            pack_spread = density_spread(self.group)
+            self._write(smart)
+            if even_enough(pack_spread, density_spread(self.group)):
+                self._write(pack)
+                self.unwrapper = LIGHTMAP_PACK
         else:
             self._write(smart)
         return smart_fill, packed
