@@ -381,8 +381,8 @@ def prepare(scene, objects, state, options, together=False, cache=None):
 
     ``options.uv_layer`` is used as it is. Otherwise each group (one object, or all of them ``together``: an atlas,
     whose charts share one UV square without overlapping) gets, in this order: for one object whose mesh already
-    got its layer in this run (a linked duplicate), that layer as it is (a window scaled to this object's area,
-    :func:`_scaled_window`); the layout ``cache`` (:class:`uvcache.UVCache`) holds for the group (made before into
+    got its layer in this run (a linked duplicate), that layer as it is (:func:`_shared`: a window of its own, also
+    kept in ``cache`` for this object); the layout ``cache`` (:class:`uvcache.UVCache`) holds for the group (made before into
     this output folder: its maps on disk were baked through it); for one object, an existing "Lightmap" layer
     reused as it is when it covers a square map with square texels (:func:`_reusable`); else a generated layout,
     kept in ``cache``. Only generated and cached layouts have an entry in the sides (:func:`low_fill` checks them
@@ -405,13 +405,17 @@ def _prepare_groups(scene, objects, state, options, together, cache, made):
     for group in ([list(objects)] if together else [[o] for o in objects]):
         first = group[0]
         if not together and first.data.as_pointer() in settled:
-            area, window = settled[first.data.as_pointer()]
-            if window:
-                made.windows[first.name] = _scaled_window(window, math.sqrt(world_area(first) / max(area, 1e-30)))
-            continue
-        layout = _layout(scene, group, state, options, made.layers, together, cache)
-        if not together:
-            settled[first.data.as_pointer()] = (world_area(first), layout.window if layout else None)
+            layout = settled[first.data.as_pointer()]
+            if layout is not None:
+                layout = _shared(first, layout, options)
+                if cache is not None:           # a rerun that bakes only the other object finds this one's layout
+                    cache.put(uvcache.key(group, scene.view_layers[0].depsgraph, options, together),
+                              uvcache.Entry([read(first.data.uv_layers[LIGHTMAP].data, "uv", np.float32, 2)],
+                                            layout.side, layout.margin, layout.unwrap, 0, layout.window))
+        else:
+            layout = _layout(scene, group, state, options, made.layers, together, cache)
+            if not together:
+                settled[first.data.as_pointer()] = layout
         if layout is None:
             continue
         for o in group:
@@ -420,10 +424,20 @@ def _prepare_groups(scene, objects, state, options, together, cache, made):
                 made.windows[o.name] = layout.window
 
 
-def _scaled_window(window, factor):
-    """A window (width, height, side) for an object ``factor`` times as large (√ of the world areas' ratio) with the
-    same layout: the same texel density and square texels."""
-    return tuple(max(1, round(x * factor)) for x in window)
+def _shared(obj, layout, options):
+    """The layout of another object of ``obj``'s mesh (its "Lightmap" layer as it is) for ``obj``, with its unwrapper.
+    Without a window: the same side and margin (the plan never makes the map smaller than that side). With one: a
+    window cut from the square side ``obj``'s texel density asks for that layer, scaled from the other's window (the
+    same shape, square texels), capped by the maximum resolution and never so small that the charts come closer than
+    a texel; its margin in that side's texels (lowered below the asked one with the warning of :func:`_dilation`)."""
+    if not layout.window:
+        return _Made(layout.side, layout.margin, layout.unwrap)
+    w, h, side = layout.window
+    charted = chart_area(triangles_uv(obj, LIGHTMAP)) * w * h / side ** 2       # of the square it was cut from
+    want = lightmap.resolution_for_density(world_area(obj), charted, options.texel_density, options.max_resolution)
+    s = min(max(want, math.ceil(0.5 * layout.side / layout.margin)), int(options.max_resolution))
+    margin = _dilation(f"'{obj.name}'", options.margin, layout.margin * s / layout.side, s)
+    return _Made(s, margin, layout.unwrap, window=(max(1, round(w * s / side)), max(1, round(h * s / side)), s))
 
 
 def _layout(scene, group, state, options, names, together, cache):

@@ -81,7 +81,7 @@ class UVCache:
     def __init__(self, folder=None):
         self.folder = folder
         self.memory, self.pending = {}, {}
-        self.settled = {}     # mesh pointer -> (world area, window) of the first object whose layer this run set
+        self.settled = {}     # mesh pointer -> the layout (uv._Made, None: a layer reused) this run gave the mesh
 
     def path(self, digest):
         return os.path.join(self.folder, f"{digest}.npz")

@@ -333,8 +333,9 @@ def _baked_through(path, obj):
 
 def test_linked_duplicates_at_other_scales_share_one_layout_in_windows_of_their_own(tmp_path):
     """Two objects sharing an ico sphere's mesh, scaled 1 and 4, at 12 texels/m: the mesh gets one layout (cut to
-    a window), each map is baked through it at its own texel density with square texels. A rerun with the second
-    scaled 0.3 (the first's map unchanged) keeps that layout: both maps on disk still match the mesh's layer."""
+    a window), each map is baked through it at its own texel density with square texels, its margin in the
+    report in its own texels. Reruns that bake only one of them (the other's map unchanged) keep that layout: every map on disk
+    still matches the mesh's layer. With a maximum resolution both maps stay within it."""
     from addon.bake import uv as uvmod
     from addon.core import lightmap
     scene = bpy.context.scene
@@ -358,11 +359,24 @@ def test_linked_duplicates_at_other_scales_share_one_layout_in_windows_of_their_
     first = bake_lightmaps([a, b], ["ao"], out, opts, scene=scene)
     sizes = [first["objects"][n]["ao"]["resolution"] for n in "AB"]
     assert sizes[0][0] != sizes[0][1] and sizes[1][0] == pytest.approx(4 * sizes[0][0], abs=1)
+    entries = [first["objects"][n]["ao"] for n in "AB"]        # one layout: B's margins are 4 times as wide
+    assert entries[0]["unwrap"] == entries[1]["unwrap"] == "smart_project" and entries[0]["dilation"] == 1
+    assert entries[1]["margin"] == pytest.approx(entries[0]["margin"] * sizes[1][0] / sizes[0][0], rel=0.02)
     check(first, "AB")
-    b.scale = (0.3, 0.3, 0.3)
+    b.scale = (1.5, 1.5, 1.5)                     # the first object's maps unchanged: the mesh keeps their layout
     again = bake_lightmaps([a, b], ["ao"], out, opts, scene=scene)
     assert again["unchanged"] == {"A": ["ao"]} and "B" in again["objects"]
     check(again, "B")
+    a.scale = (0.5, 0.5, 0.5)                     # the duplicate's maps unchanged: its layout comes from the cache
+    third = bake_lightmaps([a, b], ["ao"], out, opts, scene=scene)
+    assert third["unchanged"] == {"B": ["ao"]} and "A" in third["objects"]
+    check(third, "A")
+    a.scale = (8, 8, 8)                          # the cap holds for a duplicate too (and not below the layout's side)
+    capped = bake_lightmaps([a, b], ["ao"], tmp_path / "capped", opts.replace(max_resolution=128), scene=scene)
+    assert all(max(capped["objects"][n]["ao"]["resolution"]) <= 128 for n in "AB")
+    w, h = capped["objects"]["B"]["ao"]["resolution"]           # B keeps its own texel density
+    covered = lightmap.coverage_mask(uvmod.triangles_uv(b, "Lightmap"), w, h).sum()
+    assert covered == pytest.approx(density ** 2 * uvmod.world_area(b), rel=0.06)
 
 
 def test_a_square_bake_elsewhere_does_not_change_the_layout_of_maps_kept(tmp_path):
