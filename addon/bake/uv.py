@@ -429,15 +429,19 @@ def _shared(obj, layout, options):
     Without a window: the same side and margin (the plan never makes the map smaller than that side). With one: a
     window cut from the square side ``obj``'s texel density asks for that layer, scaled from the other's window (the
     same shape, square texels), capped by the maximum resolution and never so small that the charts come closer than
-    a texel; its margin in that side's texels (lowered below the asked one with the warning of :func:`_dilation`)."""
+    a texel; a side below the layout's gives its margin in that side's texels (lowered below the asked one with the
+    warning of :func:`_dilation`)."""
     if not layout.window:
         return _Made(layout.side, layout.margin, layout.unwrap)
     w, h, side = layout.window
     charted = chart_area(triangles_uv(obj, LIGHTMAP)) * w * h / side ** 2       # of the square it was cut from
     want = lightmap.resolution_for_density(world_area(obj), charted, options.texel_density, options.max_resolution)
     s = min(max(want, math.ceil(0.5 * layout.side / layout.margin)), int(options.max_resolution))
+    window = (max(1, round(w * s / side)), max(1, round(h * s / side)), s)
+    if s >= layout.side:            # the margin as the other object's report gives it: in the layout side's texels
+        return _Made(layout.side, layout.margin, layout.unwrap, window=window)
     margin = _dilation(f"'{obj.name}'", options.margin, layout.margin * s / layout.side, s)
-    return _Made(s, margin, layout.unwrap, window=(max(1, round(w * s / side)), max(1, round(h * s / side)), s))
+    return _Made(s, margin, layout.unwrap, window=window)
 
 
 def _layout(scene, group, state, options, names, together, cache):
