@@ -489,6 +489,18 @@ UV sphere's Lightmap Pack layout at 256², 0.71-0.83 on layouts carried into win
 1 / WINDOW_ASPECT = 1.11 from square)."""
 
 
+def window(tri, side, margin):
+    """(lo, size) of :func:`core.lightmap.chart_window` of the charts ``tri`` at ``side`` with ``margin`` texels
+    around them when its sides differ by more than WINDOW_ASPECT (the map is cut to it), else None (kept square)."""
+    lo, size = lightmap.chart_window(tri, side, margin)
+    return None if min(size) > WINDOW_ASPECT * max(size) else (lo, size)
+
+
+def group_triangles_uv(group):
+    """(T, 3, 2) "Lightmap" UVs of the loop triangles of every object of ``group`` (:func:`triangles_uv`)."""
+    return np.concatenate([triangles_uv(o, LIGHTMAP) for o in group])
+
+
 def _cut_window(group, made, state, names, options):
     """With a texel density (the bake chooses the map's size), carry the group's generated layout into the window
     of whole texels that holds its charts and their margins (:func:`core.lightmap.chart_window`) at the side S its
@@ -498,10 +510,10 @@ def _cut_window(group, made, state, names, options):
     if options.texel_density is None or options.sizes:
         return made
     side = max(resolution(group, names, options), made.side)
-    tri = np.concatenate([triangles_uv(o, LIGHTMAP) for o in group])
-    lo, size = lightmap.chart_window(tri, side, made.margin * side / made.side)
-    if min(size) > WINDOW_ASPECT * max(size):
+    cut = window(group_triangles_uv(group), side, made.margin * side / made.side)
+    if cut is None:
         return made
+    lo, size = cut
     for o in group:
         uv = read(o.data.uv_layers[LIGHTMAP].data, "uv", np.float32, 2)
         _write_layer(state, o.data, lightmap.to_window(uv, side, lo, size).ravel())
@@ -583,7 +595,7 @@ def _unwrap_with_margin(scene, group, state, options, names):
 def _overlap(group, side):
     """Fraction of the group's "Lightmap" texels (at ``side``, up to OVERLAP_SIDE) under several of its faces."""
     s = min(int(side), OVERLAP_SIDE)
-    return FIGURES.call(lightmap.overlap_fraction, np.concatenate([triangles_uv(o, LIGHTMAP) for o in group]), s, s)
+    return FIGURES.call(lightmap.overlap_fraction, group_triangles_uv(group), s, s)
 
 
 def _overlapping(group, side):
@@ -669,8 +681,7 @@ FILL_HINT = 0.5
 def fill(group, width, height=None):
     """Covered texels (centre rule) / map texels of the group's "Lightmap" layers in a width x height map (square
     without ``height``)."""
-    tri = np.concatenate([triangles_uv(o, LIGHTMAP) for o in group])
-    return float(coverage(tri, width, height or width).mean())
+    return float(coverage(group_triangles_uv(group), width, height or width).mean())
 
 
 def low_fill(group, size, margin, options):
@@ -756,18 +767,16 @@ def _fit(copies, group, side, margin, cut):
 def baked_fill(group, side, margin, cut):
     """Covered texels / texels of the map the group's "Lightmap" layout made for a ``side``² map is baked into:
     the square, or with ``cut`` the window :func:`_cut_window` would cut (``margin`` texels around the charts)."""
-    tri = np.concatenate([triangles_uv(o, LIGHTMAP) for o in group])
+    tri = group_triangles_uv(group)
     covered = float(coverage(tri, side, side).sum())
-    if cut:
-        _, size = lightmap.chart_window(tri, side, margin)
-        if min(size) <= WINDOW_ASPECT * max(size):
-            return covered / float(size[0] * size[1])
-    return covered / float(side * side)
+    cut = window(tri, side, margin) if cut else None
+    size = cut[1] if cut is not None else (side, side)
+    return covered / float(size[0] * size[1])
 
 
 def density_spread(group):
     """:func:`core.lightmap.density_spread` of the group's "Lightmap" layout on its world-space triangles."""
-    return lightmap.density_spread(np.concatenate([triangles_uv(o, LIGHTMAP) for o in group]),
+    return lightmap.density_spread(group_triangles_uv(group),
                                    np.concatenate([world_triangles(o) for o in group]))
 
 

@@ -217,7 +217,7 @@ def bare_bakes(scene, objects, report, options):
 def layout_utilisation(objects, size):
     """Covered texels (centre rule) / map texels of the objects' "Lightmap" layers in a map of ``size`` (width,
     height), over the triangles each mesh is baked with (its own loop triangles)."""
-    tri = np.concatenate([uvmod.triangles_uv(o, uvmod.LIGHTMAP) for o in objects])
+    tri = uvmod.group_triangles_uv(objects)
     return float(lightmap.coverage_mask(tri, size[0], size[1]).mean())
 
 
@@ -269,9 +269,8 @@ def pack_islands_utilisation(objects, size, margin, cut=True):
             o.data.loop_triangles.foreach_get("loops", t)
             tri.append(uv[t].reshape(-1, 3, 2))
         tri = np.concatenate(tri)
-        lo, window = lightmap.chart_window(tri, side, margin)
-        if not cut or min(window) > uvmod.WINDOW_ASPECT * max(window):
-            lo, window = np.zeros(2, np.int64), np.array([side, side])
+        lo, window = (uvmod.window(tri, side, margin) if cut else None) or (np.zeros(2, np.int64),
+                                                                             np.array([side, side]))
         inside = lightmap.to_window(tri.reshape(-1, 2), side, lo, window).reshape(-1, 3, 2)
         return float(lightmap.coverage_mask(inside, int(window[0]), int(window[1])).mean())
     finally:
