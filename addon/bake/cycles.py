@@ -10,7 +10,7 @@ from ..blender import compat, interrupt, render, scene as sc
 from ..blender.state import rna_settings, world_settings
 from ..core import errors
 from ..core.errors import ILError, InputError
-from . import orientation, uv as uvmod
+from . import orientation, uv as uvmod, uvchecks
 from .kinds import KINDS
 from .materials import show_bake
 from .passes import (ESTIMATES, BakeResult, PassSum, bake_to_error, denoised, estimated, fixed_calls,
@@ -258,5 +258,5 @@ def centre_texels(group, layers, size):
     w, h = size
     inside = np.zeros((h, w), bool)
     for o in group:
-        inside |= uvmod.coverage(uvmod.triangles_uv(o, layers[o.name]), w, h)
+        inside |= uvchecks.coverage(uvmod.triangles_uv(o, layers[o.name]), w, h)
     return inside

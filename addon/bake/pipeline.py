@@ -15,7 +15,7 @@ from ..core import budget, errors
 from ..core.errors import ILError, InputError
 from ..core.io.files import remove_stale_temporaries
 from ..core.result import JobResult
-from . import batch as batching, cost, cycles, uv as uvmod, uvcache, write
+from . import batch as batching, cost, cycles, uv as uvmod, uvcache, uvchecks, write
 from .inputs import input_hash, lighting_digest
 from .kinds import KINDS
 from .materials import TemporaryMaterials
@@ -45,7 +45,7 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     "cycles_seconds" (inside the Cycles bake calls), "pilot_samples" (target_error runs) and, for
     images, "preview", "uv_layer", "coverage", "denoised", "unwrap" (the unwrapper of a layout generated in this
     run: "smart_project" or "lightmap_pack") and "low_fill" (the warning line of a generated layout covering under
-    uv.FILL of its map).
+    uvchecks.FILL of its map).
     """
     options = options or BakeOptions()
     scene = scene or bpy.context.scene
@@ -209,14 +209,14 @@ class _Run:
             have.update(new)
 
     def check_fill(self, targets):
-        """uv.low_fill of each generated layout at its map's final size (the plan may enlarge the side the layout
+        """uvchecks.low_fill of each generated layout at its map's final size (the plan may enlarge the side the layout
         was made for; its margin grows with it); the lines go to ``fills``."""
         for t in targets:
             first = t.group[0].name
             if t.size and first in self.sides:
                 side = self.windows[first][2] if first in self.windows else t.size[0]
                 margin = self.margins[first] * side / self.sides[first]
-                line = uvmod.low_fill(t.group, t.size, margin, self.options)
+                line = uvchecks.low_fill(t.group, t.size, margin, self.options)
                 if line:
                     self.fills.update((o.name, line) for o in t.group)
 

@@ -9,7 +9,7 @@ import bpy
 from ..core import errors
 from ..core.errors import ILError, InputError
 from ..core.io import names
-from . import cost, orientation, uv as uvmod
+from . import cost, orientation, uv as uvmod, uvchecks
 from .kinds import KINDS
 from .options import article, check_out_dir, shard_of, validate_maps
 from .report import SHARD_REPORT
@@ -326,8 +326,8 @@ def plan(scene, groups, maps, layers, sides, options, fail, windows=None):
                                      what=_size_option(options))
                 if refusal:
                     raise InputError(f"'{name}': {refusal}")
-                target.areas = uvmod.check_coverage(group, layers, target.size)
-                target.overlap = uvmod.check_overlap(scene, group, layers, target.size)
+                target.areas = uvchecks.check_coverage(group, layers, target.size)
+                target.overlap = uvchecks.check_overlap(scene, group, layers, target.size)
         except (InputError, ILError) as e:
             fail(name, e)
             continue

@@ -8,7 +8,7 @@ import numpy as np
 from ..core import lightmap
 from ..core.errors import ILError
 from ..core.io import exr, png as io_png
-from . import orientation, uv as uvmod
+from . import orientation, uv as uvmod, uvchecks
 from .inputs import HASH_KEY
 from .kinds import KINDS
 from .passes import flat
@@ -16,7 +16,7 @@ from .plan import file_stems, map_file
 from .seams import seam_step
 
 
-MIN_COVERAGE_TEXT = (f"covered texels >= {uvmod.MIN_COVERAGE:g} x side^2 x chart_area (the charts' UV area inside "
+MIN_COVERAGE_TEXT = (f"covered texels >= {uvchecks.MIN_COVERAGE:g} x side^2 x chart_area (the charts' UV area inside "
                      "the unit square)")
 
 
@@ -41,9 +41,9 @@ def check_covered(name, group, kind, result, layers, areas):
     h, w = result.mask.shape
     expected = sum(areas.values()) * w * h
     covered = int(result.mask.sum())
-    if covered < uvmod.MIN_COVERAGE * expected:
+    if covered < uvchecks.MIN_COVERAGE * expected:
         raise ILError(f"'{name}' {kind}: Cycles covered {covered} texels of the {expected:.0f} its charts span "
-                      f"(minimum {100 * uvmod.MIN_COVERAGE:.0f} %): nothing written")
+                      f"(minimum {100 * uvchecks.MIN_COVERAGE:.0f} %): nothing written")
 
 
 def _attributes(kind, result, options, uv_name):
@@ -92,7 +92,7 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
     """Write the files of one baked map; return ``{object: report entry}``. ``margin``: the layout's margin in
     texels (default the asked one; the map is dilated by :func:`uv.dilation` texels; both in the report and the
     header). ``overlap`` = ({object: fraction}, group fraction) of covered texels shared by several faces;
-    ``stems`` the file stems of :func:`file_stems`; ``low_fill`` {object: the :func:`uv.low_fill` line} (report
+    ``stems`` the file stems of :func:`file_stems`; ``low_fill`` {object: the :func:`uvchecks.low_fill` line} (report
     entries' "low_fill", header "il:low_fill"); ``unwraps`` {object: unwrapper of a layout made in this run}
     (entries' "unwrap", header "il:unwrap"). With ``scene``, the seams are measured and stitched when needed
     (:func:`seams.seam_step`: entries' "seams", header "il:seam_rms", "il:seam_fixed" and "il:seams", the entries'
@@ -113,8 +113,8 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
     alpha = result.mask.astype(np.float32)
     uv_name = layers.get(group[0].name)
     h, w = result.mask.shape
-    areas = {o.name: uvmod.chart_area(uvmod.triangles_uv(o, layers[o.name])) for o in group}
-    covered = {o.name: float((uvmod.coverage(uvmod.triangles_uv(o, layers[o.name]), w, h) & result.mask).mean())
+    areas = {o.name: uvchecks.chart_area(uvmod.triangles_uv(o, layers[o.name])) for o in group}
+    covered = {o.name: float((uvchecks.coverage(uvmod.triangles_uv(o, layers[o.name]), w, h) & result.mask).mean())
                for o in group} if len(group) > 1 else {group[0].name: float(result.mask.mean())}
     attrs = _attributes(kind, result, options, uv_name)
     if digest:

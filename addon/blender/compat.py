@@ -145,7 +145,7 @@ BAKE_TOUCHED_TEXELS = VERSION >= (5, 3, 0)
 #: Whether ``Mesh.from_pydata`` / ``Mesh.update(calc_edges=True)`` (the torus primitive too) leave a
 #: ``.select_edge`` attribute typed INT32_2D instead of BOOLEAN, on which writing edge selection through RNA
 #: crashes Blender: measured in 5.0.1; BOOLEAN in 5.2.3, 5.3.0 and 4.5. Light-map UVs never write those flags
-#: (``bake.uv``); tests use this to know whether the trigger is there.
+#: (``bake.unwrap``); tests use this to know whether the trigger is there.
 MISTYPED_SELECT_EDGE = VERSION[:2] == (5, 0)
 
 

@@ -220,10 +220,10 @@ def test_a_map_its_charts_cannot_fill_gets_one_line_with_the_cause_and_the_side_
     side; the report carries it and its coverage is the fill measured from the UVs (5.2 and 4.5: Cycles' own
     rasteriser decides texels whose centre lies on an edge, within 1 %). A cylinder at the side a
     low-fill line suggests fills what the line says."""
-    from addon.bake import uv as uvmod
+    from addon.bake import unwrap
     # Smart UV Project's layouts: Lightmap Pack fills this soup to 48 % (the cause becomes texels per chart), and
     # on a 1,280-triangle soup at 64² 4.5's rasteriser covered 2 % fewer texels than the centre rule (0.149, 0.169)
-    monkeypatch.setattr(uvmod, "LIGHTMAP_PACK_TRIANGLES", 0)
+    monkeypatch.setattr(unwrap, "LIGHTMAP_PACK_TRIANGLES", 0)
     scene = bpy.context.scene
     soup = added(bpy.ops.mesh.primitive_ico_sphere_add, subdivisions=5)
     soup.name = "Soup"
@@ -264,10 +264,10 @@ def _copy(obj, name, x):
 @pytest.mark.both_versions
 def test_each_mesh_keeps_the_unwrapper_that_fills_its_map_more(tmp_path, monkeypatch):
     """Smart UV Project and Lightmap Pack (same margin) per mesh, the one filling more of the map (with as even a
-    texel density: uv.even_enough) kept and named in the report ("unwrap"): a cylinder at 128² and a torus at 256² (charts fit, 1-texel margin) fill at least 55 %
+    texel density: unwrap.even_enough) kept and named in the report ("unwrap"): a cylinder at 128² and a torus at 256² (charts fit, 1-texel margin) fill at least 55 %
     measured from the UVs, and no mesh (the UV sphere at 128², where Smart UV Project wins, included) fills less
     than with Smart UV Project alone."""
-    from addon.bake import uv as uvmod
+    from addon.bake import unwrap, uvchecks
     scene = bpy.context.scene
     made = {"Cylinder": (added(bpy.ops.mesh.primitive_cylinder_add), 128),
             "Torus": (added(bpy.ops.mesh.primitive_torus_add), 256),
@@ -279,13 +279,13 @@ def test_each_mesh_keeps_the_unwrapper_that_fills_its_map_more(tmp_path, monkeyp
         rep = bake_lightmaps([obj], ["ao"], tmp_path / name, BakeOptions(resolution=side, samples=1, margin=1),
                              scene=scene)
         with monkeypatch.context() as m:
-            m.setattr(uvmod, "LIGHTMAP_PACK_TRIANGLES", 0)
+            m.setattr(unwrap, "LIGHTMAP_PACK_TRIANGLES", 0)
             alone = bake_lightmaps([smart], ["ao"], tmp_path / (name + "s"),
                                    BakeOptions(resolution=side, samples=1, margin=1), scene=scene)
         assert alone["objects"][smart.name]["ao"]["unwrap"] == "smart_project"
         fills[name] = (rep["objects"][name]["ao"]["unwrap"], _fill(obj, side), _fill(smart, side))
         assert fills[name][1] >= fills[name][2], fills
-        assert uvmod.fill([obj], side) == pytest.approx(fills[name][1])
+        assert uvchecks.fill([obj], side) == pytest.approx(fills[name][1])
     assert fills["Cylinder"][1] >= 0.55 and fills["Torus"][1] >= 0.55, fills
     assert fills["Torus"][0] == "lightmap_pack", fills
 
@@ -397,9 +397,9 @@ def test_a_square_bake_elsewhere_does_not_change_the_layout_of_maps_kept(tmp_pat
 @pytest.mark.both_versions
 def test_a_wider_angle_layout_is_kept_when_it_fills_more_with_even_texels(tmp_path, monkeypatch):
     """An ico sphere (3 subdivisions) at 12 texels/m: Smart UV Project at 66° fills under 55 % of its map (its
-    charts follow the icosahedron's faces), at 75° (uv.WIDE_ANGLE) at least 55 % with the same texel density spread
+    charts follow the icosahedron's faces), at 75° (unwrap.WIDE_ANGLE) at least 55 % with the same texel density spread
     (core.lightmap.density_spread within 0.05, the same covered texels per m² within the rasterised borders)."""
-    from addon.bake import uv as uvmod
+    from addon.bake import unwrap, uv as uvmod, uvchecks
     scene = bpy.context.scene
     ico = added(bpy.ops.mesh.primitive_ico_sphere_add, subdivisions=3)
     opts = BakeOptions(texel_density=12, samples=1, margin=1)
@@ -410,10 +410,10 @@ def test_a_wider_angle_layout_is_kept_when_it_fills_more_with_even_texels(tmp_pa
         entry = bake_lightmaps([ico], ["ao"], tmp_path / out, opts, scene=scene)["objects"][ico.name]["ao"]
         w, h = entry["resolution"]
         return entry, float(lightmap.coverage_mask(uvmod.triangles_uv(ico, "Lightmap"), w, h).sum()), \
-            uvmod.density_spread([ico])
+            uvchecks.density_spread([ico])
     from addon.core import lightmap
     with monkeypatch.context() as m:
-        m.setattr(uvmod, "WIDE_ANGLE", uvmod.ANGLE)
+        m.setattr(unwrap, "WIDE_ANGLE", unwrap.ANGLE)
         narrow, narrow_texels, narrow_spread = bake("narrow")
     wide, wide_texels, wide_spread = bake("wide")
     assert narrow["coverage"] < 0.55 <= wide["coverage"], (narrow, wide)
@@ -424,19 +424,19 @@ def test_a_wider_angle_layout_is_kept_when_it_fills_more_with_even_texels(tmp_pa
 def test_lightmap_pack_is_refused_where_it_gives_uneven_texels(tmp_path, monkeypatch):
     """Lightmap Pack fills more of a cylinder's 256² map than Smart UV Project (0.78 against 0.72) by giving its
     caps about half the density of its side (density spread 0.45): the layout kept is Smart UV Project's, whose
-    density is even (spread at least uv.MIN_SPREAD)."""
-    from addon.bake import uv as uvmod
+    density is even (spread at least unwrap.MIN_SPREAD)."""
+    from addon.bake import unwrap, uvchecks
     scene = bpy.context.scene
     cyl = added(bpy.ops.mesh.primitive_cylinder_add)
     opts = BakeOptions(resolution=256, samples=1, margin=1)
     with monkeypatch.context() as m:
-        m.setattr(uvmod, "even_enough", lambda spread, other: True)
+        m.setattr(unwrap, "even_enough", lambda spread, other: True)
         packed = bake_lightmaps([cyl], ["ao"], tmp_path / "any", opts, scene=scene)["objects"][cyl.name]["ao"]
-        packed_spread = uvmod.density_spread([cyl])
+        packed_spread = uvchecks.density_spread([cyl])
     cyl.data.uv_layers.remove(cyl.data.uv_layers["Lightmap"])
     kept = bake_lightmaps([cyl], ["ao"], tmp_path / "even", opts, scene=scene)["objects"][cyl.name]["ao"]
     assert packed["unwrap"] == "lightmap_pack" and packed_spread < 0.6
-    assert kept["unwrap"] == "smart_project" and uvmod.density_spread([cyl]) >= uvmod.MIN_SPREAD
+    assert kept["unwrap"] == "smart_project" and uvchecks.density_spread([cyl]) >= unwrap.MIN_SPREAD
     assert kept["coverage"] >= 0.55
 
 
@@ -506,9 +506,9 @@ def test_a_triangle_soup_is_unwrapped_as_the_surface_it_is(tmp_path, monkeypatch
     """A triangle soup (an ico sphere whose 320 faces share no vertex, as an STL or a scan arrives) gets the charts of
     the surface its faces make: as few charts as the welded sphere (counted through corners at one position) and
     as much of the map covered, where one chart per triangle (the unwrap copy not welded) covers less."""
-    from addon.bake import uv as uvmod
+    from addon.bake import unwrap
     from addon.bake.charts import chart_count
-    monkeypatch.setattr(uvmod, "LIGHTMAP_PACK_TRIANGLES", 0)
+    monkeypatch.setattr(unwrap, "LIGHTMAP_PACK_TRIANGLES", 0)
     scene = bpy.context.scene
     sphere = added(bpy.ops.mesh.primitive_ico_sphere_add, subdivisions=3)
     sphere.name = "Sphere"
@@ -526,7 +526,7 @@ def test_a_triangle_soup_is_unwrapped_as_the_surface_it_is(tmp_path, monkeypatch
     assert _fill(soup, 64) >= 0.95 * _fill(sphere, 64), (_fill(soup, 64), _fill(sphere, 64))
     assert rep["objects"]["Soup"]["ao"]["overlap"] == 0.0
     joined = _fill(soup, 64)
-    monkeypatch.setattr(uvmod, "_welded", lambda co, lv, start, total: (co, lv))
+    monkeypatch.setattr(unwrap, "_welded", lambda co, lv, start, total: (co, lv))
     soup.data.uv_layers.remove(soup.data.uv_layers["Lightmap"])
     bake_lightmaps([soup], ["ao"], tmp_path / "b", opts, scene=scene)
     assert chart_count(soup.data, "Lightmap") == 320 or _fill(soup, 64) < 0.8 * joined
@@ -537,7 +537,7 @@ def test_faces_over_the_same_vertices_get_texels_of_their_own(tmp_path, flip):
     """A cube whose faces are all duplicated on separate vertices (as some downloaded files are), the copies flipped
     (double-sided) or not: welded for the unwrap, each face would coincide with its copy; the copies are unwrapped
     as a surface of their own, so the map has no overlap and covers the charts' area (at least MIN_COVERAGE)."""
-    from addon.bake import uv as uvmod
+    from addon.bake import uv as uvmod, uvchecks
     scene = bpy.context.scene
     cube = added(bpy.ops.mesh.primitive_cube_add)
     bm = bmesh.new()
@@ -550,7 +550,7 @@ def test_faces_over_the_same_vertices_get_texels_of_their_own(tmp_path, flip):
     rep = bake_lightmaps([cube], ["ao"], tmp_path, BakeOptions(resolution=64, samples=1, margin=1), scene=scene)
     entry = rep["objects"]["Cube"]["ao"]
     assert entry["overlap"] == 0.0
-    assert entry["coverage"] >= uvmod.MIN_COVERAGE * entry["chart_area"]
+    assert entry["coverage"] >= uvchecks.MIN_COVERAGE * entry["chart_area"]
     tri = uvmod.triangles_uv(cube, "Lightmap")
     assert lightmap_overlap(tri, 64) == 0.0
 
@@ -573,12 +573,12 @@ def test_a_third_copy_of_every_face_gets_vertices_of_its_own(tmp_path):
     """A cube stored three times on its own vertices, the copy on the lowest vertex ids last: welded, the third
     copy would land on the first's vertices (a mesh Blender reports invalid, "face 1 is a duplicate of 0", and
     texels under two faces); each copy gets its own, the unwrap copy is valid and the map has no overlap."""
-    from addon.bake import uv as uvmod
+    from addon.bake import unwrap, uv as uvmod
     corners = [(x, y, z) for x in (0, 1) for y in (0, 1) for z in (0, 1)]
     box = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
     obj = _from_faces("Triple", corners * 3, [[v + 8 * k for v in f] for k in (1, 2, 0) for f in box])
     tmp = bpy.data.meshes.new("copy")
-    loops, welded = uvmod._canonical_copy(obj.data, tmp, 1.0)
+    loops, welded = unwrap._canonical_copy(obj.data, tmp, 1.0)
     assert welded and not tmp.validate(verbose=False)
     assert sorted(loops) == list(range(len(obj.data.loops)))
     rep = bake_lightmaps([obj], ["ao"], tmp_path, BakeOptions(resolution=64, samples=1, margin=1),

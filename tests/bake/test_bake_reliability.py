@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from addon.bake import BakeOptions, bake_lightmaps, cost
-from addon.bake import uv as uvmod
+from addon.bake import uv as uvmod, uvchecks
 from addon.core.io import exr
 from addon.core.errors import ILError, ILWarning, InputError
 from addon.blender import compat, scene as sc
@@ -123,7 +123,7 @@ def test_meshes_from_pydata_bmesh_and_every_primitive_unwrap_and_keep_their_flag
     assert res["same"], res["diff"]
     assert len(res["coverage"]) == 2 + len(PRIMITIVES)
     for name, (coverage, area) in res["coverage"].items():
-        assert coverage >= uvmod.MIN_COVERAGE * area > 0, name
+        assert coverage >= uvchecks.MIN_COVERAGE * area > 0, name
 
 
 @pytest.mark.parametrize("name", ["Triangle", "ZeroArea", "Colinear", "OnlyColinear", "Invalid", "NonManifold",
@@ -141,7 +141,7 @@ def test_odd_meshes_bake_or_are_refused_with_one_line(tmp_path, script, name):
     ch, header = exr.read_exr(out / f"{name}_ao.exr")
     e = json.loads((out / "bake_report.json").read_text())["objects"][name]["ao"]
     assert float(header["il:coverage"]) == pytest.approx((ch["A"] > 0).mean()) == pytest.approx(e["coverage"])
-    assert e["coverage"] >= uvmod.MIN_COVERAGE * e["chart_area"] > 0
+    assert e["coverage"] >= uvchecks.MIN_COVERAGE * e["chart_area"] > 0
     assert np.all(np.isfinite(ch["Y"])) and 0 <= ch["Y"][ch["A"] > 0].min() <= ch["Y"].max() <= 1
 
 
@@ -158,7 +158,7 @@ def test_suzanne_maps_cover_their_faces_or_are_refused(tmp_path, script):
     ch, header = exr.read_exr(tmp_path / "a" / "Suzanne_ao.exr")
     covered = (ch["A"] > 0).mean()
     assert covered == pytest.approx(e["coverage"]) == pytest.approx(float(header["il:coverage"]))
-    assert covered > 0.04 and covered >= uvmod.MIN_COVERAGE * e["chart_area"]     # it was 0.0
+    assert covered > 0.04 and covered >= uvchecks.MIN_COVERAGE * e["chart_area"]     # it was 0.0
     assert e["margin"] < 4 and e["estimated_error"] > 0
     # too small to hold its charts: refused, naming a resolution that fits
     r = script("bake.py", blend, "--objects", "Suzanne", "--resolution", "4", "--samples", "4", "--out", tmp_path / "b")
@@ -170,7 +170,7 @@ def test_suzanne_maps_cover_their_faces_or_are_refused(tmp_path, script):
     assert r.returncode == 0, r.stderr
     e = json.loads((tmp_path / "c" / "bake_report.json").read_text())["objects"]["Suzanne"]["ao"]
     n, area = e["resolution"][0], uvmod.world_area(bpy.data.objects["Suzanne"])
-    assert n < 256 and e["coverage"] >= uvmod.MIN_COVERAGE * e["chart_area"] > 0
+    assert n < 256 and e["coverage"] >= uvchecks.MIN_COVERAGE * e["chart_area"] > 0
     # the density holds: covered texels ≈ T² A (half a texel of chart border lost per edge at worst)
     assert 0.5 * 4 ** 2 * area <= e["coverage"] * n * n <= 2 * 4 ** 2 * area, (e["coverage"] * n * n, 16 * area)
 
@@ -650,16 +650,16 @@ def test_too_few_texels_names_the_real_cause_and_not_overlap():
             uv[j] = (c + corner[0] + shift, c + corner[1] + shift)
     layer.data.foreach_set("uv", uv.ravel())
     with pytest.warns(ILWarning) as got:
-        fractions, _ = uvmod.check_overlap(scene, [obj], {obj.name: "Lightmap"}, (8, 8))
+        fractions, _ = uvchecks.check_overlap(scene, [obj], {obj.name: "Lightmap"}, (8, 8))
     text = " ".join(str(w.message) for w in got)
-    assert fractions[obj.name] > uvmod.MAX_OVERLAP                  # what the map sees: texels shared
+    assert fractions[obj.name] > uvchecks.MAX_OVERLAP                  # what the map sees: texels shared
     assert "too small for the mesh" in text and f"for {n} triangles" in text and "texels/m" in text, text
     assert "share texels of UV layer" not in text
     # a real overlap (half the charts over the other half) keeps the overlap warning
     uv[:, 0] = np.where(uv[:, 0] > 0.5, uv[:, 0] - 0.5, uv[:, 0])
     layer.data.foreach_set("uv", uv.ravel())
     with pytest.warns(ILWarning, match="share texels of UV layer 'Lightmap'"):
-        uvmod.check_overlap(scene, [obj], {obj.name: "Lightmap"}, (64, 64))
+        uvchecks.check_overlap(scene, [obj], {obj.name: "Lightmap"}, (64, 64))
 
 
 def test_save_as_writes_a_copy_with_the_vertex_colours_and_never_the_original(tmp_path, script):

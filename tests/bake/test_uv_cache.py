@@ -7,7 +7,7 @@ import bpy
 import numpy as np
 import pytest
 
-from addon.bake import BakeOptions, bake_lightmaps, cycles, uv as uvmod, uvcache
+from addon.bake import BakeOptions, bake_lightmaps, cycles, unwrap, uv as uvmod, uvcache, uvchecks
 from addon.blender import progress
 from addon.core import lightmap
 from addon.core.errors import ILError
@@ -30,15 +30,15 @@ def _props():
 
 @pytest.fixture
 def unwraps(monkeypatch):
-    """Counts the unwrapper runs (:meth:`uv._Copies.unwrap`)."""
+    """Counts the unwrapper runs (:meth:`unwrap._Copies.unwrap`)."""
     calls = []
-    real = uvmod._Copies.unwrap
+    real = unwrap._Copies.unwrap
 
     def counting(self, *a, **kw):
         calls.append([o.name for o in self.group])
         return real(self, *a, **kw)
 
-    monkeypatch.setattr(uvmod._Copies, "unwrap", counting)
+    monkeypatch.setattr(unwrap._Copies, "unwrap", counting)
     return calls
 
 
@@ -164,7 +164,7 @@ def test_a_cached_layout_reaches_the_evaluated_mesh_before_the_overlap_check(tmp
                                  scene=bpy.context.scene)
         overlaps.append(rep["objects"][grid.name]["ao"]["overlap"])
     assert unwraps == []
-    assert overlaps[0] > uvmod.MAX_OVERLAP and overlaps[1] == overlaps[0]
+    assert overlaps[0] > uvchecks.MAX_OVERLAP and overlaps[1] == overlaps[0]
 
 
 def test_the_uv_step_reports_objects_done_out_of_all(tmp_path, monkeypatch):

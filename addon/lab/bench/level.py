@@ -19,7 +19,7 @@ import time
 import bpy
 import numpy as np
 
-from ...bake import uv as uvmod
+from ...bake import unwrap, uv as uvmod
 from ...bake.options import BakeOptions
 from ...bake.pipeline import bake_lightmaps
 from ...blender import compat, render
@@ -226,7 +226,7 @@ def pack_islands_utilisation(objects, size, margin, cut=True):
     ``uv.pack_islands`` (same margin as a fraction of the side, bounding boxes, rotation; concave and convex shapes
     took minutes for a few hundred charts) in a square of the map's longer side, then (``cut``: a texel-density
     map) cut to the window of its charts as the pipeline cuts its own (``uv._cut_window``): packed as the pipeline packs, on the canonical copies
-    of the meshes (``uv._canonical_copy``, the same scale; the packer's result depends on the face order, which
+    of the meshes (``unwrap._canonical_copy``, the same scale; the packer's result depends on the face order, which
     Blender's UV sphere changes from process to process), the charts carried back to the meshes' own loops (UVs of
     a w x h map given to the packer in texels / the longer side, so that its charts keep their shape)."""
     side = max(size)
@@ -234,13 +234,13 @@ def pack_islands_utilisation(objects, size, margin, cut=True):
     scene = bpy.context.scene
     vl = bpy.context.view_layer
     copies, loops = [], []
-    scale = uvmod.unwrap_scale(o.data for o in objects)
+    scale = unwrap.unwrap_scale(o.data for o in objects)
     try:
         for o in objects:
             me = bpy.data.meshes.new(f"IL pack {o.name}")
             copy = bpy.data.objects.new(f"IL pack {o.name}", me)
             copies.append(copy)
-            loops.append(uvmod._canonical_copy(o.data, me, scale)[0])
+            loops.append(unwrap._canonical_copy(o.data, me, scale)[0])
             uv = np.zeros(len(o.data.loops) * 2, np.float32)
             o.data.uv_layers[uvmod.LIGHTMAP].data.foreach_get("uv", uv)
             me.uv_layers.new(name=uvmod.LIGHTMAP, do_init=False).data.foreach_set(
@@ -254,7 +254,7 @@ def pack_islands_utilisation(objects, size, margin, cut=True):
         try:
             bpy.ops.mesh.select_all(action="SELECT")
             bpy.ops.uv.select_all(action="SELECT")
-            bpy.ops.uv.pack_islands(margin_method="FRACTION", margin=uvmod.margin_fraction(margin, side),
+            bpy.ops.uv.pack_islands(margin_method="FRACTION", margin=unwrap.margin_fraction(margin, side),
                                     rotate=True, shape_method="AABB")
         finally:
             bpy.ops.object.mode_set(mode="OBJECT")

@@ -1,0 +1,564 @@
+"""Making a group's light-map layout in its meshes' "Lightmap" layers: Smart UV Project (66°, or :data:`WIDE_ANGLE`
+for a single mesh that fills under ``uvchecks.FILL``), or a single mesh's Lightmap Pack, each kept when it fills more
+of the map as evenly (:func:`even_enough`); packed with a margin of ``margin`` texels (a fraction of the map: charts
+lie 2 × margin apart, so the dilation never reaches a neighbour), halved down to half a texel until the charts lie
+inside the unit square and cover the map (``uvchecks.MIN_COVERAGE``), at the side a texel density asks
+(:func:`_search`). The unwrappers run on temporary canonical copies (:class:`_Copies`, :func:`_canonical_copy`): the
+user's meshes never enter edit mode and their select / hide flags are never written, only the finished UVs are copied
+into their "Lightmap" layer (the other layers, the active one and the one that renders stay as they were).
+"""
+import contextlib
+import io
+import math
+import warnings
+
+import bmesh
+import bpy
+import numpy as np
+
+from ..core import lightmap
+from ..core.errors import InputError
+from . import uvchecks
+from .charts import first_at_position
+from .options import article
+from .uv import (LIGHTMAP, MAX_UV_LAYERS, _Made, _dilation, _say_enlarged, _write_layer, fixed_side, resolution,
+                 triangles_uv)
+from .uvchecks import (MIN_COVERAGE, _disjoint, _fits, _outside, _overlap, _overlapping, baked_fill, chart_area,
+                       density_spread)
+
+SMART, LIGHTMAP_PACK = "smart_project", "lightmap_pack"
+"""The unwrappers a generated layout comes from (the report entries' "unwrap")."""
+ANGLE = 1.15192
+"""Smart UV Project's angle limit (66°, its default)."""
+WIDE_ANGLE = math.radians(75)
+"""The angle limit also tried on a single mesh's layout that fills under uvchecks.FILL (:meth:`_Copies.try_wide_angle`):
+fewer, larger charts, hence fewer margins. Measured (fill of the window at the side, margin 1-2 texels; density
+spread): an ico sphere (3 subdivisions) 0.44 -> 0.67 at 128², 0.32 -> 0.49 at 64², spread 0.92 both; a torus 0.31
+-> 0.39 at 128²; a UV sphere 0.69 -> 0.55 and a cylinder unchanged (kept at 66°). 85° and 89° fill more by
+foreshortening: spread 0.35-0.75."""
+SPREAD_SLACK = 0.05
+MIN_SPREAD = 0.8
+"""A layout that would replace another (:meth:`_Copies.try_wide_angle`, :meth:`_Copies.try_lightmap_pack`) must be
+about as even (:func:`density_spread`): at least the other's less SPREAD_SLACK, or at least MIN_SPREAD. Measured:
+Smart UV Project 0.90-0.93 on the primitives; Lightmap Pack 0.83 (UV sphere), 0.89 (torus), 0.95 (ico sphere),
+0.45-0.46 (cylinder: its caps get half the density of its side); Smart UV Project at 85-89° 0.35-0.75."""
+
+
+def even_enough(spread, other):
+    """A layout of density spread ``spread`` may replace one of ``other`` (SPREAD_SLACK, MIN_SPREAD)."""
+    return spread >= min(other - SPREAD_SLACK, MIN_SPREAD)
+
+
+LIGHTMAP_PACK_TRIANGLES = 10000
+"""Lightmap Pack (Python: measured 0.06 s for 1,280 triangles, 0.28 s for 5,120, 0.31 s for 10,000 quads, 1.6 s
+for 40,000 quads, against 0.001-0.07 s for Smart UV Project) is tried only on single meshes up to this many
+triangles, at most about 0.6 s a try (one try per layout the margin and texel-density search keeps)."""
+_LIGHTMAP_PACK_MAX_MARGIN = 0.01   # the operator's largest margin: 1 % of the square
+MIN_CHART_AREA = 0.2
+"""A margin is lowered (down to half a texel) until the charts fill at least this fraction of the map: a
+margin wider than that wastes most texels of a small map."""
+
+
+def margin_fraction(margin, side):
+    """Island margin as a fraction of the map: max(margin, 1/2) texels / side (charts at least a texel apart)."""
+    return max(float(margin), 0.5) / max(int(side), 1)
+
+
+def _margins(margin):
+    """The margins tried, in texels: the asked one, halved down to half a texel."""
+    m, out = float(margin), []
+    while m >= 1:
+        out.append(m)
+        m = m / 2 if m > 1 else 0
+    return out + [0.5]
+
+
+def _unwrap_with_margin(scene, group, state, options, names):
+    """Generate "Lightmap" for ``group``; return its :class:`_Made` (side, margin in texels, unwrapper): by
+    :func:`_search` on copies whose coincident vertices are welded (:func:`_welded`), or again on copies as the
+    meshes are when the weld joined faces that cover each other (the welded layout fails, or puts texels under
+    several faces: MAX_OVERLAP at the map's side, up to OVERLAP_SIDE); the warnings of the layout not kept are
+    dropped."""
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        try:
+            made, welded = _search(scene, group, state, options, names, weld=True), None
+        except InputError as e:
+            made, welded = None, e
+    if made is not None and not (made.welded and _overlapping(group, made.side)):
+        for w in said:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        return made
+    if made is None and welded is not None and not getattr(welded, "welded", False):
+        raise welded
+    return _search(scene, group, state, options, names, weld=False)
+
+
+def _search(scene, group, state, options, names, weld=True):
+    """Generate "Lightmap" for ``group`` on its unwrap copies (welded with ``weld``); return its :class:`_Made`.
+
+    A fixed resolution gives the side at once; the margin is lowered (down to half a texel, with a
+    warning) until the charts lie inside the unit square and cover the map (MIN_COVERAGE), else the
+    bake is refused with the side that would fit. With a texel density the side N = T √(A / coverage)
+    depends on the packing: start from the lower bound T √A (coverage 1) and re-unwrap for the side the
+    last layout asks for, up to three times; when even half a texel of margin does not fit, the side is
+    doubled (more texels than asked, with a warning) up to the maximum resolution.
+    """
+    label = ", ".join(f"'{o.name}'" for o in group)
+    fixed = fixed_side(group[0], options)
+    with _Copies(scene, group, state, weld) as copies:
+        try:
+            made = _search_copies(copies, group, options, names, label, fixed)
+        except InputError as e:
+            e.welded = copies.welded
+            raise
+        made.welded = copies.welded
+        return made
+
+
+def _search_copies(copies, group, options, names, label, fixed):
+    """The search of :func:`_search` on the open ``copies`` (``fixed``: the fixed side, or None)."""
+    if fixed:
+        margin = _fit(copies, group, fixed, options.margin, cut=False)
+        if margin is None:
+            need = _fit_side(copies, group, fixed)
+            hint = (f"use a resolution of at least {need}" if need else
+                    "the charts do not fit even the largest map: bake the parts separately")
+            raise InputError(f"{label}: the light-map charts do not fit {article(f'{fixed}x{fixed}')} map (they would "
+                             f"cover under {100 * MIN_COVERAGE:.0f} % of their UV area): {hint}")
+        return _Made(fixed, _dilation(label, options.margin, margin, fixed), copies.unwrapper)
+    side = resolution(group, names, options, coverage=1.0)
+    made = None
+    for _ in range(3):
+        margin = _fit(copies, group, side, options.margin, cut=True)
+        if margin is None:
+            break
+        made = side
+        need = resolution(group, names, options)
+        if side <= need <= 1.05 * side:
+            if len(group) > 1 and need > side:     # an atlas packed for the side its map gets
+                refit = _fit(copies, group, need, options.margin, cut=True)
+                if refit is not None:
+                    made, margin = need, refit
+                else:
+                    margin = _fit(copies, group, side, options.margin, cut=True)
+            break
+        side = need
+    if margin is None:
+        asked = side
+        while margin is None and side < int(options.max_resolution):
+            side = min(2 * side, int(options.max_resolution))
+            margin = _fit(copies, group, side, options.margin, cut=True)
+        if margin is None:
+            raise InputError(f"{label}: the light-map charts do not fit a map of the maximum resolution "
+                             f"{options.max_resolution} (they would cover under {100 * MIN_COVERAGE:.0f} % "
+                             f"of their UV area): raise the maximum resolution or the texel density")
+        _say_enlarged(label, asked, side)
+        made = side
+    else:
+        asked = 0
+    side = made
+    return _Made(side, _dilation(label, options.margin, margin, side), copies.unwrapper, asked)
+
+
+def _fit(copies, group, side, margin, cut):
+    """Unwrap at ``side`` with the largest margin (texels) of :func:`_margins` whose layout fits and whose charts
+    fill at least MIN_CHART_AREA of the map (else the fitting layout that fills most); leave it in place and
+    return that margin, or None when none fits. A single mesh's layout is then also tried by Smart UV Project at
+    WIDE_ANGLE (:meth:`_Copies.try_wide_angle`) and by Lightmap Pack with that margin
+    (:meth:`_Copies.try_lightmap_pack`), each kept when it fills more of the map as it is baked (``cut``: cut to
+    its window, :func:`baked_fill`)."""
+    best = None
+    for m in _margins(margin):
+        copies.unwrap(margin_fraction(m, side), side)
+        if _fits(copies, group, side):
+            area = sum(chart_area(triangles_uv(o, LIGHTMAP)) for o in group)
+            if area >= MIN_CHART_AREA:
+                best = (m, area)
+                break
+            if best is None or area > best[1]:
+                best = (m, area)
+    else:
+        if best is not None and best[0] != _margins(margin)[-1]:
+            copies.unwrap(margin_fraction(best[0], side), side)
+    if best is None:
+        return None
+    copies.try_wide_angle(margin_fraction(best[0], side), side, best[0], cut)
+    copies.try_lightmap_pack(margin_fraction(best[0], side), side, best[0], cut)
+    return best[0]
+
+
+def _fit_side(copies, group, side):
+    """Smallest 2^k · side whose half-texel layout fits, or None."""
+    while side < lightmap.MAX_RESOLUTION:
+        side = min(2 * side, lightmap.MAX_RESOLUTION)
+        copies.unwrap(margin_fraction(0.5, side), side)
+        if _fits(copies, group, side):
+            return side
+    return None
+
+
+UNWRAP_BAND = 64.0
+"""Meshes whose size (√ of their area in object space, where Smart UV Project works) lies within
+[1 / UNWRAP_BAND, UNWRAP_BAND] m are unwrapped as they are; others on a copy scaled by a power of two to about
+1 m. Measured: Smart UV Project loses the charts of a 1e-6 m cube and of a 1e5 m one (no chart fits any map),
+1e-5 to 1e4 m unwrap alike."""
+
+
+def mesh_area(me):
+    """Surface area of mesh ``me`` in object space (its own units, no transform)."""
+    me.calc_loop_triangles()
+    co = np.zeros(len(me.vertices) * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    tv = np.zeros(len(me.loop_triangles) * 3, np.int64)
+    me.loop_triangles.foreach_get("vertices", tv)
+    t = co.reshape(-1, 3).astype(float)[tv].reshape(-1, 3, 3)
+    return float(0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum())
+
+
+def unwrap_scale(meshes):
+    """The factor the unwrap copies of ``meshes`` (one UV square) are scaled by: 1 within UNWRAP_BAND, else the
+    power of two (exact in floating point) that brings √(their total area) nearest to 1 m. Charts come out the
+    same shape at any scale, so UV coverage, chart areas and the texel density (from the real world area) are
+    scale-free."""
+    size = math.sqrt(sum(mesh_area(me) for me in meshes))
+    if size <= 0 or 1.0 / UNWRAP_BAND <= size <= UNWRAP_BAND:
+        return 1.0
+    return 2.0 ** -round(math.log2(size))
+
+
+class _Copies:
+    """Temporary objects with canonical copies of the group's meshes (:func:`_canonical_copy`: all faces revealed
+    and selected, one UV layer, scaled by :func:`unwrap_scale`, faces in an order given by their vertices), where
+    the unwrappers run; :meth:`unwrap` copies the result into each mesh's "Lightmap" layer (through the copy's
+    map to the original loops). ``unwrapper`` names the layout in place (SMART or LIGHTMAP_PACK). Removed on
+    exit, also on errors."""
+
+    def __init__(self, scene, group, state, weld=True):
+        self.scene, self.group, self.state, self.weld = scene, list(group), state, weld
+        self.copies = []
+        self.loops = []          # per copy: the original mesh's loop of each of the copy's loops
+        self.unwrapper = SMART
+        self.welded = False      # the weld joined vertices of some copy
+        self.angle = None        # Smart UV Project's angle limit once :meth:`try_wide_angle` decided it
+
+    def __enter__(self):
+        for o in self.group:
+            me = o.data
+            if LIGHTMAP not in me.uv_layers:
+                if len(me.uv_layers) >= MAX_UV_LAYERS:
+                    raise InputError(f"mesh '{me.name}' already has {MAX_UV_LAYERS} UV layers: pass an existing one")
+                if me.library is not None or o.library is not None:
+                    raise InputError(f"mesh '{me.name}' is linked from a library: it cannot get a light-map "
+                                     f"UV layer (make it local)")
+        try:
+            scale = unwrap_scale(o.data for o in self.group)
+            for o in self.group:
+                tmp = self.state.track(bpy.data.meshes, bpy.data.meshes.new(f"IL unwrap {o.data.name}"))
+                loops, welded = _canonical_copy(o.data, tmp, scale, self.weld)
+                self.loops.append(loops)
+                self.welded |= welded
+                tmp.uv_layers.new(name=LIGHTMAP, do_init=False)
+                tmp.uv_layers.active_index = 0
+                obj = self.state.track(bpy.data.objects, bpy.data.objects.new(f"IL unwrap {o.name}", tmp))
+                obj.matrix_world = o.matrix_world
+                self.scene.collection.objects.link(obj)
+                self.copies.append((o, obj))
+        except BaseException:
+            self._remove()
+            raise
+        return self
+
+    def __exit__(self, *exc):
+        self._remove()
+        return False
+
+    def _remove(self):
+        for _, obj in self.copies:
+            me = obj.data
+            bpy.data.objects.remove(obj)
+            bpy.data.meshes.remove(me)
+        if self.copies:
+            self.scene.view_layers[0].update()   # no stale base of a removed copy is left for the Cycles bake
+        self.copies = []
+        self.loops = []
+
+    REPACKS = 3
+    """Most re-packs of an atlas layout by ``uv.pack_islands`` (each kept only when it covers more texels)."""
+
+    def unwrap(self, margin_uv, side, angle=None):
+        """Smart UV Project of every copy in one edit session (one UV square) into "Lightmap"; for several copies
+        (an atlas) the charts are then re-packed by ``uv.pack_islands`` (bounding boxes, rotation, the same margin
+        as a fraction of the map) while a re-pack covers more texel centres of a ``side``² map (up to REPACKS
+        times), so the layout kept covers at least as many as ``pack_islands`` of it. Measured on the quick level's
+        atlas (29 meshes, 273², 1-texel margins): convex and concave shapes cover the same texels as bounding boxes
+        for 10x the time; margin_method ADD or SCALED does not keep the margin in texels. ``angle``: Smart UV
+        Project's angle limit (radians, ANGLE by default)."""
+        temps = [obj for _, obj in self.copies]
+        lead = temps[0]
+        ctx = self._context()
+        self.unwrapper = SMART
+        with _edit(ctx, lead):
+            bpy.ops.uv.smart_project(angle_limit=angle or self.angle or ANGLE, island_margin=float(margin_uv), margin_method="FRACTION",
+                                     area_weight=0.0, correct_aspect=True, scale_to_bounds=False)
+        best = self._uvs(temps)
+        if len(temps) > 1:
+            tris = [_copy_triangles(o.data) for o, _ in self.copies]     # the triangles each mesh is baked with
+            have = _covered(best, tris, side, self.loops)
+            for _ in range(self.REPACKS):
+                with _edit(ctx, lead):
+                    bpy.ops.uv.select_all(action="SELECT")
+                    bpy.ops.uv.pack_islands(margin=float(margin_uv), margin_method="FRACTION", rotate=True,
+                                            shape_method="AABB", udim_source="CLOSEST_UDIM")
+                packed = self._uvs(temps)
+                covered = _covered(packed, tris, side, self.loops)
+                if covered <= have:
+                    break
+                best, have = packed, covered
+        self._write(best)
+
+    def _context(self):
+        """The copies selected (and nothing else), the first active: the context override of their edit session."""
+        vl = self.scene.view_layers[0]
+        temps = [obj for _, obj in self.copies]
+        for o in filter(None, vl.objects):
+            want = o in temps
+            if o.select_get(view_layer=vl) != want:
+                o.select_set(want, view_layer=vl)
+        lead = temps[0]
+        vl.objects.active = lead
+        return dict(scene=self.scene, view_layer=vl, active_object=lead, object=lead,
+                    selected_objects=temps, selected_editable_objects=temps)
+
+    def try_wide_angle(self, margin_uv, side, margin, cut):
+        """For one copy whose layout fills under FILL of its map as baked (:func:`baked_fill`): Smart UV Project at
+        WIDE_ANGLE (fewer, larger charts) with the same margin; kept when it fits a ``side``² map, fills more of it
+        as baked, its texel density is as even (:func:`even_enough`) and no more of its texels lie under several
+        faces (a wider chart may fold over itself in its projection: Suzanne's ears). Decided once per copies, at
+        the first side the search tries: the later unwraps of the search use the angle kept."""
+        if len(self.copies) != 1 or self.unwrapper != SMART or self.angle is not None:
+            return
+        have = baked_fill(self.group, side, margin, cut)
+        if have >= uvchecks.FILL:
+            return
+        spread, shared = density_spread(self.group), _overlap(self.group, side)
+        before = self._uvs([self.copies[0][1]])
+        self.unwrap(margin_uv, side, WIDE_ANGLE)
+        if (_fits(self, self.group, side) and baked_fill(self.group, side, margin, cut) > have
+                and even_enough(density_spread(self.group), spread) and _overlap(self.group, side) <= shared):
+            self.angle = WIDE_ANGLE
+            return
+        self.angle = ANGLE
+        self.copies[0][1].data.uv_layers[LIGHTMAP].data.foreach_set("uv", before[0][0])
+        self._write(before)
+
+    def try_lightmap_pack(self, margin_uv, side, margin=None, cut=False):
+        """For one copy of at most LIGHTMAP_PACK_TRIANGLES triangles: Blender's Lightmap Pack with the same margin
+        (its margin, a whole fraction 1/k of the square, at least ``margin_uv``); its layout replaces Smart UV
+        Project's (in place) when it fits a ``side``² map, fills more of it as baked (:func:`baked_fill`, cut
+        to its window with ``cut``, ``margin`` texels around the charts) and its texel density is as even
+        (:func:`even_enough`: Lightmap Pack gives a cylinder's caps about half the density of
+        its side, spread 0.45 against Smart UV Project's 0.92). Return the fills (smart, lightmap pack;
+        None for what was not measured)."""
+        if len(self.copies) != 1 or self.unwrapper != SMART or not 0 < margin_uv <= _LIGHTMAP_PACK_MAX_MARGIN:
+            return None, None
+        lead = self.copies[0][1]
+        lead.data.calc_loop_triangles()
+        if len(lead.data.loop_triangles) > LIGHTMAP_PACK_TRIANGLES:
+            return None, None
+        margin = margin_uv * side if margin is None else margin
+        smart_fill = baked_fill(self.group, side, margin, cut)
+        smart = self._uvs([lead])
+        # in object mode it unwraps the selected objects (in edit mode the window's scene's objects in edit mode,
+        # not the context's: a bake of another scene than the window's would find none); it prints its steps
+        with bpy.context.temp_override(**self._context()), contextlib.redirect_stdout(io.StringIO()):
+            # the operator's margin is a percentage p of the square, applied as 1 / int(100 / p): at least p / 100
+            bpy.ops.uv.lightmap_pack(PREF_CONTEXT="ALL_FACES", PREF_PACK_IN_ONE=True, PREF_NEW_UVLAYER=False,
+                                     PREF_BOX_DIV=12, PREF_MARGIN_DIV=float(100.0 * margin_uv))
+        pack = self._uvs([lead])
+        self._write(pack)
+        packed = baked_fill(self.group, side, margin, cut) if _fits(self, self.group, side) else None
+        if packed is not None and packed > smart_fill:
+            pack_spread = density_spread(self.group)
+            self._write(smart)
+            if even_enough(pack_spread, density_spread(self.group)):
+                self._write(pack)
+                self.unwrapper = LIGHTMAP_PACK
+        else:
+            self._write(smart)
+        return smart_fill, packed
+
+    def _write(self, uvs):
+        """The copies' UVs (:meth:`_uvs`) into their meshes' "Lightmap" layers (each copy loop to its original),
+        remembered as a layout without overlapping charts (:func:`_disjoint`)."""
+        for (o, obj), (uv, *_), loops in zip(self.copies, uvs, self.loops):
+            out = np.empty_like(uv).reshape(-1, 2)
+            out[loops] = uv.reshape(-1, 2)
+            _write_layer(self.state, o.data, out.ravel())
+            _disjoint(triangles_uv(o, LIGHTMAP))
+
+    @staticmethod
+    def _uvs(temps):
+        """[(flat float32 "Lightmap" UVs, each loop's next loop in its face, each face's first loop)] of the copies."""
+        out = []
+        for obj in temps:
+            me = obj.data
+            uv = np.zeros(len(me.loops) * 2, np.float32)
+            me.uv_layers[LIGHTMAP].data.foreach_get("uv", uv)
+            start, total = np.zeros(len(me.polygons), np.int64), np.zeros(len(me.polygons), np.int64)
+            me.polygons.foreach_get("loop_start", start)
+            me.polygons.foreach_get("loop_total", total)
+            nxt = np.arange(len(me.loops)) + 1
+            nxt[start + total - 1] = start
+            out.append((uv, nxt, start))
+        return out
+
+
+def _canonical_copy(me, tmp, scale, weld=True):
+    """Fill the empty mesh ``tmp`` with ``me``'s vertices (× ``scale``) and faces, every face starting at its
+    lowest vertex index and the faces sorted by their first three vertices (then corner count, then their order),
+    all revealed and selected; return, for each of ``tmp``'s loops, ``me``'s loop it copies, and whether ``weld``
+    joined any vertices at one position (:func:`_welded`).
+
+    The flags are written through bmesh: in bpy 5.0 (``compat.MISTYPED_SELECT_EDGE``) a mesh made by
+    ``Mesh.from_pydata`` (``Mesh.update(calc_edges=True)``; the torus primitive is one) carries a ``.select_edge``
+    attribute typed INT32_2D instead of BOOLEAN, and ``edges.foreach_set("select", ...)`` (or ``edge.select = ...``)
+    on it kills Blender with signal 11.
+
+    The unwrappers' layouts depend on face order and on each face's first corner: Blender 5.3's UV sphere
+    primitive makes the same faces in a different order in every process, and Smart UV Project then packs
+    different charts; on the canonical copy the same vertices and faces give the same layout."""
+    nv, nl, nf = len(me.vertices), len(me.loops), len(me.polygons)
+    co = np.zeros(nv * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    lv = np.zeros(nl, np.int64)
+    me.loops.foreach_get("vertex_index", lv)
+    start, total = np.zeros(nf, np.int64), np.zeros(nf, np.int64)
+    me.polygons.foreach_get("loop_start", start)
+    me.polygons.foreach_get("loop_total", total)
+    welded_co, welded_lv = _welded(co, lv, start, total) if weld else (co, lv)
+    changed = welded_lv is not lv
+    co, lv, nv = welded_co, welded_lv, len(welded_co) // 3
+    if nf:
+        face_of = np.repeat(np.arange(nf), total)          # face offsets ascend (Blender 4+)
+        low = np.full(nf, np.iinfo(np.int64).max)
+        np.minimum.at(low, face_of, lv)
+        first = np.full(nf, np.iinfo(np.int64).max)
+        np.minimum.at(first, face_of, np.where(lv == low[face_of], np.arange(nl), np.iinfo(np.int64).max))
+        rot = first - start
+        corner = [lv[start + (rot + k) % total] for k in range(3)]
+        perm = np.lexsort((total, corner[2], corner[1], corner[0]))
+    else:
+        rot, perm = np.zeros(0, np.int64), np.zeros(0, np.int64)
+    new_total = total[perm]
+    new_start = np.concatenate([[0], np.cumsum(new_total)[:-1]]).astype(np.int64) if nf else new_total
+    face = np.repeat(np.arange(nf), new_total)
+    k = np.arange(nl) - new_start[face]
+    f = perm[face]
+    loops = start[f] + (rot[f] + k) % total[f]
+    tmp.vertices.add(nv)
+    tmp.vertices.foreach_set("co", co * np.float32(scale))
+    tmp.loops.add(nl)
+    tmp.loops.foreach_set("vertex_index", lv[loops])
+    tmp.polygons.add(nf)
+    tmp.polygons.foreach_set("loop_start", new_start)
+    tmp.update(calc_edges=True)
+    bm = bmesh.new()
+    try:
+        bm.from_mesh(tmp)
+        for seq in (bm.verts, bm.edges, bm.faces):
+            for item in seq:
+                item.hide = False
+                item.select = True
+        bm.to_mesh(tmp)
+    finally:
+        bm.free()
+    while len(tmp.uv_layers):
+        tmp.uv_layers.remove(tmp.uv_layers[0])
+    return loops, changed
+
+
+def _welded(co, lv, start, total):
+    """(positions, loop vertices) of the unwrap copy: every vertex replaced by the first vertex at its position
+    (``first_at_position``), so that a triangle soup (an imported mesh whose faces share no vertex) is unwrapped as
+    the surface it is. Measured on the level benchmark's 1,280-triangle soup: 1,280 one-triangle charts become 6,
+    and the quick level's atlas covers 0.63 of its map instead of 0.49.
+
+    A face that would repeat a vertex keeps its own vertices. The k-th face over the same welded vertices (a
+    double-sided copy, a duplicate) is welded into a k-th copy of the vertices, so that faces over the same
+    vertices never join one surface (joined, Smart UV Project lays them over each other or fails to fit a map);
+    faces that cover each other but are split differently are caught after the unwrap (:func:`_unwrap_with_margin`).
+    Meshes without coincident vertices are unchanged (their layouts too)."""
+    nv = len(co) // 3
+    if not len(lv):
+        return co, lv
+    rep = first_at_position(co)
+    if np.array_equal(rep, np.arange(nv)):
+        return co, lv
+    welded = rep[lv]
+    nf = len(start)
+    face_of = np.repeat(np.arange(nf), total)
+    order = np.lexsort((welded, face_of))
+    ws, fs = welded[order], face_of[order]
+    repeat = np.zeros(nf, bool)
+    repeat[fs[1:][(ws[1:] == ws[:-1]) & (fs[1:] == fs[:-1])]] = True
+    width = int(min(total.max(), _FACE_KEY))
+    rank = np.arange(len(lv)) - start[fs]          # each corner's place among its face's sorted vertices
+    key = np.full((nf, width + 2), -1, np.int64)
+    keep = rank < width
+    key[fs[keep], rank[keep]] = ws[keep]
+    key[:, width] = total
+    key[:, width + 1] = np.bincount(face_of, welded, nf).astype(np.int64)
+    key[repeat, width] = -2 - np.flatnonzero(repeat)            # never a duplicate of another face
+    _, group = np.unique(key, axis=0, return_inverse=True)
+    group = group.ravel()
+    by_group = np.argsort(group, kind="stable")
+    g = group[by_group]
+    run_start = np.r_[0, np.flatnonzero(g[1:] != g[:-1]) + 1]
+    seen = np.zeros(nf, np.int64)                     # earlier faces over the same vertices
+    seen[by_group] = np.arange(nf) - np.repeat(run_start, np.diff(np.r_[run_start, nf]))
+    corner_copy = np.where(repeat, -1, seen)[face_of]
+    vertex = np.where(corner_copy < 0, lv, welded)
+    _, first, ids = np.unique(np.stack([vertex, corner_copy], 1), axis=0, return_index=True, return_inverse=True)
+    return co.reshape(-1, 3)[vertex[first]].ravel(), ids.ravel()
+
+
+_FACE_KEY = 16
+"""Sorted vertices of a face that tell duplicates apart (with its corner count and vertex sum): a longer face
+matching another on them only goes to another copy of the vertices."""
+
+
+@contextlib.contextmanager
+def _edit(ctx, lead):
+    """The copies in one multi-object edit session (back in object mode also on errors)."""
+    with bpy.context.temp_override(**ctx):
+        bpy.ops.object.mode_set(mode="EDIT")
+    try:
+        with bpy.context.temp_override(edit_object=lead, **ctx):
+            yield
+    finally:
+        with bpy.context.temp_override(**ctx):
+            bpy.ops.object.mode_set(mode="OBJECT")
+
+
+def _copy_triangles(me):
+    """(T, 3) loop indices of mesh ``me``'s loop triangles."""
+    me.calc_loop_triangles()
+    loops = np.zeros(len(me.loop_triangles) * 3, np.int64)
+    me.loop_triangles.foreach_get("loops", loops)
+    return loops.reshape(-1, 3)
+
+
+def _covered(uvs, tris, side, loops):
+    """Texel centres of a ``side``² map inside the charts of :meth:`_Copies._uvs` arrays carried to the original
+    meshes' loops (``loops``: per copy, the original loop of each of its loops) and their loop triangles ``tris``, -1
+    when a UV lies outside the unit square (the packer failed)."""
+    parts = []
+    for (uv, *_), t, back in zip(uvs, tris, loops):
+        out = np.empty_like(uv).reshape(-1, 2)
+        out[back] = uv.reshape(-1, 2)
+        parts.append(out[t])
+    tri = np.concatenate(parts)
+    if _outside(tri):
+        return -1
+    return int(lightmap.coverage_mask(tri, side, side).sum())

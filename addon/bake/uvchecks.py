@@ -1,0 +1,253 @@
+"""What is measured of a light-map layout, never changing it: the charts' UV area (:func:`chart_area`, overlapping
+charts counted once), the texels they cover (:func:`coverage`, :func:`coverage_ratio`), whether they cover their faces
+(:func:`check_coverage`, MIN_COVERAGE) or share texels (:func:`check_overlap`, MAX_OVERLAP), how much of the map they
+fill (:func:`fill`, :func:`low_fill`, :func:`baked_fill`) and how even their texel density is
+(:func:`density_spread`). Figures are remembered per layout (``core.memo.FIGURES``); warnings go through
+``core.errors.warn``, refusals raise InputError.
+"""
+import math
+
+import numpy as np
+
+from ..core import errors, lightmap
+from ..core.memo import FIGURES, digest
+from ..core.errors import InputError
+from .charts import chart_count, side_for_fill
+from .options import article
+from .uv import (LIGHTMAP, evaluated_triangles_uv, group_triangles_uv, triangles_uv, window, world_area,
+                 world_triangles)
+
+MIN_COVERAGE = 0.5
+"""A map is accepted when its covered texels (texel centres inside a chart) are at least this fraction of
+side² × the charts' UV area inside the unit square (Σ |UV triangle area|, clipped): below it, charts are
+thinner than a texel and most faces get no texel of their own."""
+_OUTSIDE = 1e-4       # UVs this far outside [0, 1]: the packer failed
+UNION_SIDE = 1024
+"""Side of the raster that measures the area of overlapping charts (their union)."""
+
+
+_DISJOINT = {}    # digest -> Σ |triangle area| of the layouts an unwrapper made (charts that never overlap)
+
+
+def chart_area(tri_uv):
+    """The charts' UV area inside the unit square, overlapping charts counted once: Σ |triangle area| of the
+    clipped UVs, or, when that exceeds the fraction of a UNION_SIDE² raster's texel centres they cover (a
+    user's layer with mirrored or tiled charts), that fraction; a layout an unwrapper made here (its charts do not
+    overlap: :func:`_disjoint`) gets Σ |triangle area| without the raster. Remembered per layout (the unwrap, the
+    side and the files ask for the same layout several times)."""
+    tri = np.ascontiguousarray(np.clip(tri_uv, 0.0, 1.0), np.float32)
+    key = digest(tri)
+    if key in _DISJOINT:
+        return _DISJOINT[key]
+    return FIGURES.call(_union_area, tri)
+
+
+def _union_area(tri):
+    total = lightmap.uv_area(tri)
+    union = float(lightmap.coverage_mask(tri, UNION_SIDE, UNION_SIDE).mean()) if total > 0 else 0.0
+    return total if total <= union * 1.02 else union
+
+
+def _disjoint(tri_uv):
+    """Remember the layout ``tri_uv`` as one whose charts do not overlap (Smart UV Project's, Lightmap Pack's,
+    pack_islands'): its chart area is Σ |triangle area| (kept for the process: the same layout always gets the same
+    area, whatever else was measured in between)."""
+    tri = np.ascontiguousarray(np.clip(tri_uv, 0.0, 1.0), np.float32)
+    _DISJOINT[digest(tri)] = lightmap.uv_area(tri)
+
+
+def coverage(tri_uv, width, height):
+    """``lightmap.coverage_mask`` of ``tri_uv`` in a ``width`` × ``height`` map (read-only), remembered per layout and
+    size (the plan, the fill check, the bake's centre mask and the files ask for the same ones)."""
+    return FIGURES.call(lightmap.coverage_mask, np.ascontiguousarray(tri_uv), int(width), int(height))
+
+
+def coverage_ratio(tri_uv, width, height):
+    """(covered texels / (W H × chart area), chart area); (0, 0) for charts without area."""
+    area = chart_area(tri_uv)
+    if area <= 0:
+        return 0.0, 0.0
+    return float(coverage(tri_uv, width, height).sum()) / (area * width * height), area
+
+
+def _outside(tri_uv):
+    return bool(len(tri_uv)) and (tri_uv.min() < -_OUTSIDE or tri_uv.max() > 1 + _OUTSIDE)
+
+
+def check_coverage(objects, layers, size):
+    """Raise InputError unless every object's charts in its layer cover its faces in a ``size`` = (W, H) map.
+
+    Returns ``{object name: chart area}``."""
+    w, h = size
+    areas = {}
+    for o in objects:
+        layer = layers[o.name]
+        tri = triangles_uv(o, layer)
+        ratio, area = coverage_ratio(tri, w, h)
+        if area <= 0:
+            raise InputError(f"UV layer '{layer}' of '{o.name}' has no area inside the unit square (its faces "
+                             f"collapse to points or lines, or lie outside 0..1): unwrap it, or let the bake "
+                             f"generate a light-map layer")
+        if ratio < MIN_COVERAGE:
+            need = _side_that_fits(tri, w, h)
+            hint = f"use a resolution of at least {need}" if need else "use a layer with larger charts"
+            raise InputError(f"UV layer '{layer}' of '{o.name}' covers only {100 * ratio:.0f} % of its charts' "
+                             f"area in {article(f'{w}x{h}')} map (minimum {100 * MIN_COVERAGE:.0f} %): {hint}")
+        areas[o.name] = area
+    return areas
+
+
+MAX_OVERLAP = 0.01
+"""Covered texels shared by several faces of the rendered mesh above which a bake warns (the bake writes such a
+texel once for all of them: one value for faces that see different light)."""
+OVERLAP_SIDE = 1024
+"""Overlap is a fraction of the charts' area: measured on a map of at most this side (same aspect), which
+bounds its cost (about 0.7 s for 7200 triangles filling a 1024² map)."""
+_COPIES = {"ARRAY": "Array", "MIRROR": "Mirror", "SOLIDIFY": "Solidify"}
+
+
+def check_overlap(scene, objects, layers, size):
+    """Fraction of each object's covered texels shared by several faces of its evaluated mesh
+    (``core.lightmap.overlap_fraction``): ``({object name: fraction}, fraction over the whole group)``.
+
+    Measured at the map's size, scaled down to OVERLAP_SIDE. Warns above MAX_OVERLAP, naming the Array / Mirror modifiers whose copies repeat the base mesh's UVs (the
+    light-map layer is made on the base mesh, so every copy gets the same texels; Solidify's second shell is such a
+    copy), else too few texels for the triangles (:func:`too_few_texels`), else the layer itself."""
+    scale = min(1.0, OVERLAP_SIDE / max(size))
+    w, h = max(1, round(size[0] * scale)), max(1, round(size[1] * scale))
+    depsgraph = scene.view_layers[0].depsgraph
+    fractions, every = {}, []
+    for o in objects:
+        layer = layers[o.name]
+        tri = evaluated_triangles_uv(o, layer, depsgraph)
+        if tri is None:
+            tri = triangles_uv(o, layer)
+        every.append(tri)
+        fractions[o.name] = frac = FIGURES.call(lightmap.overlap_fraction, tri, w, h)
+        if frac <= MAX_OVERLAP:
+            continue
+        copies = [m for m in o.modifiers if m.type in _COPIES and m.show_render]
+        if copies and FIGURES.call(lightmap.overlap_fraction, triangles_uv(o, layer), w, h) <= MAX_OVERLAP:
+            kinds = " and ".join(dict.fromkeys(_COPIES[m.type] for m in copies))
+            names = ", ".join(f"'{m.name}'" for m in copies)
+            errors.warn(f"'{o.name}': {kinds} copies share the light-map texels ({100 * frac:.0f} % of its texels "
+                        f"hold several faces, modifier {names}): apply the modifier to give each copy its own")
+        elif FIGURES.call(lightmap.overlap_fraction, tri, FINE_SIDE, FINE_SIDE) <= MAX_OVERLAP:
+            errors.warn(too_few_texels(o, tri, size))
+        else:
+            errors.warn(f"'{o.name}': faces share texels of UV layer '{layer}' ({100 * frac:.0f} % of its texels "
+                        f"hold several faces, which get one value): use a layer without overlapping charts, or let "
+                        f"the bake generate one")
+    group = FIGURES.call(lightmap.overlap_fraction, np.concatenate(every), w, h) if len(objects) > 1 else fractions[objects[0].name]
+    return fractions, group
+
+
+FINE_SIDE = 2048
+"""Side at which a layout whose charts overlap at the map's size is measured again: overlap that vanishes there
+comes from too few texels (several tiny triangles around one texel centre), not from charts over each other."""
+TEXELS_PER_TRIANGLE = 4
+"""Covered texels per triangle the suggested side gives (a texel per triangle at least, with room)."""
+
+
+def too_few_texels(obj, tri, size):
+    """The warning for a layout whose faces share texels only because the map is too small for the mesh: covered
+    texels against triangles, and the side (and texel density) that gives each triangle TEXELS_PER_TRIANGLE."""
+    w, h = size
+    covered = max(1, int(coverage(tri, w, h).sum()))
+    n = len(tri)
+    side = min(lightmap.MAX_RESOLUTION, math.ceil(max(w, h) * math.sqrt(TEXELS_PER_TRIANGLE * n / covered)))
+    area = world_area(obj)
+    density = side * math.sqrt(chart_area(tri) / area) if area > 0 else 0.0
+    return (f"'{obj.name}': {covered} texels for {n} triangles in {article(f'{w}x{h}')} map "
+            f"({covered / n:.2g} per triangle): the map is too small for the mesh, so neighbouring faces share "
+            f"texels; a resolution of {side} (about {density:.3g} texels/m) gives each triangle about "
+            f"{TEXELS_PER_TRIANGLE} texels")
+
+
+def _side_that_fits(tri, w, h, cap=4096):
+    """Smallest side 2^k · max(w, h) ≤ cap at which the layout ``tri`` meets MIN_COVERAGE, or None."""
+    side = max(w, h)
+    while side < cap:
+        side = min(2 * side, cap)
+        if coverage_ratio(tri, side, side)[0] >= MIN_COVERAGE:
+            return side
+    return None
+
+
+def _overlap(group, side):
+    """Fraction of the group's "Lightmap" texels (at ``side``, up to OVERLAP_SIDE) under several of its faces."""
+    s = min(int(side), OVERLAP_SIDE)
+    return FIGURES.call(lightmap.overlap_fraction, group_triangles_uv(group), s, s)
+
+
+def _overlapping(group, side):
+    """Some object of ``group`` has more than MAX_OVERLAP of its "Lightmap" texels under several of its faces."""
+    s = min(int(side), OVERLAP_SIDE)
+    return any(FIGURES.call(lightmap.overlap_fraction, triangles_uv(o, LIGHTMAP), s, s) > MAX_OVERLAP
+               for o in group)
+
+
+FILL = 0.55
+"""Covered texels / map texels a generated layout should reach; below it :func:`low_fill` warns."""
+FILL_HINT = 0.5
+"""The fill the suggested resolution reaches."""
+
+
+def fill(group, width, height=None):
+    """Covered texels (centre rule) / map texels of the group's "Lightmap" layers in a width x height map (square
+    without ``height``)."""
+    return float(coverage(group_triangles_uv(group), width, height or width).mean())
+
+
+def low_fill(group, size, margin, options):
+    """The warning line (also warned) when the group's generated layout fills under FILL of its map of ``size``
+    (width, height: the map's final size; ``margin`` the charts' margin in its texels), else None:
+    its fill, covered texels per triangle or per chart, and the side (and texel density) that reaches FILL_HINT
+    (FILL from above FILL_HINT) by :func:`charts.side_for_fill` (of a square map of as many texels)."""
+    w, h = size
+    have = fill(group, w, h)
+    if have >= FILL:
+        return None
+    side = max(1, round(math.sqrt(w * h)))
+    label = ", ".join(f"'{o.name}'" for o in group)
+    tris = sum(len(o.data.loop_triangles) for o in group)
+    charts = sum(chart_count(o.data, LIGHTMAP) for o in group)
+    covered = have * w * h
+    goal = FILL_HINT if have < FILL_HINT else FILL
+    need = side_for_fill(have, side, covered / max(charts, 1), margin, float(options.margin), goal)
+    cause = (f"{covered / max(tris, 1):.2g} texels per triangle" if covered < 4 * tris else
+             f"{covered / max(charts, 1):.3g} texels per chart, {charts} charts with {margin:g}-texel margins")
+    if need and need <= lightmap.MAX_RESOLUTION:
+        area = sum(world_area(o) for o in group)
+        charted = sum(chart_area(triangles_uv(o, LIGHTMAP)) for o in group)
+        density = f" (about {need * math.sqrt(charted / area):.3g} texels/m)" if area else ""
+        hint = f"a resolution of about {need}{density} fills {100 * goal:.0f} %"
+    else:
+        hint = f"no resolution fills {100 * goal:.0f} % (merge or simplify the faces, or use an atlas)"
+    line = f"{label}: light-map charts cover only {100 * have:.1f} % of the {w}x{h} map ({cause}); {hint}"
+    errors.warn(line)
+    return line
+
+
+def baked_fill(group, side, margin, cut):
+    """Covered texels / texels of the map the group's "Lightmap" layout made for a ``side``² map is baked into:
+    the square, or with ``cut`` the window :func:`uv._cut_window` would cut (``margin`` texels around the charts)."""
+    tri = group_triangles_uv(group)
+    covered = float(coverage(tri, side, side).sum())
+    cut = window(tri, side, margin) if cut else None
+    size = cut[1] if cut is not None else (side, side)
+    return covered / float(size[0] * size[1])
+
+
+def density_spread(group):
+    """:func:`core.lightmap.density_spread` of the group's "Lightmap" layout on its world-space triangles."""
+    return lightmap.density_spread(group_triangles_uv(group),
+                                   np.concatenate([world_triangles(o) for o in group]))
+
+
+def _fits(copies, group, side):
+    for o in group:
+        tri = triangles_uv(o, LIGHTMAP)
+        if _outside(tri) or coverage_ratio(tri, side, side)[0] < MIN_COVERAGE:
+            return False
+    return True
