@@ -140,6 +140,37 @@ def test_an_interrupted_bake_resumes_and_a_moved_object_alone_is_baked_again(tmp
     assert all(maps == ["ao"] for maps in fifth["unchanged"].values()) and len(fifth["unchanged"]) == 4
 
 
+def test_the_report_is_merged_now_and_then_and_holds_the_finished_maps_after_ctrl_c(tmp_path, monkeypatch):
+    """Merging the whole report after every map made a level's run quadratic in its objects: finished maps are
+    merged at most every MERGE_EVERY seconds (the first at once) and when the bakes end, and also when they stop
+    (Ctrl-C after three maps: the report lists exactly the three map files on disk)."""
+    from addon.bake import pipeline
+    objects = small_level()[:4]
+    opts = BakeOptions(texel_density=8, samples=2, bounces=1)
+    monkeypatch.setattr(pipeline, "MERGE_EVERY", 1e9)
+    merges, real = [], pipeline.merge_report
+    monkeypatch.setattr(pipeline, "merge_report", lambda path, part: (merges.append(len(part["objects"])),
+                                                                      real(path, part))[1])
+    whole = bake_lightmaps(objects, ["ao", "irradiance"], str(tmp_path / "whole"), opts)
+    assert merges == [1, 4]
+    on_disk = report_of(tmp_path / "whole")["objects"]
+    assert {(o, m): e["resolution"] for o, ms in on_disk.items() for m, e in ms.items()} == {
+        (o, m): list(e["resolution"]) for o, ms in whole["objects"].items() for m, e in ms.items()}
+    assert len(on_disk) == 4 and all(len(ms) == 2 for ms in on_disk.values())
+    steps = []
+
+    def stop_at_the_fourth(message):
+        steps.append(message)
+        if len([s for s in steps if ": ao" in s or ": irradiance" in s]) == 4:
+            raise KeyboardInterrupt
+
+    out = tmp_path / "stopped"
+    with pytest.raises(KeyboardInterrupt):
+        bake_lightmaps(objects, ["ao", "irradiance"], str(out), opts, on_step=stop_at_the_fourth)
+    listed = {os.path.basename(e["file"]) for ms in report_of(out)["objects"].values() for e in ms.values()}
+    assert len(listed) == 3 and listed == {p.name for p in out.glob("*.exr")}
+
+
 def test_two_shards_merged_give_the_files_of_one_run(tmp_path):
     """Shards 1/2 and 2/2 bake disjoint shares (balanced by texels: the floor alone against the props) whose files
     are those of one run with the same seeds (AO bit for bit, irradiance within float rounding: the objects of the
