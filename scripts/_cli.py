@@ -29,7 +29,7 @@ if "bpy" not in sys.modules:                   # Blender logs while it starts (e
     with chatter.captured(always=True), contextlib.suppress(ImportError):
         import bpy  # noqa: E402,F401
 from addon.core.errors import OUT_OF_MEMORY, ILError, ILWarning, InputError, os_error_message  # noqa: E402
-from addon.core.io import blend  # noqa: E402
+from addon.core.io import blend, files  # noqa: E402
 from addon.core.io.files import check_output_dir  # noqa: E402
 from addon.core import options as core_options  # noqa: E402
 from addon.core.choices import parse_choices  # noqa: E402
@@ -185,6 +185,13 @@ def open_blend(path):
         raise InputError(f"cannot open {path}: damaged or not a Blender file ({reason})") from None
 
 
+def _remove_own_temporaries(out):
+    """This process's half-written temporaries under the output folder (or the output file's folder)."""
+    folder = out if os.path.isdir(out) else os.path.dirname(os.path.abspath(out))
+    if os.path.isdir(folder):
+        files.remove_own_temporaries(folder)
+
+
 def run(p, main, argv=None):
     """Parse the script arguments, check the output folder, open the .blend if one is given, call
     ``main``, exit 0 / 1 / 2 / 130 with one line on stderr."""
@@ -223,6 +230,8 @@ def run(p, main, argv=None):
         print(f"{p.prog}: internal error (please report, IL_DEBUG=1 shows the traceback and Blender's output): "
               f"{type(e).__name__}: {e}", file=sys.stderr)
         code = 1
+    if code and getattr(args, "out", None):
+        _remove_own_temporaries(args.out)
     if code and os.environ.get("IL_DEBUG") and chatter.tail():
         print(f"{p.prog}: Blender's own output, last lines:\n  " + "\n  ".join(chatter.tail()), file=sys.stderr)
     sys.stdout.flush()

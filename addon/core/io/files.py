@@ -67,14 +67,15 @@ def atomic_path(path):
     folder = os.path.dirname(os.path.abspath(path))
     os.makedirs(folder, exist_ok=True)
     stem, ext = os.path.splitext(os.path.basename(path))
-    fd, tmp = tempfile.mkstemp(prefix=f".{stem}.{_OWNER}.", suffix=f".tmp{ext}", dir=folder)
-    os.close(fd)
+    tmp = None
     try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{stem}.{_OWNER}.", suffix=f".tmp{ext}", dir=folder)
+        os.close(fd)
         yield tmp
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     finally:
-        if os.path.exists(tmp):
+        if tmp is not None and os.path.exists(tmp):
             os.remove(tmp)
 
 
@@ -108,6 +109,25 @@ def remove_stale_temporaries(folder, now=None):
         with contextlib.suppress(OSError):
             os.remove(os.path.join(folder, name))
             removed.append(name)
+    return removed
+
+
+def remove_own_temporaries(folder, depth=2):
+    """Remove the temporary files :func:`atomic_path` of this process left in ``folder`` and its subfolders down to
+    ``depth`` levels (where the scripts write): a Ctrl-C that lands between the temporary's creation and the block
+    that removes it (or inside that block) leaves one. Call when the process stops on an error; returns the paths
+    removed."""
+    removed = []
+    top = os.path.normpath(folder).count(os.sep)
+    for root, dirs, names in os.walk(folder):
+        if os.path.normpath(root).count(os.sep) - top >= depth:
+            dirs[:] = []
+        for name in names:
+            m = _TEMPORARY.match(name)
+            if m and m["host"] == _HOST and int(m["pid"]) == os.getpid():
+                with contextlib.suppress(OSError):
+                    os.remove(os.path.join(root, name))
+                    removed.append(os.path.join(root, name))
     return removed
 
 

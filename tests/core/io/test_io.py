@@ -89,6 +89,23 @@ def test_exr_refuses_non_finite_values_naming_the_file_and_channel(tmp_path):
     assert not os.listdir(tmp_path)
 
 
+def test_a_process_removes_its_own_temporaries_and_no_others(tmp_path):
+    """A Ctrl-C between atomic_path's mkstemp and its try block left the temporary behind (seen once in
+    test_ctrl_c_during_the_demo_stops_with_130_and_no_report): the script removes its own, in subfolders too, and
+    leaves another process's, another host's and the user's dotfiles."""
+    from addon.core.io import files
+    own = f".Floor_ao.{files._HOST}-{os.getpid()}.k2j4x9_a.tmp.exr"
+    (tmp_path / "per_object").mkdir()
+    keep = [f".Floor_ao.{files._HOST}-{os.getpid() + 1}.a8d7f6q1.tmp.exr",
+            f".Floor_ao.farm-node-7-{os.getpid()}.zz81kk2m.tmp.png", ".hidden.tmp.exr", "Floor_ao.exr"]
+    for name in [own, *keep]:
+        (tmp_path / name).write_bytes(b"x")
+    (tmp_path / "per_object" / own).write_bytes(b"x")
+    assert sorted(files.remove_own_temporaries(str(tmp_path))) == sorted(
+        [str(tmp_path / own), str(tmp_path / "per_object" / own)])
+    assert sorted(os.listdir(tmp_path)) == sorted(keep + ["per_object"]) and not os.listdir(tmp_path / "per_object")
+
+
 def test_stale_temporaries_of_killed_writers_are_removed_and_no_others(tmp_path):
     """A SIGKILL during atomic_path leaves '.<stem>.<host>-<pid>.<random>.tmp<ext>': removed once its process is
     gone and it is older than STALE_AFTER; a live process's, another host's and the user's own dotfiles stay."""
