@@ -203,7 +203,9 @@ def low_fill(group, size, margin, options):
     """The warning line (also warned) when the group's generated layout fills under FILL of its map of ``size``
     (width, height: the map's final size; ``margin`` the charts' margin in its texels), else None:
     its fill, covered texels per triangle or per chart, and the side (and texel density) that reaches FILL_HINT
-    (FILL from above FILL_HINT) by :func:`charts.side_for_fill` (of a square map of as many texels)."""
+    (FILL from above FILL_HINT) by :func:`charts.side_for_fill` (of a square map of as many texels). The texel
+    density T is the one whose layout covers that fill of such a map: covered texels = T² × world area = goal × side²
+    (the layout's chart area at the side it fills, not at this side, where margins take more of it)."""
     w, h = size
     have = fill(group, w, h)
     if have >= FILL:
@@ -219,8 +221,7 @@ def low_fill(group, size, margin, options):
              f"{covered / max(charts, 1):.3g} texels per chart, {charts} charts with {margin:g}-texel margins")
     if need and need <= lightmap.MAX_RESOLUTION:
         area = sum(world_area(o) for o in group)
-        charted = sum(chart_area(triangles_uv(o, LIGHTMAP)) for o in group)
-        density = f" (about {need * math.sqrt(charted / area):.3g} texels/m)" if area else ""
+        density = f" (about {need * math.sqrt(goal / area):.3g} texels/m)" if area else ""
         hint = f"a resolution of about {need}{density} fills {100 * goal:.0f} %"
     else:
         hint = f"no resolution fills {100 * goal:.0f} % (merge or simplify the faces, or use an atlas)"

@@ -207,10 +207,10 @@ def test_skipped_objects_are_named_with_the_right_article(tmp_path):
 
 # ------------------------------------------------------------------ fill of generated layouts (issue 27)
 
-def _fill(obj, side):
+def _fill(obj, width, height=None):
     from addon.bake import uv as uvmod
     from addon.core import lightmap
-    return float(lightmap.coverage_mask(uvmod.triangles_uv(obj, "Lightmap"), side, side).mean())
+    return float(lightmap.coverage_mask(uvmod.triangles_uv(obj, "Lightmap"), width, height or width).mean())
 
 
 @pytest.mark.both_versions
@@ -252,6 +252,23 @@ def test_a_map_its_charts_cannot_fill_gets_one_line_with_the_cause_and_the_side_
         assert _fill(cyl, side) >= goal - 0.02
     else:
         assert _fill(cyl, 64) >= 0.55
+
+
+def test_the_texel_density_a_low_fill_line_names_fills_what_it_says(tmp_path):
+    """A cylinder at 6 texels/m with 2-texel margins fills 47 % of its 44x35 map; its line names a texel density,
+    and baked at that density it fills the 50 % the line names. The density was converted from the side with the
+    chart area of the small map (margins take more of it there): 6.24 texels/m gave a 45x36 map filled 46 %."""
+    import re
+    cyl = added(bpy.ops.mesh.primitive_cylinder_add)
+    opts = BakeOptions(texel_density=6, samples=1, margin=2)
+    with pytest.warns(ILWarning, match="light-map charts cover only"):
+        entry = bake_lightmaps([cyl], ["ao"], tmp_path / "a", opts)["objects"][cyl.name]["ao"]
+    m = re.search(r"about ([0-9.e+]+) texels/m\) fills (\d+) %", entry["low_fill"])
+    density, goal = float(m[1]), int(m[2]) / 100
+    cyl.data.uv_layers.remove(cyl.data.uv_layers["Lightmap"])
+    again = bake_lightmaps([cyl], ["ao"], tmp_path / "b", opts.replace(texel_density=density))["objects"][cyl.name]
+    w, h = again["ao"]["resolution"]
+    assert _fill(cyl, w, h) >= goal and again["ao"]["coverage"] == pytest.approx(_fill(cyl, w, h), abs=1e-6)
 
 
 def _copy(obj, name, x):
