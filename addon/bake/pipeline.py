@@ -310,14 +310,14 @@ class _Run:
         self.merge()
 
     def merge(self):
-        """Merge the unmerged maps into the report file; then the UV cache is written (after a map is: a run that
-        writes nothing leaves no cache)."""
+        """Merge the unmerged maps and the failures into the report file (the maps stay unmerged if it fails, for
+        the merge :meth:`merging` makes when the run stops); then the UV cache is written (after a map is: a run
+        that writes nothing leaves no cache)."""
         if not self.unmerged:
             return
         part = {"objects": self.unmerged, "skipped": self.report["skipped"], "unchanged": self.report["unchanged"],
-                "seconds": time.perf_counter() - self.t_all}
-        self.unmerged = {}
+                "failed": self.report["failed"], "seconds": time.perf_counter() - self.t_all}
         merge_report(self.report_path, part)
-        self.merged_at = time.perf_counter()
+        self.unmerged, self.merged_at = {}, time.perf_counter()
         if self.uv_cache:
             self.uv_cache.flush()

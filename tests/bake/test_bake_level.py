@@ -143,7 +143,8 @@ def test_an_interrupted_bake_resumes_and_a_moved_object_alone_is_baked_again(tmp
 def test_the_report_is_merged_now_and_then_and_holds_the_finished_maps_after_ctrl_c(tmp_path, monkeypatch):
     """Merging the whole report after every map made a level's run quadratic in its objects: finished maps are
     merged at most every MERGE_EVERY seconds (the first at once) and when the bakes end, and also when they stop
-    (Ctrl-C after three maps: the report lists exactly the three map files on disk)."""
+    (Ctrl-C after three maps: the report lists exactly the three map files on disk; Ctrl-C inside a merge: the maps
+    it was merging are merged when the run stops)."""
     from addon.bake import pipeline
     objects = small_level()[:4]
     opts = BakeOptions(texel_density=8, samples=2, bounces=1)
@@ -169,6 +170,20 @@ def test_the_report_is_merged_now_and_then_and_holds_the_finished_maps_after_ctr
         bake_lightmaps(objects, ["ao", "irradiance"], str(out), opts, on_step=stop_at_the_fourth)
     listed = {os.path.basename(e["file"]) for ms in report_of(out)["objects"].values() for e in ms.values()}
     assert len(listed) == 3 and listed == {p.name for p in out.glob("*.exr")}
+    calls = []
+
+    def interrupted(path, part):                     # Ctrl-C inside the merge after the first map
+        calls.append(len(part["objects"]))
+        if len(calls) == 1:
+            raise KeyboardInterrupt
+        real(path, part)
+
+    monkeypatch.setattr(pipeline, "merge_report", interrupted)
+    out = tmp_path / "stopped in the merge"
+    with pytest.raises(KeyboardInterrupt):
+        bake_lightmaps(objects, ["ao", "irradiance"], str(out), opts)
+    assert calls == [1, 1] and [p.name for p in out.glob("*.exr")] == [
+        os.path.basename(e["file"]) for ms in report_of(out)["objects"].values() for e in ms.values()]
 
 
 def test_two_shards_merged_give_the_files_of_one_run(tmp_path):
