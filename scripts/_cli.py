@@ -185,13 +185,6 @@ def open_blend(path):
         raise InputError(f"cannot open {path}: damaged or not a Blender file ({reason})") from None
 
 
-def _remove_own_temporaries(out):
-    """This process's half-written temporaries under the output folder (or the output file's folder)."""
-    folder = out if os.path.isdir(out) else os.path.dirname(os.path.abspath(out))
-    if os.path.isdir(folder):
-        files.remove_own_temporaries(folder)
-
-
 def run(p, main, argv=None):
     """Parse the script arguments, check the output folder, open the .blend if one is given, call
     ``main``, exit 0 / 1 / 2 / 130 with one line on stderr."""
@@ -230,8 +223,8 @@ def run(p, main, argv=None):
         print(f"{p.prog}: internal error (please report, IL_DEBUG=1 shows the traceback and Blender's output): "
               f"{type(e).__name__}: {e}", file=sys.stderr)
         code = 1
-    if code and getattr(args, "out", None):
-        _remove_own_temporaries(args.out)
+    if code:
+        files.remove_own_temporaries()
     if code and os.environ.get("IL_DEBUG") and chatter.tail():
         print(f"{p.prog}: Blender's own output, last lines:\n  " + "\n  ".join(chatter.tail()), file=sys.stderr)
     sys.stdout.flush()

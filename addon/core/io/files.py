@@ -4,6 +4,7 @@ import json
 import math
 import os
 import re
+import secrets
 import socket
 import tempfile
 import time
@@ -62,21 +63,45 @@ def _check_name_lengths(out, existing):
 @contextlib.contextmanager
 def atomic_path(path):
     """Yield a temporary path in the target's folder (``.<stem>.<host>-<pid>.<random>.tmp<ext>``: see
-    :func:`remove_stale_temporaries`); on success rename it onto ``path``."""
+    :func:`remove_stale_temporaries`); on success rename it onto ``path``. The temporary is named in ``_LIVE``
+    before it is created and until it is gone, for :func:`remove_own_temporaries`."""
     path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))
     os.makedirs(folder, exist_ok=True)
     stem, ext = os.path.splitext(os.path.basename(path))
     tmp = None
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{stem}.{_OWNER}.", suffix=f".tmp{ext}", dir=folder)
-        os.close(fd)
+        while True:
+            tmp = os.path.join(folder, f".{stem}.{_OWNER}.{secrets.token_hex(4)}.tmp{ext}")
+            _LIVE.add(tmp)
+            try:
+                os.close(os.open(tmp, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))
+                break
+            except FileExistsError:
+                _LIVE.discard(tmp)
         yield tmp
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     finally:
-        if tmp is not None and os.path.exists(tmp):
+        if tmp is not None:
+            if os.path.exists(tmp):
+                os.remove(tmp)
+            _LIVE.discard(tmp)
+
+
+_LIVE = set()
+
+
+def remove_own_temporaries():
+    """Remove the temporaries of :func:`atomic_path` this process still has on disk: a Ctrl-C that lands inside
+    its clean-up leaves one. Call when the process stops on an error; returns the paths removed."""
+    removed = []
+    for tmp in sorted(_LIVE):
+        with contextlib.suppress(OSError):
             os.remove(tmp)
+            removed.append(tmp)
+        _LIVE.discard(tmp)
+    return removed
 
 
 _HOST = re.sub(r"[^A-Za-z0-9-]", "-", socket.gethostname()) or "host"
@@ -109,25 +134,6 @@ def remove_stale_temporaries(folder, now=None):
         with contextlib.suppress(OSError):
             os.remove(os.path.join(folder, name))
             removed.append(name)
-    return removed
-
-
-def remove_own_temporaries(folder, depth=2):
-    """Remove the temporary files :func:`atomic_path` of this process left in ``folder`` and its subfolders down to
-    ``depth`` levels (where the scripts write): a Ctrl-C that lands between the temporary's creation and the block
-    that removes it (or inside that block) leaves one. Call when the process stops on an error; returns the paths
-    removed."""
-    removed = []
-    top = os.path.normpath(folder).count(os.sep)
-    for root, dirs, names in os.walk(folder):
-        if os.path.normpath(root).count(os.sep) - top >= depth:
-            dirs[:] = []
-        for name in names:
-            m = _TEMPORARY.match(name)
-            if m and m["host"] == _HOST and int(m["pid"]) == os.getpid():
-                with contextlib.suppress(OSError):
-                    os.remove(os.path.join(root, name))
-                    removed.append(os.path.join(root, name))
     return removed
 
 

@@ -90,20 +90,24 @@ def test_exr_refuses_non_finite_values_naming_the_file_and_channel(tmp_path):
 
 
 def test_a_process_removes_its_own_temporaries_and_no_others(tmp_path):
-    """A Ctrl-C between atomic_path's mkstemp and its try block left the temporary behind (seen once in
-    test_ctrl_c_during_the_demo_stops_with_130_and_no_report): the script removes its own, in subfolders too, and
-    leaves another process's, another host's and the user's dotfiles."""
+    """A Ctrl-C inside atomic_path's clean-up left the temporary behind (seen once in
+    test_ctrl_c_during_the_demo_stops_with_130_and_no_report): a script that stops removes the temporaries it still
+    has, by their names, and no file of another process that shares its host name and PID (containers), nor the
+    user's."""
     from addon.core.io import files
-    own = f".Floor_ao.{files._HOST}-{os.getpid()}.k2j4x9_a.tmp.exr"
     (tmp_path / "per_object").mkdir()
-    keep = [f".Floor_ao.{files._HOST}-{os.getpid() + 1}.a8d7f6q1.tmp.exr",
-            f".Floor_ao.farm-node-7-{os.getpid()}.zz81kk2m.tmp.png", ".hidden.tmp.exr", "Floor_ao.exr"]
-    for name in [own, *keep]:
-        (tmp_path / name).write_bytes(b"x")
-    (tmp_path / "per_object" / own).write_bytes(b"x")
-    assert sorted(files.remove_own_temporaries(str(tmp_path))) == sorted(
-        [str(tmp_path / own), str(tmp_path / "per_object" / own)])
-    assert sorted(os.listdir(tmp_path)) == sorted(keep + ["per_object"]) and not os.listdir(tmp_path / "per_object")
+    held = files.atomic_path(tmp_path / "per_object" / "Floor_ao.exr")
+    tmp = held.__enter__()                                     # a writer stopped before its clean-up
+    assert os.path.exists(tmp) and files._TEMPORARY.match(os.path.basename(tmp))["pid"] == str(os.getpid())
+    twin = tmp_path / f".Floor_ao.{files._HOST}-{os.getpid()}.a8d7f6q1.tmp.exr"   # same host and PID, not ours
+    keep = [twin, tmp_path / ".hidden.tmp.exr", tmp_path / "Floor_ao.exr"]
+    for f in keep:
+        f.write_bytes(b"x")
+    assert files.remove_own_temporaries() == [tmp] and not os.path.exists(tmp)
+    assert all(f.exists() for f in keep) and files.remove_own_temporaries() == []
+    with files.atomic_path(tmp_path / "Wall_ao.exr") as t:
+        open(t, "wb").close()
+    assert (tmp_path / "Wall_ao.exr").exists() and not files._LIVE
 
 
 def test_stale_temporaries_of_killed_writers_are_removed_and_no_others(tmp_path):
