@@ -205,10 +205,11 @@ class _Run:
         for m in maps:
             self.temporary.assign(everyone, m)      # every object shows the same materials to the others' bakes
             alone = []
-            for batch in batched:
-                alone += self.bake_batch(batch, m)
-            for target in alone + singles:
-                self.bake_alone(target, m)
+            with cycles.world_for(scene, m):
+                for batch in batched:
+                    alone += self.bake_batch(batch, m)
+                for target in alone + singles:
+                    self.bake_alone(target, m)
 
     def record(self, made):
         """Keep a :class:`uv.Layouts`' layers, sides, margins, unwrappers and windows."""

@@ -39,10 +39,12 @@ def rna_settings(struct):
 
 
 def world_settings(scene):
-    """The scene's world pointer and, when it has a world, that world's AO distance."""
+    """The scene's world pointer and, when it has a world, that world's AO distance and Cycles sampling method."""
     items = [(scene, "world")]
     if scene.world is not None:
         items.append((scene.world.light_settings, "distance"))
+        if hasattr(scene.world, "cycles"):
+            items.append((scene.world.cycles, "sampling_method"))
     return items
 
 

@@ -232,3 +232,33 @@ def test_script_bakes_a_blend_without_modifying_it(tmp_path, script):
     assert r.returncode == 2 and "argument --samples: must be 1 <= value" in r.stderr
     r = script("bake.py", blend, "--objects", "Floor", "--out", out, "--resolution", "16")
     assert r.returncode == 2 and "exists: turn on Overwrite (--overwrite)" in r.stderr.strip().splitlines()[-1]
+
+
+@pytest.mark.both_versions
+def test_ao_bakes_without_the_worlds_importance_map_and_the_world_comes_back(tmp_path, monkeypatch):
+    """AO sees no light, yet Cycles built the world's importance map at every AO call (21 s of a 64² atlas's AO
+    call under the corpus's 64x32 environment texture, 0.6 s without): AO calls now run with the world's
+    sampling method NONE, irradiance with the user's, the AO pixels are those of a world the user set to NONE
+    themselves, bit for bit, and the user's setting comes back."""
+    from addon.bake import cycles
+    scene = bpy.context.scene
+    floor = sc.plane(scene, "Floor", 4.0)
+    bpy.ops.mesh.primitive_cube_add(size=1, location=(0, 0, 0.5))
+    env = bpy.data.images.new("sky", 64, 32, float_buffer=True)
+    env.pixels.foreach_set(np.linspace(0.0, 2.0, 64 * 32 * 4, dtype=np.float32))
+    world = sc.world(scene, strength=1.0)
+    tex = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
+    tex.image = env
+    world.node_tree.links.new(tex.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
+    world.cycles.sampling_method = "MANUAL"
+    seen, real = [], cycles.call_bake
+    monkeypatch.setattr(cycles, "call_bake", lambda scene, group, kind, *a, **k: (
+        seen.append((kind, scene.world.cycles.sampling_method)), real(scene, group, kind, *a, **k))[1])
+    opts = BakeOptions(resolution=16, samples=4, keep_products=False)
+    bake_lightmaps([floor], ["ao", "irradiance"], tmp_path / "manual", opts)
+    assert sorted(set(seen)) == [("ao", "NONE"), ("irradiance", "MANUAL")]
+    assert world.cycles.sampling_method == "MANUAL"
+    world.cycles.sampling_method = "NONE"
+    bake_lightmaps([floor], ["ao"], tmp_path / "none", opts)
+    a, b = (exr.read_exr(tmp_path / d / "Floor_ao.exr")[0] for d in ("manual", "none"))
+    assert a.keys() == b.keys() and all(np.array_equal(a[c], b[c]) for c in a) and a["Y"].max() > 0
