@@ -120,8 +120,8 @@ MERGE_EVERY = 1.0
 @dataclasses.dataclass
 class _Run:
     """One run of :func:`bake_lightmaps` inside its saved state: the light-map layers, the report so far
-    (``report``; its maps not yet in ``report_path`` in ``unmerged``, see :meth:`merging`), failures ({name: reason} in ``report["failed"]``,
-    the errors in ``errors``) and the progress line."""
+    (``report``; its maps not yet in ``report_path`` in ``unmerged``, see :meth:`merging`), failures
+    ({name: reason} in ``report["failed"]``, the errors in ``errors``) and the progress line."""
     scene: object
     maps: list
     out: str
