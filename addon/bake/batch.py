@@ -6,7 +6,8 @@ import time
 import bpy
 import numpy as np
 
-from ..blender.scene import read
+from ..blender.scene import (attribute, corner_triangles, corner_uv, corner_vertices, positions, read,
+                             set_attribute, triangle_polygons)
 from . import cost, cycles
 from .passes import BakeResult, PassSum, denoised, estimated, fixed_calls, sample_passes
 from .plan import speed
@@ -174,20 +175,20 @@ class _Part:
 
     @classmethod
     def of(cls, me, layer, matrix):
-        me.calc_loop_triangles()
-        tv = read(me.loop_triangles, "vertices", np.int64, 3)
-        tl = read(me.loop_triangles, "loops", np.int64, 3)
-        tp = read(me.loop_triangles, "polygon_index", np.int64)
-        co = read(me.vertices, "co", np.float32, 3)
-        uv = read(me.uv_layers[layer].data, "uv", np.float32, 2)
-        mat = read(me.polygons, "material_index", np.int32)
-        smooth = read(me.polygons, "use_smooth", bool)
-        ev = read(me.edges, "vertices", np.int64, 2)
-        sharp = read(me.edges, "use_edge_sharp", bool)
+        tl = corner_triangles(me)
+        tp = triangle_polygons(me)
+        nf = len(me.polygons)
+        mat = attribute(me, "material_index", np.int32)
+        flat = attribute(me, "sharp_face", bool)
+        ev = attribute(me, ".edge_verts", np.int32)
+        ev = (ev if ev is not None else read(me.edges, "vertices", np.int32, 2)).reshape(-1, 2)
+        sharp = attribute(me, "sharp_edge", bool)
         m = np.array(matrix, np.float64)
-        world = (co.reshape(-1, 3).astype(np.float64) @ m[:3, :3].T + m[:3, 3]).astype(np.float32)
-        return cls(world, tv.reshape(-1, 3), uv.reshape(-1, 2)[tl].reshape(-1, 3, 2), mat[tp], smooth[tp],
-                   ev.reshape(-1, 2)[sharp])
+        world = (positions(me).astype(np.float64) @ m[:3, :3].T + m[:3, 3]).astype(np.float32)
+        return cls(world, corner_vertices(me)[tl].astype(np.int64), corner_uv(me, layer)[tl],
+                   (mat if mat is not None else np.zeros(nf, np.int32))[tp],
+                   ~(flat if flat is not None else np.zeros(nf, bool))[tp],
+                   ev[sharp].astype(np.int64) if sharp is not None else np.zeros((0, 2), np.int64))
 
     @staticmethod
     def joined(parts, mesh):
@@ -199,23 +200,25 @@ class _Part:
         sharp = np.concatenate([p.sharp + k for p, k in zip(parts, offsets)]) if parts else np.zeros((0, 2), np.int64)
         t = len(tris)
         mesh.vertices.add(len(co))
-        mesh.vertices.foreach_set("co", co.ravel())
+        set_attribute(mesh, "position", "FLOAT_VECTOR", "POINT", co.astype(np.float32).ravel())
         mesh.loops.add(3 * t)
-        mesh.loops.foreach_set("vertex_index", tris.ravel())
+        set_attribute(mesh, ".corner_vert", "INT", "CORNER", tris.astype(np.int32).ravel())
         mesh.polygons.add(t)
-        mesh.polygons.foreach_set("loop_start", np.arange(0, 3 * t, 3))
+        mesh.polygons.foreach_set("loop_start", np.arange(0, 3 * t, 3, dtype=np.int32))
         mesh.update(calc_edges=True)
         if not t:
             return
-        mesh.polygons.foreach_set("material_index", np.concatenate([p.material for p in parts]).astype(np.int32))
-        mesh.polygons.foreach_set("use_smooth", np.concatenate([p.smooth for p in parts]))
-        mesh.uv_layers.new(name=PROXY_UV, do_init=False).data.foreach_set(
-            "uv", np.concatenate([p.uv for p in parts]).ravel())
+        material = np.concatenate([p.material for p in parts]).astype(np.int32)
+        set_attribute(mesh, "material_index", "INT", "FACE", material)
+        set_attribute(mesh, "sharp_face", "BOOLEAN", "FACE", ~np.concatenate([p.smooth for p in parts]))
+        mesh.uv_layers.new(name=PROXY_UV, do_init=False)
+        uv = np.concatenate([p.uv for p in parts]).astype(np.float32).ravel()
+        set_attribute(mesh, PROXY_UV, "FLOAT2", "CORNER", uv)
         if len(sharp):
             n = len(co) + 1
             key = lambda e: np.minimum(e[:, 0], e[:, 1]) * n + np.maximum(e[:, 0], e[:, 1])
-            edges = read(mesh.edges, "vertices", np.int64, 2)
-            mesh.edges.foreach_set("use_edge_sharp", np.isin(key(edges.reshape(-1, 2)), key(sharp)))
+            edges = attribute(mesh, ".edge_verts", np.int32).reshape(-1, 2).astype(np.int64)
+            set_attribute(mesh, "sharp_edge", "BOOLEAN", "EDGE", np.isin(key(edges), key(sharp)))
         mesh.update()
 
 

@@ -3,6 +3,7 @@ import math
 
 import numpy as np
 
+from ..blender.scene import corner_uv, corner_vertices, positions, read
 from ..core.memo import FIGURES
 from ..core.seams import welded
 
@@ -21,14 +22,9 @@ def chart_count(me, layer):
     n = len(me.loops)
     if not n:
         return 0
-    vert, poly = np.zeros(n, np.int64), np.zeros(len(me.polygons), np.int64)
-    me.loops.foreach_get("vertex_index", vert)
-    co = np.zeros(len(me.vertices) * 3, np.float32)
-    me.vertices.foreach_get("co", co)
-    me.polygons.foreach_get("loop_start", poly)
-    uv = np.zeros(n * 2, np.float32)
-    me.uv_layers[layer].data.foreach_get("uv", uv)
-    return FIGURES.call(_charts, co, vert, poly, uv)
+    vert = corner_vertices(me).astype(np.int64)
+    poly = read(me.polygons, "loop_start", np.int32).astype(np.int64)
+    return FIGURES.call(_charts, positions(me).ravel(), vert, poly, corner_uv(me, layer).ravel())
 
 
 def _charts(co, vert, poly, uv):

@@ -6,6 +6,7 @@ import bpy
 import numpy as np
 
 from ..blender import compat
+from ..blender.scene import corner_triangles, corner_uv, corner_vertices, positions
 from ..core.io import exr
 from .kinds import KINDS
 from .plan import map_file
@@ -97,11 +98,8 @@ def input_hash(scene, group, kind, options, lighting):
             h.update(repr(tuple(options.sizes[o.name])).encode())
         h.update(np.array(o.matrix_world, np.float64).tobytes())
         me = o.data
-        co = np.zeros(len(me.vertices) * 3, np.float32)
-        me.vertices.foreach_get("co", co)
-        me.calc_loop_triangles()
-        tris = np.zeros(len(me.loop_triangles) * 3, np.int32)
-        me.loop_triangles.foreach_get("vertices", tris)
+        co = positions(me)
+        tris = corner_vertices(me)[corner_triangles(me)]
         h.update(co.tobytes())
         h.update(tris.tobytes())
         for mod in o.modifiers:
@@ -110,9 +108,7 @@ def input_hash(scene, group, kind, options, lighting):
         ev = o.evaluated_get(depsgraph).data
         h.update(f"{len(ev.vertices)}:{len(ev.polygons)}".encode())
         if options.uv_layer and options.uv_layer in me.uv_layers:
-            uv = np.zeros(len(me.loops) * 2, np.float32)
-            me.uv_layers[options.uv_layer].data.foreach_get("uv", uv)
-            h.update(uv.tobytes())
+            h.update(corner_uv(me, options.uv_layer).tobytes())
         for slot in o.material_slots:
             mat = slot.material
             h.update((mat.name if mat else "-").encode())

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from ..blender.scene import evaluated_mesh, read
+from ..blender.scene import corner_triangles, corner_uv, corner_vertices, evaluated_mesh, positions, read
 from ..core import lightmap, seams as core
 from ..core.memo import FIGURES
 from . import uv as uvmod
@@ -30,11 +30,10 @@ def _mesh_seams(obj, layer, depsgraph, width, height):
     with evaluated_mesh(obj, depsgraph) as me:
         if me is None or layer not in me.uv_layers:
             return None
-        me.calc_loop_triangles()
-        loops = read(me.loop_triangles, "loops", np.int64, 3)
-        verts = read(me.loop_triangles, "vertices", np.int64, 3)
-        co = read(me.vertices, "co", np.float64, 3)
-        uv = read(me.uv_layers[layer].data, "uv", np.float32, 2)
+        loops = corner_triangles(me).astype(np.int64)
+        verts = corner_vertices(me)[loops]
+        co = positions(me).astype(np.float64)
+        uv = corner_uv(me, layer)
         normals = read(me.corner_normals, "vector", np.float32, 3)
     return FIGURES.call(_seam_edges, co, verts, loops, uv, normals, width, height)
 

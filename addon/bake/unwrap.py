@@ -16,6 +16,7 @@ import bmesh
 import bpy
 import numpy as np
 
+from ..blender.scene import corner_triangles, corner_uv, corner_vertices, positions
 from ..core import lightmap
 from ..core.errors import InputError
 from . import uvchecks
@@ -207,12 +208,7 @@ UNWRAP_BAND = 64.0
 
 def mesh_area(me):
     """Surface area of mesh ``me`` in object space (its own units, no transform)."""
-    me.calc_loop_triangles()
-    co = np.zeros(len(me.vertices) * 3, np.float32)
-    me.vertices.foreach_get("co", co)
-    tv = np.zeros(len(me.loop_triangles) * 3, np.int64)
-    me.loop_triangles.foreach_get("vertices", tv)
-    t = co.reshape(-1, 3).astype(float)[tv].reshape(-1, 3, 3)
+    t = positions(me).astype(float)[corner_vertices(me)[corner_triangles(me)]]
     return float(0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum())
 
 
@@ -403,8 +399,7 @@ class _Copies:
         out = []
         for obj in temps:
             me = obj.data
-            uv = np.zeros(len(me.loops) * 2, np.float32)
-            me.uv_layers[LIGHTMAP].data.foreach_get("uv", uv)
+            uv = corner_uv(me, LIGHTMAP).ravel()
             start, total = np.zeros(len(me.polygons), np.int64), np.zeros(len(me.polygons), np.int64)
             me.polygons.foreach_get("loop_start", start)
             me.polygons.foreach_get("loop_total", total)
@@ -429,10 +424,8 @@ def _canonical_copy(me, tmp, scale, weld=True):
     primitive makes the same faces in a different order in every process, and Smart UV Project then packs
     different charts; on the canonical copy the same vertices and faces give the same layout."""
     nv, nl, nf = len(me.vertices), len(me.loops), len(me.polygons)
-    co = np.zeros(nv * 3, np.float32)
-    me.vertices.foreach_get("co", co)
-    lv = np.zeros(nl, np.int64)
-    me.loops.foreach_get("vertex_index", lv)
+    co = positions(me).ravel()
+    lv = corner_vertices(me).astype(np.int64)
     start, total = np.zeros(nf, np.int64), np.zeros(nf, np.int64)
     me.polygons.foreach_get("loop_start", start)
     me.polygons.foreach_get("loop_total", total)
@@ -543,10 +536,7 @@ def _edit(ctx, lead):
 
 def _copy_triangles(me):
     """(T, 3) loop indices of mesh ``me``'s loop triangles."""
-    me.calc_loop_triangles()
-    loops = np.zeros(len(me.loop_triangles) * 3, np.int64)
-    me.loop_triangles.foreach_get("loops", loops)
-    return loops.reshape(-1, 3)
+    return corner_triangles(me).astype(np.int64)
 
 
 def _covered(uvs, tris, side, loops):

@@ -13,7 +13,7 @@ import math
 import bpy
 import numpy as np
 
-from ..blender.scene import evaluated_mesh, read
+from ..blender.scene import corner_triangles, corner_uv, corner_vertices, evaluated_mesh, positions, read
 from ..core import errors, lightmap
 from ..core.errors import InputError
 from . import uvcache
@@ -81,10 +81,7 @@ def triangles_uv(obj, layer):
 
 def mesh_triangles_uv(me, layer):
     """(T, 3, 2) UV coordinates of mesh ``me``'s loop triangles in ``layer``."""
-    me.calc_loop_triangles()
-    loops = read(me.loop_triangles, "loops", np.int64, 3)
-    uv = read(me.uv_layers[layer].data, "uv", np.float32, 2)
-    return uv.reshape(-1, 2)[loops].reshape(-1, 3, 2)
+    return corner_uv(me, layer)[corner_triangles(me)]
 
 
 def world_area(obj):
@@ -109,11 +106,10 @@ def world_triangles(obj):
 
 def _world_triangles(obj):
     me = obj.data
-    me.calc_loop_triangles()
-    co = read(me.vertices, "co", np.float32, 3).reshape(-1, 3).astype(float)
+    co = positions(me).astype(float)
     mw = np.array(obj.matrix_world, float)
     co = co @ mw[:3, :3].T + mw[:3, 3]
-    return co[read(me.loop_triangles, "vertices", np.int64, 3)].reshape(-1, 3, 3)
+    return co[corner_vertices(me)[corner_triangles(me)]]
 
 
 def check_valid(obj):
@@ -204,7 +200,7 @@ def _prepare_groups(scene, objects, state, options, together, cache, made):
                 layout = _shared(first, layout, options)
                 if cache is not None:           # a rerun that bakes only the other object finds this one's layout
                     cache.put(uvcache.key(group, scene.view_layers[0].depsgraph, options, together),
-                              uvcache.Entry([read(first.data.uv_layers[LIGHTMAP].data, "uv", np.float32, 2)],
+                              uvcache.Entry([corner_uv(first.data, LIGHTMAP).ravel()],
                                             layout.side, layout.margin, layout.unwrap, 0, layout.window))
         else:
             layout = _layout(scene, group, state, options, made.layers, together, cache)
@@ -254,7 +250,7 @@ def _layout(scene, group, state, options, names, together, cache):
         return None
     made = _cut_window(group, _unwrap_with_margin(scene, group, state, options, names), state, names, options)
     if cache is not None:
-        uvs = [read(o.data.uv_layers[LIGHTMAP].data, "uv", np.float32, 2) for o in group]
+        uvs = [corner_uv(o.data, LIGHTMAP).ravel() for o in group]
         cache.put(digest, uvcache.Entry(uvs, made.side, made.margin, made.unwrap, made.enlarged_from, made.window))
     return made
 
@@ -266,7 +262,7 @@ def _from_entry(group, entry, state, options):
     label = ", ".join(f"'{o.name}'" for o in group)
     for o, uv in zip(group, entry.uvs):
         me = o.data
-        if LIGHTMAP not in me.uv_layers or not np.array_equal(read(me.uv_layers[LIGHTMAP].data, "uv", np.float32, 2),
+        if LIGHTMAP not in me.uv_layers or not np.array_equal(corner_uv(me, LIGHTMAP).ravel(),
                                                               uv):
             _write_layer(state, me, uv)
         _disjoint(triangles_uv(o, LIGHTMAP))
@@ -314,7 +310,7 @@ def _cut_window(group, made, state, names, options):
         return made
     lo, size = cut
     for o in group:
-        uv = read(o.data.uv_layers[LIGHTMAP].data, "uv", np.float32, 2)
+        uv = corner_uv(o.data, LIGHTMAP).ravel()
         _write_layer(state, o.data, lightmap.to_window(uv, side, lo, size).ravel())
         _disjoint(triangles_uv(o, LIGHTMAP))
     made.window = (int(size[0]), int(size[1]), int(side))

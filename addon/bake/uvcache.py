@@ -21,6 +21,7 @@ import os
 import bpy
 import numpy as np
 
+from ..blender.scene import corner_vertices, positions, read
 from ..core.io.files import write_bytes
 
 LAYOUT_VERSION = 6
@@ -43,14 +44,8 @@ class Entry:
 
 
 def _arrays(me):
-    nv, nl, nf = len(me.vertices), len(me.loops), len(me.polygons)
-    co = np.zeros(nv * 3, np.float32)
-    me.vertices.foreach_get("co", co)
-    lv, start, total = np.zeros(nl, np.int32), np.zeros(nf, np.int32), np.zeros(nf, np.int32)
-    me.loops.foreach_get("vertex_index", lv)
-    me.polygons.foreach_get("loop_start", start)
-    me.polygons.foreach_get("loop_total", total)
-    return co, lv, start, total
+    return (positions(me), corner_vertices(me), read(me.polygons, "loop_start", np.int32),
+            read(me.polygons, "loop_total", np.int32))
 
 
 def key(objects, depsgraph, options, together=False):
