@@ -15,6 +15,7 @@ from ..blender.state import SavedState
 from ..core import budget, errors
 from ..core.errors import ILError, InputError
 from ..core.io.files import remove_stale_temporaries
+from ..core.memo import FIGURES
 from ..core.result import JobResult
 from . import batch as batching, cost, cycles, uv as uvmod, uvcache, uvchecks, write
 from .inputs import input_hash, lighting_digest
@@ -48,6 +49,18 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     run: "smart_project" or "lightmap_pack") and "low_fill" (the warning line of a generated layout covering under
     uvchecks.FILL of its map).
     """
+    named = isinstance(out, (str, os.PathLike)) and os.fspath(out).strip()
+    with FIGURES.stored(figures_folder(out)) if named else contextlib.nullcontext():
+        return _bake(objects, maps, out, options, scene, on_step)
+
+
+def figures_folder(out):
+    """Where a bake into ``out`` keeps the figures of its meshes and layouts (:class:`core.memo.Store`) for reruns
+    in other processes: beside the UV cache."""
+    return os.path.join(os.path.abspath(os.fspath(out)), uvcache.DIR, "figures")
+
+
+def _bake(objects, maps, out, options, scene, on_step):
     options = options or BakeOptions()
     scene = scene or bpy.context.scene
     objects, maps, out, skipped, flips, failed = validate(scene, objects, maps, out, options)
@@ -312,8 +325,8 @@ class _Run:
 
     def merge(self):
         """Merge the unmerged maps and the failures into the report file (the maps stay unmerged if it fails, for
-        the merge :meth:`merging` makes when the run stops); then the UV cache is written (after a map is: a run
-        that writes nothing leaves no cache)."""
+        the merge :meth:`merging` makes when the run stops); then the UV cache and the figures are written (after
+        a map is: a run that writes nothing leaves no cache)."""
         if not self.unmerged:
             return
         part = {"objects": self.unmerged, "skipped": self.report["skipped"], "unchanged": self.report["unchanged"],
@@ -322,3 +335,5 @@ class _Run:
         self.unmerged, self.merged_at = {}, time.perf_counter()
         if self.uv_cache:
             self.uv_cache.flush()
+        if FIGURES.store is not None:
+            FIGURES.store.flush()

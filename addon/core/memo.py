@@ -1,15 +1,25 @@
-"""Results of costly pure functions of arrays, remembered for the process by a digest of their inputs.
+"""Results of costly pure functions of arrays, remembered for the process by a digest of their inputs, and on disk
+beside a bake's maps (:class:`Store`).
 
-A rerun of a bake in the same session (the UI, a benchmark) asks again for figures of layouts and meshes that did
-not change: their overlap, seams, inward shells and chart counts. The key is the bytes, dtype and shape of every
-input array (and the repr of the other inputs), so a changed input is a new key, never a stale result. Results
-are returned as they were made: numpy arrays among them (in tuples, lists and dataclasses) are made read-only.
+A rerun of a bake asks again for figures of layouts and meshes that did not change: their overlap, seams, inward
+shells and chart counts. The key is the bytes, dtype and shape of every input array (and the repr of the other
+inputs), so a changed input is a new key, never a stale result. Results are returned as they were made: numpy
+arrays among them (in tuples, lists and dataclasses) are made read-only.
 """
 import collections
+import contextlib
 import dataclasses
+import functools
 import hashlib
+import io
+import json
+import math
+import os
+import re
 
 import numpy as np
+
+from .io.files import write_bytes
 
 
 def digest(*parts):
@@ -57,12 +67,21 @@ class Memo:
         self.items = collections.OrderedDict()
         self.bytes = 0
 
+    store = None
+    """A :class:`Store` while a bake keeps its figures on disk (:meth:`stored`), else None."""
+
     def get(self, key, make):
-        """The result remembered for ``key`` (a :func:`digest`), else ``make()`` remembered."""
+        """The result remembered for ``key`` (a :func:`digest`), else the :attr:`store`'s, else ``make()``;
+        remembered."""
         if key in self.items:
             self.items.move_to_end(key)
             return self.items[key]
-        value = _frozen(make())
+        value = self.store.get(key) if self.store is not None else None
+        if value is None:
+            value = make()
+            if self.store is not None:
+                self.store.add(key, value)
+        value = _frozen(value)
         self.items[key] = value
         self.bytes += _nbytes(value)
         while len(self.items) > 1 and (len(self.items) > self.kept or self.bytes > self.max_bytes):
@@ -77,6 +96,176 @@ class Memo:
     def call(self, fn, *args):
         """``fn(*args)``, remembered by ``fn``'s qualified name and a :func:`digest` of ``args``."""
         return self.get(digest(fn.__module__, fn.__qualname__, *args), lambda: fn(*args))
+
+    @contextlib.contextmanager
+    def stored(self, folder):
+        """A scope in which results are also looked up in, and added to, a :class:`Store` in ``folder``."""
+        before, self.store = self.store, Store(folder)
+        try:
+            yield self.store
+        finally:
+            self.store.close()
+            self.store = before
+
+
+_STORABLE = {}
+
+
+def storable(cls):
+    """Class decorator: results of dataclass ``cls`` (fields of numbers and arrays) may be kept in a :class:`Store`."""
+    _STORABLE[f"{cls.__module__}.{cls.__qualname__}"] = cls
+    return cls
+
+
+@functools.cache
+def code_digest():
+    """Digest of the add-on's Python sources and numpy's version: a stored figure is used only by the code that
+    made it."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    h = hashlib.blake2b(np.__version__.encode(), digest_size=16)
+    for folder, dirs, files in sorted(os.walk(root)):
+        dirs.sort()
+        for name in sorted(f for f in files if f.endswith(".py")):
+            with open(os.path.join(folder, name), "rb") as f:
+                h.update(name.encode() + b"|" + f.read())
+    return h.digest()
+
+
+def _encode(value, arrays):
+    """A JSON-able description of ``value`` (numbers, strings, None, arrays, tuples, lists, :func:`storable`
+    dataclasses), its arrays appended to ``arrays``; None when ``value`` holds anything else."""
+    if isinstance(value, (np.ndarray, np.generic)):
+        if np.asarray(value).dtype.kind not in "biuf":
+            return None
+        arrays.append(np.asarray(value))
+        return {"a": len(arrays) - 1, "scalar": isinstance(value, np.generic)}
+    if value is None or isinstance(value, (bool, int, str)):
+        return {"v": value}
+    if isinstance(value, float):
+        return {"f": repr(value)}
+    if isinstance(value, (tuple, list)):
+        items = [_encode(v, arrays) for v in value]
+        return None if None in items else {"t" if isinstance(value, tuple) else "l": items}
+    name = f"{type(value).__module__}.{type(value).__qualname__}"
+    if dataclasses.is_dataclass(value) and _STORABLE.get(name) is type(value):
+        fields = [_encode(getattr(value, f.name), arrays) for f in dataclasses.fields(value)]
+        return None if None in fields else {"d": name, "fields": fields}
+    return None
+
+
+def _decode(spec, arrays):
+    if "v" in spec:
+        return spec["v"]
+    if "f" in spec:
+        return float(spec["f"])
+    if "a" in spec:
+        a = arrays[spec["a"]]
+        return a[()] if spec["scalar"] else a
+    if "t" in spec or "l" in spec:
+        items = [_decode(v, arrays) for v in spec.get("t", spec.get("l"))]
+        return tuple(items) if "t" in spec else items
+    return _STORABLE[spec["d"]](*(_decode(v, arrays) for v in spec["fields"]))
+
+
+_PACK = re.compile(r"^[0-9a-f]{32}\.npz$")
+
+
+class Store:
+    """Figures kept in ``folder`` across processes: packs ``<digest of their keys>.npz`` of the results made since
+    the last :meth:`flush` (numbers and arrays only, read back without pickle; a pack that cannot be read, or an
+    entry that does not decode, is ignored and the figure made again). Keys are :func:`digest` s joined with
+    :func:`code_digest`. At most MAX_PACKS packs stay (the oldest are removed)."""
+
+    MAX_PACKS = 64
+
+    def __init__(self, folder):
+        self.folder = folder
+        self.pending = {}
+        self.index = None            # hex key -> pack path
+        self.open = {}               # pack path -> np.lib.npyio.NpzFile
+
+    def _key(self, key):
+        return hashlib.blake2b(code_digest() + key, digest_size=16).hexdigest()
+
+    def _packs(self):
+        try:
+            names = os.listdir(self.folder)
+        except OSError:
+            return []
+        return [os.path.join(self.folder, n) for n in names if _PACK.match(n)]
+
+    def get(self, key):
+        """The stored result of ``key``, or None."""
+        if self.index is None:
+            self.index = {}
+            for path in self._packs():
+                try:
+                    z = self.open[path] = np.load(path, allow_pickle=False)
+                    self.index.update((n[:-5], path) for n in z.files if n.endswith(".spec"))
+                except Exception:
+                    continue
+        k = self._key(key)
+        path = self.index.get(k)
+        if path is None:
+            return None
+        try:
+            z = self.open[path]
+            spec = json.loads(str(z[f"{k}.spec"]))
+            return _decode(spec, [np.asarray(z[f"{k}.{i}"]) for i in range(_count(spec))])
+        except Exception:
+            return None
+
+    def add(self, key, value):
+        """Keep ``value`` for the next :meth:`flush` (nothing when it holds what a pack cannot)."""
+        arrays = []
+        spec = _encode(value, arrays)
+        if spec is not None:
+            self.pending[self._key(key)] = (spec, arrays)
+
+    def flush(self):
+        """Write the results added since the last flush as one pack (a failed write is dropped: the store is an
+        optimisation)."""
+        if not self.pending:
+            return
+        entries = {}
+        for k, (spec, arrays) in sorted(self.pending.items()):
+            entries[f"{k}.spec"] = np.array(json.dumps(spec))
+            entries.update((f"{k}.{i}", a) for i, a in enumerate(arrays))
+        name = hashlib.blake2b("|".join(sorted(self.pending)).encode(), digest_size=16).hexdigest()
+        buf = io.BytesIO()
+        np.savez(buf, **entries)
+        try:
+            write_bytes(os.path.join(self.folder, f"{name}.npz"), buf.getvalue())
+        except OSError:
+            return
+        self.pending = {}
+        self._prune()
+
+    def _prune(self):
+        packs = sorted(self._packs(), key=lambda p: _mtime(p))
+        for path in packs[:max(0, len(packs) - self.MAX_PACKS)]:
+            with contextlib.suppress(OSError):
+                os.remove(path)
+
+    def close(self):
+        for z in self.open.values():
+            z.close()
+        self.open = {}
+
+
+def _count(spec):
+    """Arrays a spec refers to."""
+    if "a" in spec:
+        return spec["a"] + 1
+    parts = spec.get("t", spec.get("l", spec.get("fields", ())))
+    return max((_count(p) for p in parts), default=0)
+
+
+def _mtime(path):
+    try:
+        return os.path.getmtime(path)
+    except OSError:
+        return math.inf
 
 
 FIGURES = Memo()

@@ -11,6 +11,8 @@ import math
 
 import numpy as np
 
+from .memo import storable
+
 
 UV_TOLERANCE = 1e-3       # texels: corners this close in UV are one corner (no seam)
 NORMAL_TOLERANCE = 1e-4   # 1 − n_a·n_b: corner normals this close are one (a smooth edge)
@@ -20,6 +22,7 @@ STITCH_SPACING = 0.5      # texels between the stitch's constraint points
 STITCH_WEIGHT = 0.05      # λ: weight of a texel's baked value against the seam constraints
 
 
+@storable
 @dataclasses.dataclass
 class Seams:
     """Seam edges of a mesh: ``a``, ``b`` (E, 2, 2) the two faces' UVs (texels) at the edge's two vertices, in the

@@ -1,5 +1,7 @@
 """The unwrap cache (bake/uvcache.py, issue 27): a cached layout skips the unwrapper and bakes the same pixels,
-a corrupt entry is rebuilt, files stay inside the output folder; the UV step's progress (objects done / total)."""
+a corrupt entry is rebuilt, files stay inside the output folder; the figures of unchanged meshes are read, not
+measured again, by a new process; the UV step's progress (objects done / total)."""
+import functools
 import os
 import re
 
@@ -7,9 +9,10 @@ import bpy
 import numpy as np
 import pytest
 
-from addon.bake import BakeOptions, bake_lightmaps, cycles, unwrap, uv as uvmod, uvcache, uvchecks
+from addon.bake import BakeOptions, bake_lightmaps, cycles, pipeline, seams, unwrap, uv as uvmod, uvcache, uvchecks
 from addon.blender import progress
-from addon.core import lightmap
+from addon.core import lightmap, memo
+from addon.core.memo import FIGURES
 from addon.core.errors import ILError
 from addon.core.io import exr
 
@@ -52,7 +55,7 @@ def _bake(objects, out):
 
 def _entries(out):
     folder = out / uvcache.DIR
-    return sorted(folder.iterdir()) if folder.exists() else []
+    return sorted(p for p in folder.iterdir() if p.is_file()) if folder.exists() else []
 
 
 def test_a_cached_layout_skips_the_unwrap_and_bakes_the_same_pixels(tmp_path, unwraps):
@@ -213,3 +216,50 @@ def test_an_atlas_covers_at_least_the_texels_pack_islands_gives_its_charts(tmp_p
     tri = np.concatenate([uvmod.triangles_uv(o, uvmod.LIGHTMAP) for o in objects])
     ours = float(lightmap.coverage_mask(tri, side, side).mean())
     assert ours >= pack_islands_utilisation(objects, (side, side), entry["margin"], cut=False) > 0.3
+
+
+@pytest.mark.both_versions
+def test_a_rerun_in_a_new_process_reads_the_figures_instead_of_measuring_them_again(tmp_path, monkeypatch):
+    """The overlap, coverage, seams and inward shells of unchanged meshes and layouts come from the store beside the
+    maps (core.memo.Store), with the same pixels and report figures; code that changed measures them again."""
+    objects = _props()
+    calls = []
+
+    def counted(module, name):
+        real = getattr(module, name)
+
+        @functools.wraps(real)
+        def wrapper(*args):
+            calls.append(name)
+            return real(*args)
+        monkeypatch.setattr(module, name, wrapper)
+
+    for module, name in ((lightmap, "overlap_fraction"), (lightmap, "coverage_mask"), (lightmap, "inward_shells"),
+                         (seams, "_seam_edges")):
+        counted(module, name)
+
+    def bake():
+        for o in objects:
+            if uvmod.LIGHTMAP in o.data.uv_layers:
+                o.data.uv_layers.remove(o.data.uv_layers[uvmod.LIGHTMAP])
+        FIGURES.clear()                                      # a new process remembers nothing
+        calls.clear()
+        return bake_lightmaps(objects, ["ao"], str(tmp_path), BakeOptions(**OPTIONS), scene=bpy.context.scene)
+
+    def figures(rep):
+        return {n: {k: e["ao"][k] for k in ("overlap", "coverage", "chart_area", "seams")}
+                for n, e in rep["objects"].items()}
+
+    first = bake()
+    assert {"overlap_fraction", "coverage_mask", "inward_shells", "_seam_edges"} <= set(calls)
+    packs = os.listdir(pipeline.figures_folder(tmp_path))
+    assert packs and all(re.fullmatch(r"[0-9a-f]{32}\.npz", p) for p in packs)
+    again = bake()
+    assert calls == []
+    assert figures(again) == figures(first)
+    for name, e in first["objects"].items():
+        assert np.array_equal(exr.read_exr(again["objects"][name]["ao"]["file"])[0]["Y"],
+                              exr.read_exr(e["ao"]["file"])[0]["Y"]), name
+    monkeypatch.setattr(memo, "code_digest", lambda: b"another version")
+    bake()
+    assert {"overlap_fraction", "inward_shells", "_seam_edges"} <= set(calls)

@@ -1,9 +1,15 @@
 """core.memo: a result is made once per input, a changed input (bytes, dtype or shape) is a new result, arrays come
-back read-only and the least recently used results go first."""
+back read-only and the least recently used results go first; a store on disk gives them to another process,
+never unpickles, and drops what another version of the code made."""
+import os
+import re
+
 import numpy as np
 import pytest
 
+from addon.core import memo
 from addon.core.memo import Memo, digest
+from addon.core.seams import Seams
 
 
 def test_a_result_is_made_once_per_input_and_again_for_any_change():
@@ -40,3 +46,80 @@ def test_the_least_recently_used_results_are_dropped_first():
     memo.get(b"x", lambda: np.zeros(100))
     memo.get(b"y", lambda: np.zeros(100))
     assert list(memo.items) == [b"y"] and memo.bytes == 800
+
+
+
+def _counted(made):
+    def shells(co, k):
+        made.append(k)
+        return np.arange(len(co)) * k, float(k) / 3, [k, "k"]
+    return shells
+
+
+def test_a_store_gives_another_process_the_same_figures(tmp_path, monkeypatch):
+    made = []
+    shells = _counted(made)
+    co = np.ones((5, 3), np.float32)
+    seams = Seams(np.zeros((2, 2, 2)), np.ones((2, 2, 2)), np.zeros((2, 2)), np.ones((2, 2)), creases=3)
+    writer = Memo()
+    with writer.stored(tmp_path) as store:
+        first = writer.call(shells, co, 2)
+        writer.get(b"seams", lambda: seams)
+        writer.get(b"dict", lambda: {"not": "stored"})           # neither numbers nor arrays: not kept
+        store.flush()
+    packs = os.listdir(tmp_path)
+    assert len(packs) == 1 and re.fullmatch(r"[0-9a-f]{32}\.npz", packs[0])
+    reader = Memo()                                               # a new process: an empty memo
+    with reader.stored(tmp_path):
+        again = reader.call(shells, co, 2)
+        kept = reader.get(b"seams", lambda: None)
+        assert reader.get(b"dict", lambda: "made") == "made"
+    assert made == [2]
+    assert np.array_equal(again[0], first[0]) and again[0].dtype == first[0].dtype and again[1:] == first[1:]
+    with pytest.raises(ValueError):
+        again[0][0] = 1                                           # read-only, as a figure made here
+    assert isinstance(kept, Seams) and kept.creases == 3
+    assert all(np.array_equal(getattr(kept, k), getattr(seams, k)) for k in ("a", "b", "a_in", "b_in"))
+    monkeypatch.setattr(memo, "code_digest", lambda: b"other code")   # the code that made them changed
+    with Memo().stored(tmp_path) as store:
+        Memo().call(shells, co, 2)
+    other = Memo()
+    with other.stored(tmp_path):
+        other.call(shells, co, 2)
+    assert made == [2, 2, 2]
+
+
+def test_a_store_ignores_packs_it_cannot_read_and_keeps_the_newest(tmp_path, monkeypatch):
+    made = []
+    shells = _counted(made)
+    co = np.ones((4, 3), np.float32)
+    writer = Memo()
+    with writer.stored(tmp_path) as store:
+        writer.call(shells, co, 1)
+        store.flush()
+    (pack,) = tmp_path.iterdir()
+    with np.load(pack, allow_pickle=False) as z:
+        entries = {k: z[k] for k in z.files}
+    np.savez(pack, **{k: (np.array([{"pickled": 1}], object) if k.endswith(".0") else v) for k, v in entries.items()})
+    (tmp_path / ("0" * 32 + ".npz")).write_bytes(b"PK\x03\x04 not a zip")
+    reader = Memo()
+    with reader.stored(tmp_path):
+        value = reader.call(shells, co, 1)                        # an object array is never unpickled: made again
+    assert made == [1, 1] and np.array_equal(value[0], np.arange(4))
+    monkeypatch.setattr(memo.Store, "MAX_PACKS", 2)
+    for path in tmp_path.iterdir():
+        os.utime(path, (10**9, 10**9))
+    for k in range(2, 6):
+        before = set(tmp_path.iterdir())
+        m = Memo()
+        with m.stored(tmp_path) as store:
+            m.call(shells, co, k)
+            store.flush()
+        for path in set(tmp_path.iterdir()) - before:             # packs written one second apart
+            os.utime(path, (10**9 + k, 10**9 + k))
+    assert len(list(tmp_path.iterdir())) == 2
+    reader = Memo()
+    with reader.stored(tmp_path):
+        for k in (5, 4):
+            reader.call(shells, co, k)
+    assert made == [1, 1, 2, 3, 4, 5]                             # the two newest packs are kept

@@ -8,7 +8,8 @@ median fill of the maps and how many warned of a low fill, peak RSS, texels per 
 (measured alike: :func:`layout_utilisation`, :func:`pack_islands_utilisation`). The per-object bake is
 also run at production samples (:data:`PRODUCTION_SAMPLES`), and each is redone with its meshes unchanged but a
 light changed (irradiance rebaked, AO resumed) and the "Lightmap" layers gone, as a new process finds an unsaved
-file: the layouts come from the UV cache (``bake/uvcache.py``); the time outside Cycles over the time inside is
+file: the layouts come from the UV cache (``bake/uvcache.py``) and the figures from its store
+(``core/memo.py``); the time outside Cycles over the time inside is
 the figure issue 27 bounds (at most 1 on a first run, 0.1 on such a rerun).
 """
 import os
@@ -25,6 +26,7 @@ from ...bake.pipeline import bake_lightmaps
 from ...blender import compat, render
 from ...blender.scene import remove_scene
 from ...core import lightmap
+from ...core.memo import FIGURES
 from .result import BenchResult
 
 KEY = "level"
@@ -290,11 +292,13 @@ def _timed(scene, objects, out, options):
 
 
 def _changed_light_rerun(scene, objects, out, options):
-    """A rerun of the bake into ``out`` with the meshes unchanged, the "Lightmap" layers removed (a new process
-    opening the unsaved file) and the lights 1 % brighter (irradiance rebaked, AO unchanged): its row figures."""
+    """A rerun of the bake into ``out`` with the meshes unchanged, the "Lightmap" layers removed and the figures'
+    memo emptied (a new process opening the unsaved file: layouts and figures come from the output folder) and the
+    lights 1 % brighter (irradiance rebaked, AO unchanged): its row figures."""
     for me in {o.data for o in objects}:
         if uvmod.LIGHTMAP in me.uv_layers:
             me.uv_layers.remove(me.uv_layers[uvmod.LIGHTMAP])
+    FIGURES.clear()
     for o in scene.objects:
         if o.type == "LIGHT":
             o.data.energy *= 1.01
