@@ -221,8 +221,11 @@ def test_an_atlas_covers_at_least_the_texels_pack_islands_gives_its_charts(tmp_p
 @pytest.mark.both_versions
 def test_a_rerun_in_a_new_process_reads_the_figures_instead_of_measuring_them_again(tmp_path, monkeypatch):
     """The overlap, coverage, seams and inward shells of unchanged meshes and layouts come from the store beside the
-    maps (core.memo.Store), with the same pixels and report figures; code that changed measures them again."""
+    maps (core.memo.Store), with the same pixels and report figures; code that changed measures them again. (The
+    box has no bevel here: 4.5's Bevel modifier gives UVs that differ in the last bit from one evaluation to the
+    next, whose figures are then measured again.)"""
     objects = _props()
+    objects[1].modifiers.clear()
     calls = []
 
     def counted(module, name):
