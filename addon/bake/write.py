@@ -144,7 +144,7 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
     path = map_file(out, stems, name, kind)
     exr.write_exr(path, KINDS[kind].exr_channels(np.flipud(values), np.flipud(alpha)), attrs)
     png = map_file(out, stems, name, kind, ".png")
-    io_png.write_png(png, np.flipud(preview(kind, values, grown)))
+    io_png.write_png(png, np.flipud(preview(kind, values, np.ones(values.shape[:2], bool))))  # the EXR as written
     res = (values.shape[1], values.shape[0])
     entries = {}
     for o in group:
