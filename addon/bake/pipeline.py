@@ -46,8 +46,8 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     None when not estimated), plus "error_estimate" (which estimate that is, see passes.ESTIMATES),
     "cycles_seconds" (inside the Cycles bake calls), "pilot_samples" (target_error runs) and, for
     images, "preview", "uv_layer", "coverage", "denoised", "unwrap" (the unwrapper of a layout generated in this
-    run: "smart_project" or "lightmap_pack") and "low_fill" (the warning line of a generated layout covering under
-    uvchecks.FILL of its map).
+    run: "smart_project" or "lightmap_pack", ending in "+raster_pack" when its charts were placed again by their
+    texels) and "low_fill" (the warning line of a generated layout covering under uvchecks.FILL of its map).
     """
     named = isinstance(out, (str, os.PathLike)) and os.fspath(out).strip()
     with FIGURES.stored(figures_folder(out)) if named else contextlib.nullcontext():

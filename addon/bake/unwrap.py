@@ -3,9 +3,11 @@ for a single mesh that fills under ``uvchecks.FILL``), or a single mesh's Lightm
 of the map as evenly (:func:`even_enough`); packed with a margin of ``margin`` texels (a fraction of the map: charts
 lie 2 × margin apart, so the dilation never reaches a neighbour), halved down to half a texel until the charts lie
 inside the unit square and cover the map (``uvchecks.MIN_COVERAGE``), at the side a texel density asks
-(:func:`_search`). The unwrappers run on temporary canonical copies (:class:`_Copies`, :func:`_canonical_copy`): the
-user's meshes never enter edit mode and their select / hide flags are never written, only the finished UVs are copied
-into their "Lightmap" layer (the other layers, the active one and the one that renders stay as they were).
+(:func:`_search`); a single mesh's layout that still fills under ``uvchecks.FILL`` then has its charts placed again by
+their texels (:meth:`_Copies.try_raster_pack`, :mod:`core.pack`). The unwrappers run on temporary canonical copies
+(:class:`_Copies`, :func:`_canonical_copy`): the user's meshes never enter edit mode and their select / hide flags
+are never written, only the finished UVs are copied into their "Lightmap" layer (the other layers, the active one
+and the one that renders stay as they were).
 """
 import contextlib
 import io
@@ -17,7 +19,7 @@ import bpy
 import numpy as np
 
 from ..blender.scene import corner_triangles, corner_uv, corner_vertices, positions
-from ..core import lightmap
+from ..core import lightmap, pack
 from ..core.errors import InputError
 from . import uvchecks
 from .charts import first_at_position
@@ -29,6 +31,12 @@ from .uvchecks import (MIN_COVERAGE, _disjoint, _fits, _outside, _overlap, _over
 
 SMART, LIGHTMAP_PACK = "smart_project", "lightmap_pack"
 """The unwrappers a generated layout comes from (the report entries' "unwrap")."""
+RASTER = "+raster_pack"
+"""Added to the unwrapper's name when its charts were placed again by their texels (:mod:`core.pack`)."""
+UNWRAPPERS = (SMART, LIGHTMAP_PACK, SMART + RASTER, LIGHTMAP_PACK + RASTER)
+PACK_WORK = 64 * 256 * 256
+"""Most charts × map texels a layout is packed again for (:meth:`_Copies.try_raster_pack`; the packer's cost grows
+with both: a subdivided Suzanne's 64 charts at 256², about 2.5 s)."""
 ANGLE = 1.15192
 """Smart UV Project's angle limit (66°, its default)."""
 WIDE_ANGLE = math.radians(75)
@@ -118,7 +126,8 @@ def _search(scene, group, state, options, names, weld=True):
 
 
 def _search_copies(copies, group, options, names, label, fixed):
-    """The search of :func:`_search` on the open ``copies`` (``fixed``: the fixed side, or None)."""
+    """The search of :func:`_search` on the open ``copies`` (``fixed``: the fixed side, or None); the layout of the
+    side found is then packed again by its texels where that fills more (:meth:`_Copies.try_raster_pack`)."""
     if fixed:
         margin = _fit(copies, group, fixed, options.margin, cut=False)
         if margin is None:
@@ -127,6 +136,7 @@ def _search_copies(copies, group, options, names, label, fixed):
                     "the charts do not fit even the largest map: bake the parts separately")
             raise InputError(f"{label}: the light-map charts do not fit {article(f'{fixed}x{fixed}')} map (they would "
                              f"cover under {100 * MIN_COVERAGE:.0f} % of their UV area): {hint}")
+        copies.try_raster_pack(fixed, margin, cut=False)
         return _Made(fixed, _dilation(label, options.margin, margin, fixed), copies.unwrapper)
     side = resolution(group, names, options, coverage=1.0)
     made = None
@@ -159,6 +169,7 @@ def _search_copies(copies, group, options, names, label, fixed):
     else:
         asked = 0
     side = made
+    copies.try_raster_pack(side, margin, cut=True)
     return _Made(side, _dilation(label, options.margin, margin, side), copies.unwrapper, asked)
 
 
@@ -383,6 +394,41 @@ class _Copies:
         else:
             self._write(smart)
         return smart_fill, packed
+
+    def try_raster_pack(self, side, margin, cut):
+        """For one copy whose layout fills under FILL of its map as baked (:func:`baked_fill`) and whose charts
+        × map texels stay within PACK_WORK: the charts of the layout in place placed again by their texels
+        (charts as the welded copy joins them, the same margin): at a fixed side scaled up as far as they fit
+        (:func:`core.pack.largest`), with a texel density (``cut``) at their size in the fewest rows they fit
+        (:func:`core.pack.lowest`: the map is cut to its window, the density asked, fewer texels). Kept when it
+        fits and fills more of its map as baked. The texel density stays as even (one scale for every chart) and no
+        chart comes nearer another than the unwrappers' margins let it."""
+        if len(self.copies) != 1:
+            return
+        have = baked_fill(self.group, side, margin, cut)
+        if have >= uvchecks.FILL:
+            return
+        (o, obj), loops = self.copies[0], self.loops[0]
+        uv = corner_uv(o.data, LIGHTMAP)[loops]      # the layout kept so far (the copy may hold one not kept)
+        me = obj.data
+        tris = corner_triangles(me)
+        labels = pack.chart_labels(tris, corner_vertices(me), uv)
+        if not len(labels) or (int(labels.max()) + 1) * side * side > PACK_WORK:
+            return
+        packing = (pack.lowest if cut else pack.largest)(uv[tris], labels, side, margin)
+        if packing is None:
+            return
+        chart = np.full(len(uv), -1)
+        chart[tris.ravel()] = np.repeat(labels, 3)
+        if (chart < 0).any():
+            return
+        new = pack.moved(uv, chart, packing, side).astype(np.float32).ravel()
+        self._write([(new,)])
+        if _fits(self, self.group, side) and baked_fill(self.group, side, margin, cut) > have:
+            me.uv_layers[LIGHTMAP].data.foreach_set("uv", new)
+            self.unwrapper += RASTER
+            return
+        self._write([(uv.ravel(),)])
 
     def _write(self, uvs):
         """The copies' UVs (:meth:`_uvs`) into their meshes' "Lightmap" layers (each copy loop to its original),

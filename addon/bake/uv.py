@@ -145,7 +145,7 @@ class Layouts:
     """The light-map layers of a set of objects, by object name: ``layers`` the UV layer each is baked through,
     ``sides`` the side a generated layout was made for, ``margins`` its margin in texels (possibly lowered to
     half a texel; else the asked one; :func:`dilation` gives the texels the map is dilated by), ``unwraps`` the
-    unwrapper of a generated layout (unwrap.SMART or unwrap.LIGHTMAP_PACK), ``windows`` (width, height, side) of a
+    unwrapper of a generated layout (unwrap.UNWRAPPERS), ``windows`` (width, height, side) of a
     generated layout carried into a window of its map (:func:`_cut_window`): its map is width x height."""
     layers: dict = dataclasses.field(default_factory=dict)
     sides: dict = dataclasses.field(default_factory=dict)

@@ -24,7 +24,7 @@ import numpy as np
 from ..blender.scene import corner_vertices, positions, read
 from ..core.io.files import write_bytes
 
-LAYOUT_VERSION = 6
+LAYOUT_VERSION = 7
 """Raised whenever the layout search (uv.py, unwrap.py) changes what it makes for the same input."""
 DIR = ".il-uv-cache"
 _SLACK = 1e-4
@@ -125,9 +125,8 @@ def _read(path):
 def _fits(entry, meshes):
     """The entry's arrays match the meshes: one float32 array of 2 × loops finite UVs in the unit square each,
     a positive side and margin, a window (if any) of three positive sides no wider than the side it was cut from."""
-    from .unwrap import LIGHTMAP_PACK, SMART
-    if len(entry.uvs) != len(meshes) or entry.side < 1 or not entry.margin > 0 or entry.unwrap not in (SMART,
-                                                                                                       LIGHTMAP_PACK):
+    from .unwrap import UNWRAPPERS
+    if len(entry.uvs) != len(meshes) or entry.side < 1 or not entry.margin > 0 or entry.unwrap not in UNWRAPPERS:
         return False
     if entry.window is not None and (len(entry.window) != 3 or min(entry.window) < 1
                                      or max(entry.window[:2]) > entry.window[2]):

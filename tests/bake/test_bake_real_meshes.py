@@ -279,6 +279,37 @@ def _copy(obj, name, x):
 
 
 @pytest.mark.both_versions
+def test_charts_are_placed_by_their_texels_where_their_boxes_leave_the_map_empty(tmp_path, monkeypatch):
+    """A subdivided Suzanne's Smart UV Project layout at 256² (2-texel margins) fills 0.42 of the map; its charts
+    placed again by their texels (core.pack) fill at least 55 %, with no more texels under several faces, as even a
+    texel density, and the same UVs in a second run (determinism)."""
+    from addon.bake import unwrap, uv as uvmod, uvchecks
+    scene = bpy.context.scene
+    suzanne = added(bpy.ops.mesh.primitive_monkey_add)
+    suzanne.name = "Suzanne"
+    sub = suzanne.modifiers.new("Subdivision", "SUBSURF")
+    sub.levels = sub.render_levels = 2
+    with bpy.context.temp_override(object=suzanne, active_object=suzanne):
+        bpy.ops.object.modifier_apply(modifier=sub.name)
+    plain = _copy(suzanne, "Plain", 3)
+    options = BakeOptions(resolution=256, samples=1, margin=2)
+    packed = bake_lightmaps([suzanne], ["ao"], tmp_path / "packed", options, scene=scene)["objects"]["Suzanne"]["ao"]
+    with monkeypatch.context() as m:
+        m.setattr(unwrap, "PACK_WORK", 0)
+        alone = bake_lightmaps([plain], ["ao"], tmp_path / "plain", options, scene=scene)["objects"]["Plain"]["ao"]
+    assert packed["unwrap"] == "smart_project+raster_pack" and alone["unwrap"] == "smart_project"
+    assert alone["coverage"] < 0.45 and packed["coverage"] >= 0.55, (alone["coverage"], packed["coverage"])
+    assert _fill(suzanne, 256) == pytest.approx(packed["coverage"], abs=1e-6 if compat.BAKE_TOUCHED_TEXELS else 0.01)
+    assert packed["overlap"] <= max(alone["overlap"], uvchecks.MAX_OVERLAP)
+    assert unwrap.even_enough(uvchecks.density_spread([suzanne]), uvchecks.density_spread([plain]))
+    first = uvmod.triangles_uv(suzanne, "Lightmap").copy()
+    again = _copy(suzanne, "Again", 6)
+    again.data.uv_layers.remove(again.data.uv_layers["Lightmap"])
+    bake_lightmaps([again], ["ao"], tmp_path / "again", options, scene=scene)
+    assert np.array_equal(uvmod.triangles_uv(again, "Lightmap"), first)
+
+
+@pytest.mark.both_versions
 def test_each_mesh_keeps_the_unwrapper_that_fills_its_map_more(tmp_path, monkeypatch):
     """Smart UV Project and Lightmap Pack (same margin) per mesh, the one filling more of the map (with as even a
     texel density: unwrap.even_enough) kept and named in the report ("unwrap"): a cylinder at 128² and a torus at 256² (charts fit, 1-texel margin) fill at least 55 %
@@ -299,7 +330,7 @@ def test_each_mesh_keeps_the_unwrapper_that_fills_its_map_more(tmp_path, monkeyp
             m.setattr(unwrap, "LIGHTMAP_PACK_TRIANGLES", 0)
             alone = bake_lightmaps([smart], ["ao"], tmp_path / (name + "s"),
                                    BakeOptions(resolution=side, samples=1, margin=1), scene=scene)
-        assert alone["objects"][smart.name]["ao"]["unwrap"] == "smart_project"
+        assert alone["objects"][smart.name]["ao"]["unwrap"].startswith("smart_project")
         fills[name] = (rep["objects"][name]["ao"]["unwrap"], _fill(obj, side), _fill(smart, side))
         assert fills[name][1] >= fills[name][2], fills
         assert uvchecks.fill([obj], side) == pytest.approx(fills[name][1])
@@ -484,7 +515,7 @@ def test_a_layout_depends_on_the_faces_not_on_their_order(tmp_path, side):
 
     for obj in (a, b):
         rep = bake_lightmaps([obj], ["ao"], tmp_path / obj.name, BakeOptions(resolution=side, samples=1, margin=1))
-        assert rep["objects"][obj.name]["ao"]["unwrap"] == ("smart_project" if side == 64 else "lightmap_pack")
+        assert rep["objects"][obj.name]["ao"]["unwrap"].startswith("smart_project" if side == 64 else "lightmap_pack")
     assert corners(a) == corners(b)
 
 

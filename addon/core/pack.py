@@ -1,0 +1,219 @@
+"""Raster packing of a UV layout's charts: each chart's texels at a common scale, placed one after the other, the
+largest first, at the lowest free row and then column of the map in the quarter turn whose top is then lowest, no
+texel of it nearer than the margin to another chart's; the scale is the largest at which every chart finds a place
+(bisection), or the charts keep their size and the map is cut to the rows they reach.
+
+Blender's packers place charts by their bounding boxes (Smart UV Project, ``uv.pack_islands`` with AABB shapes) or
+by their outlines at seconds per hundred charts (CONCAVE). A subdivided Suzanne's Smart UV Project charts at 128²
+(2-texel margins) leave half the map between their boxes; placed by their texels they fill 0.55 of it instead of
+0.33 (docs/lightmaps.md).
+
+A chart's footprint is every texel its triangles touch (the texel centres inside them, and the texels a 3 × finer
+raster finds inside them: slivers between centres), so that no texel is touched by two charts. With a margin of m
+texels (the map is dilated by m) the unwrappers leave 2m texels between charts' outlines and m to the map's border
+(a sampler that wraps reads the opposite border), where the texels they touch may reach a texel beyond the
+outline: footprints here are 2m − 2 texels apart (at least one) and m − 1 from the border, what those layouts
+keep at the least. The free places of a footprint are found for all offsets at once by the correlation of the map
+with the footprint (FFT).
+"""
+import dataclasses
+import math
+
+import numpy as np
+
+from .lightmap import coverage_mask, nearest_covered
+
+FINE = 3
+"""A footprint holds the texels in which a FINE × finer raster of the chart finds a texel centre (odd: the middle
+fine centre of a texel is its own centre)."""
+
+
+def chart_labels(tris, corner_vertex, corner_uv):
+    """(T,) chart of each triangle: triangles joined through corners at one vertex with equal UVs (union by minimum
+    label). ``tris`` (T, 3) corner indices, ``corner_vertex`` (L,) and ``corner_uv`` (L, 2) per corner."""
+    tris = np.asarray(tris, np.int64).reshape(-1, 3)
+    if not len(tris):
+        return np.zeros(0, np.int64)
+    uv = np.ascontiguousarray(corner_uv, np.float32).reshape(-1, 2)
+    bits = uv.view(np.uint32).astype(np.uint64)
+    key = np.stack([np.asarray(corner_vertex, np.int64), ((bits[:, 0] << np.uint64(32)) | bits[:, 1]).astype(
+        np.int64)], axis=1)
+    _, corner = np.unique(key, axis=0, return_inverse=True)
+    corner = corner.ravel()[tris]                    # (T, 3) corner ids shared by equal corners
+    label = np.arange(len(tris))
+    while True:
+        low = np.full(int(corner.max()) + 1, len(tris))
+        np.minimum.at(low, corner.ravel(), np.repeat(label, 3))
+        new = np.minimum(label, low[corner].min(axis=1))
+        new = new[new]
+        if np.array_equal(new, label):
+            return np.unique(label, return_inverse=True)[1].ravel()
+        label = new
+
+
+@dataclasses.dataclass
+class Placement:
+    """How one chart moved: texel coordinates p = uv · side are rotated ``turns`` quarter turns, scaled by the
+    layout's ``scale``, shifted by ``-low`` (the footprint's corner) and placed at ``offset`` (x, y) texels."""
+    turns: int
+    low: np.ndarray
+    offset: tuple
+
+
+@dataclasses.dataclass
+class Packing:
+    """Charts placed at ``scale`` × the layout's size: ``placements`` by chart, ``covered`` texel centres."""
+    scale: float
+    placements: list
+    covered: int
+
+
+def _turned(p, turns):
+    for _ in range(turns % 4):
+        p = np.stack([-p[..., 1], p[..., 0]], axis=-1)
+    return p
+
+
+def _footprints(tri, charts, scale, side):
+    """Per chart (``charts``: its triangles' indices in ``tri`` (T, 3, 2) UVs) at ``scale``, its 4 quarter turns
+    [(covered (h, w), footprint (h, w), low)], each with its texel box's corner ``low`` moved to the origin. The
+    charts are rasterised once, side by side in one strip (a texel apart), FINE × finer (a texel's centre is the
+    centre of its middle fine texel, FINE odd); a quarter turn maps fine centres onto fine centres, so the turned
+    rasters are the raster turned (:func:`_quarter`)."""
+    p = np.asarray(tri, float) * (scale * side)
+    lows, boxes, x = [], [], 0
+    strip = np.empty_like(p)
+    for c in charts:
+        q = p[c].reshape(-1, 2)
+        low = np.floor(q.min(axis=0))
+        w, h = (int(v) + 1 for v in np.ceil(q.max(axis=0) - low))
+        strip[c] = p[c] - low + (x, 0)
+        lows.append(low)
+        boxes.append((x, w, h))
+        x += w + 1
+    height = max(h for _, _, h in boxes)
+    fine = coverage_mask(strip / (x, height), FINE * x, FINE * height)
+    out = []
+    for low, (x0, w, h) in zip(lows, boxes):
+        turns = [(fine[:FINE * h, FINE * x0:FINE * (x0 + w)], low)]
+        for _ in range(3):
+            turns.append(_quarter(*turns[-1]))
+        out.append([(f[FINE // 2::FINE, FINE // 2::FINE],
+                     f.reshape(f.shape[0] // FINE, FINE, -1, FINE).any(axis=(1, 3)), lo) for f, lo in turns])
+    return out
+
+
+def _quarter(fine, low):
+    """The fine raster and box corner of a chart turned a quarter (x, y) -> (-y, x) (:func:`_turned`)."""
+    h = fine.shape[0] // FINE
+    return fine[::-1].T, np.array([-low[1] - h, low[0]])
+
+
+def _fast(n):
+    """The smallest 2^a 3^b 5^c >= n (a size the FFT is quick for)."""
+    best = 1 << max(0, int(n - 1).bit_length())
+    f5 = 1
+    while f5 < best:
+        f3 = f5
+        while f3 < best:
+            f2 = f3
+            while f2 < n:
+                f2 *= 2
+            best = min(best, f2)
+            f3 *= 3
+        f5 *= 5
+    return best
+
+
+def _grown(mask, r):
+    """``mask`` grown by ``r`` texels (chessboard distance) on every side: (h + 2r, w + 2r)."""
+    if r <= 0:
+        return mask
+    return nearest_covered(np.pad(mask, r), r) >= 0
+
+
+def pack(tri, labels, side, margin, scale):
+    """:class:`Packing` of the charts (``labels`` of the triangles ``tri`` (T, 3, 2), UVs of a ``side``² map) at
+    ``scale`` with a margin of ``margin`` texels, or None when one finds no place."""
+    r = max(1, int(math.ceil(2 * margin)) - 2)
+    border = max(0, int(math.ceil(margin)) - 1)
+    occupied = np.zeros((side, side), bool)
+    if border:
+        occupied[:border], occupied[-border:], occupied[:, :border], occupied[:, -border:] = True, True, True, True
+
+    charts = [np.flatnonzero(labels == k) for k in range(int(labels.max()) + 1)] if len(labels) else []
+    shapes = _footprints(tri, charts, scale, side)
+    order = sorted(range(len(charts)), key=lambda i: (-int(shapes[i][0][1].sum()), i))
+    placements, covered = [None] * len(charts), 0
+    for i in order:
+        hmax = max(s[1].shape[0] for s in shapes[i])
+        wmax = max(s[1].shape[1] for s in shapes[i])
+        if min(hmax, wmax) > side:
+            return None
+        size = (_fast(side + hmax), _fast(side + wmax))
+        room = np.fft.rfft2(occupied.astype(np.float32), s=size)
+        best = None
+        for turns, (cov, foot, low) in enumerate(shapes[i]):
+            h, w = foot.shape
+            if h > side or w > side:
+                continue
+            hits = np.fft.irfft2(room * np.fft.rfft2(foot[::-1, ::-1].astype(np.float32), s=size), s=size)
+            free = np.argwhere(hits[h - 1:side, w - 1:side] < 0.5)
+            if len(free):
+                y, x = free[0]                         # the lowest row, then column, of this turn
+                key = (int(y) + h, int(y), int(x))      # the turn whose top is lowest
+                if best is None or key < best[0]:
+                    best = (key, turns)
+        if best is None:
+            return None
+        (_, y, x), turns = best
+        cov, foot, low = shapes[i][turns]
+        h, w = foot.shape
+        grown = _grown(foot, r)
+        y0, x0 = y - r, x - r
+        ys, xs = max(y0, 0), max(x0, 0)
+        ye, xe = min(y0 + h + 2 * r, side), min(x0 + w + 2 * r, side)
+        occupied[ys:ye, xs:xe] |= grown[ys - y0:ye - y0, xs - x0:xe - x0]
+        placements[i] = Placement(turns, low, (int(x), int(y)))
+        covered += int(cov.sum())
+    return Packing(scale, placements, covered)
+
+
+def largest(tri, labels, side, margin, start=1.0, steps=5):
+    """The :class:`Packing` at the largest scale found by bisection between ``start`` and the scale at which the
+    charts' covered texels would fill the map, or None when even ``start`` finds no place."""
+    tri = np.asarray(tri, float).reshape(-1, 3, 2)
+    labels = np.asarray(labels, np.int64)
+    best = pack(tri, labels, side, margin, start)
+    if best is None or not best.covered:
+        return None
+    hi = start * math.sqrt(side * side / best.covered)
+    lo = start
+    for _ in range(steps):
+        mid = math.sqrt(lo * hi)
+        got = pack(tri, labels, side, margin, mid)
+        if got is not None:
+            lo, best = mid, got
+        else:
+            hi = mid
+    return best
+
+
+def lowest(tri, labels, side, margin):
+    """:class:`Packing` of the charts at their size (the same texels per UV unit) in a ``side``² map, or None when
+    one finds no place. Each chart takes the place whose top is lowest, so the charts stay in the fewest rows this
+    placement reaches (a limit on the rows would only take away places it did not choose); the map is then cut to
+    them: the same texel density, fewer texels."""
+    packing = pack(np.asarray(tri, float).reshape(-1, 3, 2), np.asarray(labels, np.int64), side, margin, 1.0)
+    return packing if packing is not None and packing.covered else None
+
+
+def moved(uv, labels, packing, side):
+    """UVs ``uv`` (N, 2) whose charts are ``labels`` (N,) moved by ``packing`` (:func:`pack`) in a ``side``² map."""
+    uv = np.asarray(uv, float).reshape(-1, 2)
+    out = np.empty_like(uv)
+    for k, place in enumerate(packing.placements):
+        sel = labels == k
+        p = _turned(uv[sel] * (packing.scale * side), place.turns) - place.low + place.offset
+        out[sel] = p / side
+    return out

@@ -1,0 +1,85 @@
+"""core.pack: charts found through shared corners, placed by their texels: every chart inside the map and its
+border, two charts' texels more than 2 × margin − 2 apart, the covered texels the packing claims are those a raster of the
+moved layout covers, each chart moved rigidly at one scale, and more texels covered than side-by-side boxes give."""
+import numpy as np
+
+from addon.core import lightmap, pack
+
+
+def _ring(n, r0, r1):
+    """A flat annulus of n quads as loop-triangle corners: (tris (2n, 3) corners, corner vertices, corner UVs)."""
+    a = np.linspace(0, 2 * np.pi, n + 1)[:-1]
+    inner = np.stack([r0 * np.cos(a), r0 * np.sin(a)], 1)
+    outer = np.stack([r1 * np.cos(a), r1 * np.sin(a)], 1)
+    verts = np.concatenate([inner, outer])
+    tris = []
+    for i in range(n):
+        j = (i + 1) % n
+        tris += [(i, j, n + j), (i, n + j, n + i)]
+    tris = np.array(tris)
+    return tris.ravel(), verts[tris.ravel()]
+
+
+def _layout():
+    """Six charts in a 1 x 1 UV square: three annuli (concave: a box around one wastes its middle) and three
+    right triangles, each its own chart (no vertex shared between charts)."""
+    tri, vert, uv, base = [], [], [], 0
+    for k, (cx, cy) in enumerate([(0.2, 0.2), (0.55, 0.2), (0.2, 0.6)]):
+        v, p = _ring(16, 0.05, 0.15)
+        tri.append(np.arange(len(v)).reshape(-1, 3) + base)
+        vert.append(v + 1000 * k)
+        uv.append(p + (cx, cy))
+        base += len(v)
+    for k, (x, y) in enumerate([(0.6, 0.55), (0.75, 0.55), (0.6, 0.8)]):
+        tri.append(np.arange(3).reshape(1, 3) + base)
+        vert.append(np.arange(3) + 5000 + 10 * k)
+        uv.append(np.array([(x, y), (x + 0.12, y), (x, y + 0.12)]))
+        base += 3
+    return np.concatenate(tri), np.concatenate(vert), np.concatenate(uv)
+
+
+def test_charts_join_through_corners_at_one_vertex_with_equal_uvs():
+    tris = np.array([[0, 1, 2], [3, 4, 5], [6, 7, 8]])
+    vert = np.array([0, 1, 2, 2, 1, 3, 2, 4, 5])
+    uv = np.array([(0, 0), (1, 0), (0, 1), (0, 1), (1, 0), (1, 1), (0.5, 1), (0, 0), (0, 0.5)], float)
+    labels = pack.chart_labels(tris, vert, uv)
+    assert labels[0] == labels[1] != labels[2]             # the third shares vertex 2, at another UV: a seam
+
+
+def test_packed_charts_keep_their_margins_and_cover_what_the_packing_claims():
+    tris, vert, uv = _layout()
+    labels = pack.chart_labels(tris, vert, uv)
+    assert labels.max() + 1 == 6
+    side, margin = 64, 2.0
+    packing = pack.largest(uv[tris], labels, side, margin)
+    assert packing is not None and packing.scale > 1.0
+    corner_chart = np.empty(len(uv), int)
+    corner_chart[tris.ravel()] = np.repeat(labels, 3)
+    moved = pack.moved(uv, corner_chart, packing, side)
+    t = moved[tris]
+    assert t.min() >= 0 and t.max() <= 1
+    f = pack.FINE
+    touched = lightmap.coverage_mask(t, f * side, f * side).reshape(side, f, side, f).any(axis=(1, 3))
+    border = int(np.ceil(margin)) - 1                     # the texels a chart touches keep off the border ring
+    assert not (touched[:border].any() or touched[-border:].any() or touched[:, :border].any()
+                or touched[:, -border:].any())
+    masks = [lightmap.coverage_mask(t[labels == k], side, side) for k in range(6)]
+    assert sum(int(m.sum()) for m in masks) == packing.covered == int(lightmap.coverage_mask(t, side, side).sum())
+    for k, m in enumerate(masks):
+        near = lightmap.nearest_covered(m, 2 * margin - 2) >= 0      # texels within 2m - 2 of chart k
+        others = np.any([masks[j] for j in range(6) if j != k], axis=0)
+        assert not (near & others).any(), k
+    for k in range(6):                                   # rigid: each chart's edge lengths scale by one factor
+        a, b = uv[tris][labels == k], t[labels == k]
+        ratio = np.linalg.norm(np.diff(b, axis=1), axis=2) / np.linalg.norm(np.diff(a, axis=1), axis=2)
+        assert np.allclose(ratio, packing.scale)
+
+
+def test_texel_packing_covers_more_than_the_charts_boxes_side_by_side():
+    tris, vert, uv = _layout()
+    labels = pack.chart_labels(tris, vert, uv)
+    side, margin = 64, 2.0
+    packing = pack.largest(uv[tris], labels, side, margin)
+    before = int(lightmap.coverage_mask(uv[tris], side, side).sum())
+    assert packing.covered > 1.3 * before
+    assert pack.largest(uv[tris] * 40, labels, side, margin) is None     # charts larger than the map: no place
