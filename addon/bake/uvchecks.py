@@ -58,8 +58,9 @@ def _disjoint(tri_uv):
 
 def coverage(tri_uv, width, height):
     """``lightmap.coverage_mask`` of ``tri_uv`` in a ``width`` × ``height`` map (read-only), remembered per layout and
-    size (the plan, the fill check, the bake's centre mask and the files ask for the same ones)."""
-    return FIGURES.call(lightmap.coverage_mask, np.ascontiguousarray(tri_uv), int(width), int(height))
+    size (the plan, the fill check, the bake's centre mask and the files ask for the same ones); not kept in the
+    figure store (the UV search measures many trial layouts, a byte a texel each, that a rerun never asks for)."""
+    return FIGURES.call(lightmap.coverage_mask, np.ascontiguousarray(tri_uv), int(width), int(height), stored=False)
 
 
 def coverage_ratio(tri_uv, width, height):

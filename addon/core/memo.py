@@ -70,16 +70,16 @@ class Memo:
     store = None
     """A :class:`Store` while a bake keeps its figures on disk (:meth:`stored`), else None."""
 
-    def get(self, key, make):
+    def get(self, key, make, stored=True):
         """The result remembered for ``key`` (a :func:`digest`), else the :attr:`store`'s, else ``make()``;
-        remembered."""
+        remembered (in the store too unless ``stored`` is False)."""
         if key in self.items:
             self.items.move_to_end(key)
             return self.items[key]
-        value = self.store.get(key) if self.store is not None else None
+        value = self.store.get(key) if self.store is not None and stored else None
         if value is None:
             value = make()
-            if self.store is not None:
+            if self.store is not None and stored:
                 self.store.add(key, value)
         value = _frozen(value)
         self.items[key] = value
@@ -93,9 +93,10 @@ class Memo:
         self.items.clear()
         self.bytes = 0
 
-    def call(self, fn, *args):
-        """``fn(*args)``, remembered by ``fn``'s qualified name and a :func:`digest` of ``args``."""
-        return self.get(digest(fn.__module__, fn.__qualname__, *args), lambda: fn(*args))
+    def call(self, fn, *args, stored=True):
+        """``fn(*args)``, remembered by ``fn``'s qualified name and a :func:`digest` of ``args`` (``stored``: also in
+        the :attr:`store`)."""
+        return self.get(digest(fn.__module__, fn.__qualname__, *args), lambda: fn(*args), stored)
 
     @contextlib.contextmanager
     def stored(self, folder):
@@ -171,18 +172,23 @@ _PACK = re.compile(r"^[0-9a-f]{32}\.npz$")
 
 
 class Store:
-    """Figures kept in ``folder`` across processes: packs ``<digest of their keys>.npz`` of the results made since
-    the last :meth:`flush` (numbers and arrays only, read back without pickle; a pack that cannot be read, or an
-    entry that does not decode, is ignored and the figure made again). Keys are :func:`digest` s joined with
-    :func:`code_digest`. At most MAX_PACKS packs stay (the oldest are removed)."""
+    """Figures kept in ``folder`` across processes: packs ``<digest of their keys>.npz`` (numbers and arrays only,
+    read back without pickle; a pack that cannot be read, or an entry that does not decode, is ignored and the figure
+    made again). Keys are :func:`digest` s joined with :func:`code_digest`. The results added are written as one
+    pack when the store closes, once a :meth:`flush` allowed it (a run writes its figures only after it wrote a map),
+    or earlier when they pass PENDING_BYTES; then the packs beyond MAX_PACKS are removed, the least recently written
+    or read first, never one this store wrote or read."""
 
     MAX_PACKS = 64
+    PENDING_BYTES = 64 << 20
 
     def __init__(self, folder):
         self.folder = folder
-        self.pending = {}
+        self.pending, self.pending_bytes = {}, 0
+        self.allowed = False
         self.index = None            # hex key -> pack path
         self.open = {}               # pack path -> np.lib.npyio.NpzFile
+        self.used = set()            # packs this store wrote or read
 
     def _key(self, key):
         return hashlib.blake2b(code_digest() + key, digest_size=16).hexdigest()
@@ -211,20 +217,29 @@ class Store:
         try:
             z = self.open[path]
             spec = json.loads(str(z[f"{k}.spec"]))
-            return _decode(spec, [np.asarray(z[f"{k}.{i}"]) for i in range(_count(spec))])
+            value = _decode(spec, [np.asarray(z[f"{k}.{i}"]) for i in range(_count(spec))])
         except Exception:
             return None
+        self.used.add(path)
+        return value
 
     def add(self, key, value):
-        """Keep ``value`` for the next :meth:`flush` (nothing when it holds what a pack cannot)."""
+        """Keep ``value`` for the next pack (nothing when it holds what a pack cannot)."""
         arrays = []
         spec = _encode(value, arrays)
         if spec is not None:
             self.pending[self._key(key)] = (spec, arrays)
+            self.pending_bytes += sum(a.nbytes for a in arrays)
+            if self.allowed and self.pending_bytes > self.PENDING_BYTES:
+                self._write()
 
     def flush(self):
-        """Write the results added since the last flush as one pack (a failed write is dropped: the store is an
-        optimisation)."""
+        """Allow the store to write its figures (a map of the run is written); those added so far are written when
+        the store closes."""
+        self.allowed = True
+
+    def _write(self):
+        """Write the pending results as one pack (a failed write is dropped: the store is an optimisation)."""
         if not self.pending:
             return
         entries = {}
@@ -232,25 +247,31 @@ class Store:
             entries[f"{k}.spec"] = np.array(json.dumps(spec))
             entries.update((f"{k}.{i}", a) for i, a in enumerate(arrays))
         name = hashlib.blake2b("|".join(sorted(self.pending)).encode(), digest_size=16).hexdigest()
+        path = os.path.join(self.folder, f"{name}.npz")
         buf = io.BytesIO()
         np.savez(buf, **entries)
-        try:
-            write_bytes(os.path.join(self.folder, f"{name}.npz"), buf.getvalue())
-        except OSError:
-            return
-        self.pending = {}
-        self._prune()
+        self.pending, self.pending_bytes = {}, 0
+        with contextlib.suppress(OSError):
+            write_bytes(path, buf.getvalue())
+            self.used.add(path)
 
     def _prune(self):
-        packs = sorted(self._packs(), key=lambda p: _mtime(p))
-        for path in packs[:max(0, len(packs) - self.MAX_PACKS)]:
+        for path in self.used:                       # read or written now: the most recently used
+            with contextlib.suppress(OSError):
+                os.utime(path)
+        others = sorted((p for p in self._packs() if p not in self.used), key=_mtime)
+        for path in others[:max(0, len(others) + len(self.used) - self.MAX_PACKS)]:
             with contextlib.suppress(OSError):
                 os.remove(path)
 
     def close(self):
+        """Write the pending results when allowed, prune, and close the packs read."""
         for z in self.open.values():
             z.close()
         self.open = {}
+        if self.allowed:
+            self._write()
+            self._prune()
 
 
 def _count(spec):

@@ -78,8 +78,9 @@ def _footprints(tri, charts, scale, side):
     """Per chart (``charts``: its triangles' indices in ``tri`` (T, 3, 2) UVs) at ``scale``, its 4 quarter turns
     [(covered (h, w), footprint (h, w), low)], each with its texel box's corner ``low`` moved to the origin. The
     charts are rasterised once, side by side in one strip (a texel apart), FINE × finer (a texel's centre is the
-    centre of its middle fine texel, FINE odd); a quarter turn maps fine centres onto fine centres, so the turned
-    rasters are the raster turned (:func:`_quarter`)."""
+    centre of its middle fine texel, FINE odd), and their edges are traced at fine-texel steps (:func:`_traced`:
+    a chart thinner than a fine texel still has its outline in its footprint); a quarter turn maps fine texels onto
+    fine texels, so the turned rasters are the rasters turned (:func:`_quarter`)."""
     p = np.asarray(tri, float) * (scale * side)
     lows, boxes, x = [], [], 0
     strip = np.empty_like(p)
@@ -93,20 +94,37 @@ def _footprints(tri, charts, scale, side):
         x += w + 1
     height = max(h for _, _, h in boxes)
     fine = coverage_mask(strip / (x, height), FINE * x, FINE * height)
+    edges = _traced(strip * FINE, FINE * x, FINE * height)
     out = []
     for low, (x0, w, h) in zip(lows, boxes):
-        turns = [(fine[:FINE * h, FINE * x0:FINE * (x0 + w)], low)]
+        cols = slice(FINE * x0, FINE * (x0 + w))
+        turns = [(fine[:FINE * h, cols], edges[:FINE * h, cols], low)]
         for _ in range(3):
             turns.append(_quarter(*turns[-1]))
         out.append([(f[FINE // 2::FINE, FINE // 2::FINE],
-                     f.reshape(f.shape[0] // FINE, FINE, -1, FINE).any(axis=(1, 3)), lo) for f, lo in turns])
+                     (f | g).reshape(f.shape[0] // FINE, FINE, -1, FINE).any(axis=(1, 3)), lo)
+                    for f, g, lo in turns])
     return out
 
 
-def _quarter(fine, low):
-    """The fine raster and box corner of a chart turned a quarter (x, y) -> (-y, x) (:func:`_turned`)."""
+def _traced(tri, width, height):
+    """(height, width) mask of the cells that points along every edge of the triangles ``tri`` (T, 3, 2), in cell
+    units, fall in, taken at most a cell apart (both ends included)."""
+    a = tri.reshape(-1, 2)
+    b = tri[:, [1, 2, 0]].reshape(-1, 2)
+    n = np.ceil(np.linalg.norm(b - a, axis=1)).astype(np.int64) + 1
+    edge = np.repeat(np.arange(len(n)), n)
+    t = (np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)) / np.repeat(np.maximum(n - 1, 1), n)
+    pts = np.floor(a[edge] + t[:, None] * (b - a)[edge]).astype(np.int64)
+    mask = np.zeros((height, width), bool)
+    mask[np.clip(pts[:, 1], 0, height - 1), np.clip(pts[:, 0], 0, width - 1)] = True
+    return mask
+
+
+def _quarter(fine, traced, low):
+    """The fine rasters and box corner of a chart turned a quarter (x, y) -> (-y, x) (:func:`_turned`)."""
     h = fine.shape[0] // FINE
-    return fine[::-1].T, np.array([-low[1] - h, low[0]])
+    return fine[::-1].T, traced[::-1].T, np.array([-low[1] - h, low[0]])
 
 
 def _fast(n):
@@ -140,7 +158,6 @@ def pack(tri, labels, side, margin, scale):
     occupied = np.zeros((side, side), bool)
     if border:
         occupied[:border], occupied[-border:], occupied[:, :border], occupied[:, -border:] = True, True, True, True
-
     charts = [np.flatnonzero(labels == k) for k in range(int(labels.max()) + 1)] if len(labels) else []
     shapes = _footprints(tri, charts, scale, side)
     order = sorted(range(len(charts)), key=lambda i: (-int(shapes[i][0][1].sum()), i))
@@ -151,13 +168,13 @@ def pack(tri, labels, side, margin, scale):
         if min(hmax, wmax) > side:
             return None
         size = (_fast(side + hmax), _fast(side + wmax))
-        room = np.fft.rfft2(occupied.astype(np.float32), s=size)
+        room = np.fft.rfft2(occupied.astype(np.float64), s=size)
         best = None
         for turns, (cov, foot, low) in enumerate(shapes[i]):
             h, w = foot.shape
             if h > side or w > side:
                 continue
-            hits = np.fft.irfft2(room * np.fft.rfft2(foot[::-1, ::-1].astype(np.float32), s=size), s=size)
+            hits = np.fft.irfft2(room * np.fft.rfft2(foot[::-1, ::-1].astype(np.float64), s=size), s=size)
             free = np.argwhere(hits[h - 1:side, w - 1:side] < 0.5)
             if len(free):
                 y, x = free[0]                         # the lowest row, then column, of this turn
@@ -169,6 +186,8 @@ def pack(tri, labels, side, margin, scale):
         (_, y, x), turns = best
         cov, foot, low = shapes[i][turns]
         h, w = foot.shape
+        if (occupied[y:y + h, x:x + w] & foot).any():     # the correlation's round-off, never seen: no place
+            return None
         grown = _grown(foot, r)
         y0, x0 = y - r, x - r
         ys, xs = max(y0, 0), max(x0, 0)

@@ -81,12 +81,10 @@ def test_a_store_gives_another_process_the_same_figures(tmp_path, monkeypatch):
     assert isinstance(kept, Seams) and kept.creases == 3
     assert all(np.array_equal(getattr(kept, k), getattr(seams, k)) for k in ("a", "b", "a_in", "b_in"))
     monkeypatch.setattr(memo, "code_digest", lambda: b"other code")   # the code that made them changed
-    with Memo().stored(tmp_path) as store:
-        Memo().call(shells, co, 2)
     other = Memo()
     with other.stored(tmp_path):
         other.call(shells, co, 2)
-    assert made == [2, 2, 2]
+    assert made == [2, 2]
 
 
 def test_a_store_ignores_packs_it_cannot_read_and_keeps_the_newest(tmp_path, monkeypatch):
@@ -123,3 +121,33 @@ def test_a_store_ignores_packs_it_cannot_read_and_keeps_the_newest(tmp_path, mon
         for k in (5, 4):
             reader.call(shells, co, k)
     assert made == [1, 1, 2, 3, 4, 5]                             # the two newest packs are kept
+
+
+def test_a_run_writes_one_pack_once_allowed_and_keeps_the_packs_it_reads(tmp_path, monkeypatch):
+    made = []
+    shells = _counted(made)
+    co = np.ones((3, 3), np.float32)
+    monkeypatch.setattr(memo.Store, "MAX_PACKS", 1)
+    run = Memo()
+    with run.stored(tmp_path) as store:
+        run.call(shells, co, 0)
+        assert os.listdir(tmp_path) == []                            # nothing before a map is written
+        for k in range(1, 70):                                       # a report merge after every map
+            run.call(shells, co, k)
+            store.flush()
+    assert len(os.listdir(tmp_path)) == 1
+    second = Memo()
+    with second.stored(tmp_path) as store:
+        second.call(shells, co, 0)                                   # read from the first run's pack
+        second.call(shells, co, 70)
+        store.flush()
+    assert len(os.listdir(tmp_path)) == 2                            # the pack it read is not pruned
+    reader = Memo()
+    with reader.stored(tmp_path):
+        for k in range(71):
+            reader.call(shells, co, k)
+    assert made == list(range(71))
+    unused = Memo()
+    with unused.stored(tmp_path) as store:                           # a run that writes no map writes nothing
+        unused.call(shells, co, 99)
+    assert len(os.listdir(tmp_path)) == 2 and made[-1] == 99

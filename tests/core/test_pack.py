@@ -83,3 +83,25 @@ def test_texel_packing_covers_more_than_the_charts_boxes_side_by_side():
     before = int(lightmap.coverage_mask(uv[tris], side, side).sum())
     assert packing.covered > 1.3 * before
     assert pack.largest(uv[tris] * 40, labels, side, margin) is None     # charts larger than the map: no place
+
+
+def test_a_chart_thinner_than_a_texel_keeps_its_distance():
+    """A 16 x 16 texel square and a 22 x 0.25 texel strip (no texel centre, no fine-raster centre inside it) at 32²:
+    the strip's outline is traced into its footprint, so its texel box keeps clear of the square's by the margin's
+    spacing (2m - 2, at least 1 texel) instead of landing on it."""
+    side = 32
+    square = np.array([[(1, 1), (17, 1), (17, 17)], [(1, 1), (17, 17), (1, 17)]], float) / side
+    strip = np.array([[(1, 22.2), (23, 22.2), (23, 22.45)], [(1, 22.2), (23, 22.45), (1, 22.45)]], float) / side
+    tri = np.concatenate([square, strip])
+    labels = np.array([0, 0, 1, 1])
+    uv = tri.reshape(-1, 2)
+    corner_chart = np.repeat(labels, 3)
+    for margin in (1.0, 2.0):
+        packing = pack.lowest(tri, labels, side, margin)
+        t = pack.moved(uv, corner_chart, packing, side).reshape(-1, 3, 2) * side
+        boxes = [(np.floor(t[labels == k].reshape(-1, 2).min(0)), np.ceil(t[labels == k].reshape(-1, 2).max(0)))
+                 for k in (0, 1)]
+        (lo0, hi0), (lo1, hi1) = boxes
+        gap = np.maximum(lo1 - hi0, lo0 - hi1).max()              # texels between the boxes along one axis
+        assert gap >= max(1, 2 * margin - 2) - 1, (margin, boxes)
+        assert lo1.min() >= np.ceil(margin) - 1 - 1 and hi1.max() <= side - (np.ceil(margin) - 1) + 1
