@@ -64,7 +64,8 @@ def _bake(objects, maps, out, options, scene, on_step):
     options = options or BakeOptions()
     scene = scene or bpy.context.scene
     objects, maps, out, skipped, flips, failed = validate(scene, objects, maps, out, options)
-    remove_stale_temporaries(out)              # what a killed earlier run was writing
+    for folder in (out, os.path.join(out, uvcache.DIR), figures_folder(out)):
+        remove_stale_temporaries(folder)       # what a killed earlier run was writing
     say_skipped(skipped)
     if options.denoise and options.target != "image":
         errors.warn("denoise ignored: the denoiser works on image maps, not on vertex colours")

@@ -3,6 +3,7 @@ a corrupt entry is rebuilt, files stay inside the output folder; the figures of 
 measured again, by a new process; the UV step's progress (objects done / total)."""
 import functools
 import os
+import pathlib
 import re
 
 import bpy
@@ -265,3 +266,23 @@ def test_a_rerun_in_a_new_process_reads_the_figures_instead_of_measuring_them_ag
     monkeypatch.setattr(memo, "code_digest", lambda: b"another version")
     bake()
     assert {"overlap_fraction", "inward_shells", "_seam_edges"} <= set(calls)
+
+
+def test_temporaries_a_killed_run_left_in_the_cache_folders_are_removed(tmp_path):
+    """A run killed while it wrote a layout or a figure pack leaves '.<stem>.<host>-<pid>.<random>.tmp.npz' in
+    .il-uv-cache/ or its figures/ folder: the next bake removes them (older than files.STALE_AFTER, process gone),
+    as it does in the output folder."""
+    import subprocess
+    import sys
+    import time
+    from addon.core.io import files
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True,
+                          text=True).stdout.strip()
+    left = [tmp_path / uvcache.DIR / f".{'a' * 40}.{files._HOST}-{dead}.k2j4x9_a.tmp.npz",
+            pathlib.Path(pipeline.figures_folder(tmp_path)) / f".{'b' * 32}.{files._HOST}-{dead}.q1w2e3r4.tmp.npz"]
+    for path in left:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(b"x")
+        os.utime(path, (time.time() - 600, time.time() - 600))
+    _bake(_props()[:1], tmp_path)
+    assert not any(p.exists() for p in left)
