@@ -497,7 +497,9 @@ def test_very_large_and_very_small_objects_get_the_light_map_of_a_one_metre_obje
                                          f"is available: the largest max resolution that fits is {largest}$"):
         bake_lightmaps([made["Huge"]], ["ao"], tmp_path / "density", BakeOptions(texel_density=32,
                        max_resolution=16384, samples=1), scene=scene)
+    me = made["Tiny"].data                # a layout made for the density (the 32² one would be reused)
+    me.uv_layers.remove(me.uv_layers["Lightmap"])
     tiny = bake_lightmaps([made["Tiny"]], ["ao"], tmp_path / "tiny", BakeOptions(texel_density=4e6, samples=1),
                           scene=scene)["objects"]["Tiny"]["ao"]
-    covered = tiny["coverage"] * tiny["resolution"][0] ** 2
+    covered = tiny["coverage"] * tiny["resolution"][0] * tiny["resolution"][1]    # a window: width x height
     assert abs(covered / (4e6 ** 2 * 6e-12) - 1) < 0.1, tiny          # T² × area, as for a 1 m object
