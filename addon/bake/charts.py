@@ -5,6 +5,7 @@ import numpy as np
 
 from ..blender.scene import corner_uv, corner_vertices, positions, read
 from ..core.memo import FIGURES
+from ..core.pack import chart_labels
 from ..core.seams import welded
 
 
@@ -28,26 +29,8 @@ def chart_count(me, layer):
 
 
 def _charts(co, vert, poly, uv):
-    n = len(vert)
-    vert = first_at_position(co)[vert]
-    face = np.repeat(np.arange(len(poly)), np.diff(np.append(poly, n)))
-    bits = uv.view(np.uint32).reshape(-1, 2).astype(np.uint64)
-    uv_key = (bits[:, 0] << np.uint64(32)) | bits[:, 1]
-    order = np.lexsort((uv_key, vert))            # corners of one vertex with equal UVs: one id
-    first = np.ones(n, bool)
-    first[1:] = (vert[order][1:] != vert[order][:-1]) | (uv_key[order][1:] != uv_key[order][:-1])
-    corner = np.empty(n, np.int64)
-    corner[order] = np.cumsum(first) - 1
-    label = np.arange(len(poly))
-    while True:
-        low = np.full(corner.max() + 1, len(poly))
-        np.minimum.at(low, corner, label[face])
-        new = label.copy()
-        np.minimum.at(new, face, low[corner])
-        new = new[new]
-        if np.array_equal(new, label):
-            return len(np.unique(label))
-        label = new
+    face = np.repeat(np.arange(len(poly)), np.diff(np.append(poly, len(vert))))
+    return int(chart_labels(face, first_at_position(co)[vert], uv).max()) + 1
 
 
 def side_for_fill(have, side, per_chart, margin, asked, goal):

@@ -412,7 +412,9 @@ class _Copies:
         uv = corner_uv(o.data, LIGHTMAP)[loops]      # the layout kept so far (the copy may hold one not kept)
         me = obj.data
         tris = corner_triangles(me)
-        labels = pack.chart_labels(tris, corner_vertices(me), uv)
+        corners = tris.ravel()
+        labels = pack.chart_labels(np.repeat(np.arange(len(tris)), 3), corner_vertices(me)[corners],
+                                   uv[corners])
         if not len(labels) or (int(labels.max()) + 1) * side * side > PACK_WORK:
             return
         packing = (pack.lowest if cut else pack.largest)(uv[tris], labels, side, margin)

@@ -29,23 +29,23 @@ FINE = 3
 fine centre of a texel is its own centre)."""
 
 
-def chart_labels(tris, corner_vertex, corner_uv):
-    """(T,) chart of each triangle: triangles joined through corners at one vertex with equal UVs (union by minimum
-    label). ``tris`` (T, 3) corner indices, ``corner_vertex`` (L,) and ``corner_uv`` (L, 2) per corner."""
-    tris = np.asarray(tris, np.int64).reshape(-1, 3)
-    if not len(tris):
+def chart_labels(owner, vertex, uv):
+    """Chart 0..K-1 of each face (or triangle), from its corners: ``owner`` (N,) the face of each corner,
+    ``vertex`` (N,) its vertex, ``uv`` (N, 2) its UVs; faces join through corners at one vertex with equal UVs
+    (bit for bit as float32; union by minimum label with pointer jumping)."""
+    owner = np.asarray(owner, np.int64)
+    if not len(owner):
         return np.zeros(0, np.int64)
-    uv = np.ascontiguousarray(corner_uv, np.float32).reshape(-1, 2)
-    bits = uv.view(np.uint32).astype(np.uint64)
-    key = np.stack([np.asarray(corner_vertex, np.int64), ((bits[:, 0] << np.uint64(32)) | bits[:, 1]).astype(
-        np.int64)], axis=1)
-    _, corner = np.unique(key, axis=0, return_inverse=True)
-    corner = corner.ravel()[tris]                    # (T, 3) corner ids shared by equal corners
-    label = np.arange(len(tris))
+    bits = np.ascontiguousarray(uv, np.float32).reshape(-1, 2).view(np.uint32).astype(np.int64)
+    key = np.stack([np.asarray(vertex, np.int64), (bits[:, 0] << 32) | bits[:, 1]], axis=1)
+    corner = np.unique(key, axis=0, return_inverse=True)[1].ravel()    # one id for equal corners
+    faces = int(owner.max()) + 1
+    label = np.arange(faces)
     while True:
-        low = np.full(int(corner.max()) + 1, len(tris))
-        np.minimum.at(low, corner.ravel(), np.repeat(label, 3))
-        new = np.minimum(label, low[corner].min(axis=1))
+        low = np.full(int(corner.max()) + 1, faces)
+        np.minimum.at(low, corner, label[owner])
+        new = label.copy()
+        np.minimum.at(new, owner, low[corner])
         new = new[new]
         if np.array_equal(new, label):
             return np.unique(label, return_inverse=True)[1].ravel()

@@ -6,6 +6,13 @@ import numpy as np
 from addon.core import lightmap, pack
 
 
+def _labels(tris, vert, uv):
+    """pack.chart_labels of loop triangles ``tris`` (T, 3) over per-corner vertices and UVs."""
+    corners = np.asarray(tris).ravel()
+    return pack.chart_labels(np.repeat(np.arange(len(corners) // 3), 3), np.asarray(vert)[corners],
+                             np.asarray(uv)[corners])
+
+
 def _ring(n, r0, r1):
     """A flat annulus of n quads as loop-triangle corners: (tris (2n, 3) corners, corner vertices, corner UVs)."""
     a = np.linspace(0, 2 * np.pi, n + 1)[:-1]
@@ -42,13 +49,13 @@ def test_charts_join_through_corners_at_one_vertex_with_equal_uvs():
     tris = np.array([[0, 1, 2], [3, 4, 5], [6, 7, 8]])
     vert = np.array([0, 1, 2, 2, 1, 3, 2, 4, 5])
     uv = np.array([(0, 0), (1, 0), (0, 1), (0, 1), (1, 0), (1, 1), (0.5, 1), (0, 0), (0, 0.5)], float)
-    labels = pack.chart_labels(tris, vert, uv)
+    labels = _labels(tris, vert, uv)
     assert labels[0] == labels[1] != labels[2]             # the third shares vertex 2, at another UV: a seam
 
 
 def test_packed_charts_keep_their_margins_and_cover_what_the_packing_claims():
     tris, vert, uv = _layout()
-    labels = pack.chart_labels(tris, vert, uv)
+    labels = _labels(tris, vert, uv)
     assert labels.max() + 1 == 6
     side, margin = 64, 2.0
     packing = pack.largest(uv[tris], labels, side, margin)
@@ -77,7 +84,7 @@ def test_packed_charts_keep_their_margins_and_cover_what_the_packing_claims():
 
 def test_texel_packing_covers_more_than_the_charts_boxes_side_by_side():
     tris, vert, uv = _layout()
-    labels = pack.chart_labels(tris, vert, uv)
+    labels = _labels(tris, vert, uv)
     side, margin = 64, 2.0
     packing = pack.largest(uv[tris], labels, side, margin)
     before = int(lightmap.coverage_mask(uv[tris], side, side).sum())
