@@ -75,31 +75,46 @@ def _turned(p, turns):
     return p
 
 
+SHELF = 2048
+"""Widest row (texels) of the sheet the charts are rasterised on together (:func:`_footprints`)."""
+
+
 def _footprints(tri, charts, scale, side):
     """Per chart (``charts``: its triangles' indices in ``tri`` (T, 3, 2) UVs) at ``scale``, its 4 quarter turns
     [(covered (h, w), footprint (h, w), low)], each with its texel box's corner ``low`` moved to the origin. The
-    charts are rasterised once, side by side in one strip (a texel apart), FINE × finer (a texel's centre is the
-    centre of its middle fine texel, FINE odd), and their edges are traced at fine-texel steps (:func:`_traced`:
-    a chart thinner than a fine texel still has its outline in its footprint); a quarter turn maps fine texels onto
-    fine texels, so the turned rasters are the rasters turned (:func:`_quarter`)."""
+    charts are rasterised once, a texel apart on the shelves of one sheet (the tallest first, shelves at most SHELF
+    texels wide), FINE × finer (a texel's centre is the centre of its middle fine texel, FINE odd), and their edges
+    are traced at fine-texel steps (:func:`_traced`: a chart thinner than a fine texel still has its outline in its
+    footprint); a quarter turn maps fine texels onto fine texels, so the turned rasters are the rasters turned
+    (:func:`_quarter`)."""
     p = np.asarray(tri, float) * (scale * side)
-    lows, boxes, x = [], [], 0
-    strip = np.empty_like(p)
+    lows, sizes = [], []
     for c in charts:
         q = p[c].reshape(-1, 2)
         low = np.floor(q.min(axis=0))
-        w, h = (int(v) + 1 for v in np.ceil(q.max(axis=0) - low))
-        strip[c] = p[c] - low + (x, 0)
         lows.append(low)
-        boxes.append((x, w, h))
+        sizes.append(tuple(int(v) + 1 for v in np.ceil(q.max(axis=0) - low)))
+    width = max([SHELF] + [w for w, _ in sizes])
+    corner = [None] * len(charts)
+    x = y = shelf = sheet_w = 0
+    for k in sorted(range(len(charts)), key=lambda k: (-sizes[k][1], k)):
+        w, h = sizes[k]
+        if x and x + w > width:
+            x, y, shelf = 0, y + shelf + 1, 0
+        corner[k] = (x, y)
         x += w + 1
-    height = max(h for _, _, h in boxes)
-    fine = coverage_mask(strip / (x, height), FINE * x, FINE * height)
-    edges = _traced(strip * FINE, FINE * x, FINE * height)
+        shelf = max(shelf, h)
+        sheet_w = max(sheet_w, x)
+    sheet_h = y + shelf + 1
+    sheet = np.empty_like(p)
+    for c, low, xy in zip(charts, lows, corner):
+        sheet[c] = p[c] - low + xy
+    fine = coverage_mask(sheet / (sheet_w, sheet_h), FINE * sheet_w, FINE * sheet_h)
+    edges = _traced(sheet * FINE, FINE * sheet_w, FINE * sheet_h)
     out = []
-    for low, (x0, w, h) in zip(lows, boxes):
-        cols = slice(FINE * x0, FINE * (x0 + w))
-        turns = [(fine[:FINE * h, cols], edges[:FINE * h, cols], low)]
+    for low, (w, h), (x0, y0) in zip(lows, sizes, corner):
+        box = slice(FINE * y0, FINE * (y0 + h)), slice(FINE * x0, FINE * (x0 + w))
+        turns = [(fine[box], edges[box], low)]
         for _ in range(3):
             turns.append(_quarter(*turns[-1]))
         out.append([(f[FINE // 2::FINE, FINE // 2::FINE],
@@ -151,6 +166,51 @@ def _grown(mask, r):
     return nearest_covered(np.pad(mask, r), r) >= 0
 
 
+BAND = 32
+"""Rows of the map searched at once for a chart's place, from the lowest row with a free texel up (doubled at each
+band without a place; a turn's search stops where no place could have a lower top than the best found)."""
+DIRECT = 48
+"""Footprint texels up to which the offsets that hit an occupied texel are found by one shifted OR per texel;
+larger footprints by the correlation of the map with the footprint (FFT)."""
+
+
+def _conflicts(occupied, foot, rows):
+    """(rows, W - w + 1) bool: whether the footprint ``foot`` (h, w) placed at (y, x) of ``occupied``
+    (rows + h - 1, W) meets an occupied texel."""
+    h, w = foot.shape
+    cols = occupied.shape[1] - w + 1
+    cells = np.argwhere(foot)
+    if len(cells) <= DIRECT:
+        out = np.zeros((rows, cols), bool)
+        for dy, dx in cells:
+            out |= occupied[dy:dy + rows, dx:dx + cols]
+        return out
+    size = (_fast(occupied.shape[0]), _fast(occupied.shape[1]))
+    hits = np.fft.irfft2(np.fft.rfft2(occupied.astype(np.float64), s=size)
+                         * np.fft.rfft2(foot[::-1, ::-1].astype(np.float64), s=size), s=size)
+    return hits[h - 1:h - 1 + rows, w - 1:w - 1 + cols] >= 0.5
+
+
+def _first_free(occupied, foot, low, best_top):
+    """(y, x) of the footprint's first free place in row-major order whose first texel row is at ``low`` or above
+    (the rows below are full), or None when there is none
+    or none whose top y + h could be at most ``best_top`` (None: no bound). Searched in bands of rows (BAND)."""
+    side_h, side_w = occupied.shape
+    h, w = foot.shape
+    if h > side_h or w > side_w or not foot.any():
+        return None
+    y, band = max(0, low - int(np.argmax(foot.any(axis=1)))), max(BAND, 2 * h)
+    while y <= side_h - h and (best_top is None or y + h <= best_top):
+        rows = min(band, side_h - h + 1 - y)
+        free = np.flatnonzero(~_conflicts(occupied[y:y + rows + h - 1], foot, rows))
+        if len(free):
+            dy, x = divmod(int(free[0]), side_w - w + 1)
+            return y + dy, x
+        y += rows
+        band *= 2
+    return None
+
+
 def pack(tri, labels, side, margin, scale):
     """:class:`Packing` of the charts (``labels`` of the triangles ``tri`` (T, 3, 2), UVs of a ``side``² map) at
     ``scale`` with a margin of ``margin`` texels, or None when one finds no place."""
@@ -159,32 +219,25 @@ def pack(tri, labels, side, margin, scale):
     occupied = np.zeros((side, side), bool)
     if border:
         occupied[:border], occupied[-border:], occupied[:, :border], occupied[:, -border:] = True, True, True, True
-    charts = [np.flatnonzero(labels == k) for k in range(int(labels.max()) + 1)] if len(labels) else []
+    charts = _charts(labels)
     shapes = _footprints(tri, charts, scale, side)
     order = sorted(range(len(charts)), key=lambda i: (-int(shapes[i][0][1].sum()), i))
     placements, covered = [None] * len(charts), 0
     for i in order:
-        hmax = max(s[1].shape[0] for s in shapes[i])
-        wmax = max(s[1].shape[1] for s in shapes[i])
-        if min(hmax, wmax) > side:
+        if min(max(s[1].shape[0] for s in shapes[i]), max(s[1].shape[1] for s in shapes[i])) > side:
             return None
-        size = (_fast(side + hmax), _fast(side + wmax))
-        room = np.fft.rfft2(occupied.astype(np.float64), s=size)
-        best = None
-        for turns, (cov, foot, low) in enumerate(shapes[i]):
-            h, w = foot.shape
-            if h > side or w > side:
-                continue
-            hits = np.fft.irfft2(room * np.fft.rfft2(foot[::-1, ::-1].astype(np.float64), s=size), s=size)
-            free = np.argwhere(hits[h - 1:side, w - 1:side] < 0.5)
-            if len(free):
-                y, x = free[0]                         # the lowest row, then column, of this turn
-                key = (int(y) + h, int(y), int(x))      # the turn whose top is lowest
+        low = int(np.argmin(occupied.all(axis=1))) if not occupied.all() else side
+        best = None                                  # ((top, y, x, turn)): the lowest top, then row, column, turn
+        for turns in sorted(range(4), key=lambda t: (shapes[i][t][1].shape[0], t)):
+            foot = shapes[i][turns][1]
+            place = _first_free(occupied, foot, low, best[0][0] if best else None)
+            if place is not None:
+                key = (place[0] + foot.shape[0], place[0], place[1], turns)
                 if best is None or key < best[0]:
                     best = (key, turns)
         if best is None:
             return None
-        (_, y, x), turns = best
+        (_, y, x, _), turns = best
         cov, foot, low = shapes[i][turns]
         h, w = foot.shape
         if (occupied[y:y + h, x:x + w] & foot).any():     # the correlation's round-off, never seen: no place
@@ -197,6 +250,15 @@ def pack(tri, labels, side, margin, scale):
         placements[i] = Placement(turns, low, (int(x), int(y)))
         covered += int(cov.sum())
     return Packing(scale, placements, covered)
+
+
+def _charts(labels):
+    """The triangles of each chart 0..K-1 (``labels``: each triangle's chart)."""
+    if not len(labels):
+        return []
+    order = np.argsort(labels, kind="stable")
+    bounds = np.searchsorted(labels[order], np.arange(int(labels.max()) + 2))
+    return [order[bounds[k]:bounds[k + 1]] for k in range(len(bounds) - 1)]
 
 
 def largest(tri, labels, side, margin, start=1.0, steps=5):
