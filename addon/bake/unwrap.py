@@ -19,13 +19,13 @@ import bpy
 import numpy as np
 
 from ..blender.scene import corner_triangles, corner_uv, corner_vertices, positions
-from ..core import lightmap, pack
+from ..core import lightmap, pack, smoothing
 from ..core.errors import InputError
 from . import uvchecks
 from .charts import first_at_position
 from .options import article
 from .uv import (LIGHTMAP, MAX_UV_LAYERS, _Made, _dilation, _say_enlarged, _write_layer, fixed_side, resolution,
-                 triangles_uv)
+                 triangles_uv, world_area)
 from .uvchecks import (MIN_COVERAGE, _disjoint, _fits, _outside, _overlap, _overlapping, baked_fill, chart_area,
                        density_spread)
 
@@ -115,7 +115,7 @@ def _search(scene, group, state, options, names, weld=True):
     """
     label = ", ".join(f"'{o.name}'" for o in group)
     fixed = fixed_side(group[0], options)
-    with _Copies(scene, group, state, weld) as copies:
+    with _Copies(scene, group, state, weld, texel_size(group, options, fixed)) as copies:
         try:
             made = _search_copies(copies, group, options, names, label, fixed)
         except InputError as e:
@@ -173,31 +173,53 @@ def _search_copies(copies, group, options, names, label, fixed):
     return _Made(side, _dilation(label, options.margin, margin, side), copies.unwrapper, asked)
 
 
+def texel_size(group, options, fixed):
+    """The size in metres of a texel of the group's map: 1 / the texel density, or at a fixed side the size at
+    which the group's world area fills uvchecks.FILL of the map (what the smoothing of :class:`_Copies` needs)."""
+    if not fixed:
+        return 1.0 / float(options.texel_density)
+    return math.sqrt(sum(world_area(o) for o in group) / (uvchecks.FILL * fixed * fixed))
+
+
 def _fit(copies, group, side, margin, cut):
     """Unwrap at ``side`` with the largest margin (texels) of :func:`_margins` whose layout fits and whose charts
-    fill at least MIN_CHART_AREA of the map (else the fitting layout that fills most); leave it in place and
-    return that margin, or None when none fits. A single mesh's layout is then also tried by Smart UV Project at
+    fill at least MIN_CHART_AREA of the map (else the fitting layout that fills most; dense copies smoothed when
+    no layout of them fits, :meth:`_Copies.try_smoothed`); leave it in place and return that margin, or None when
+    none fits. The layout is then also tried with the dense copies smoothed, and a single mesh's by Smart UV Project at
     WIDE_ANGLE (:meth:`_Copies.try_wide_angle`) and by Lightmap Pack with that margin
     (:meth:`_Copies.try_lightmap_pack`), each kept when it fills more of the map as it is baked (``cut``: cut to
     its window, :func:`baked_fill`)."""
+    best = _fit_margins(copies, group, side, margin)
+    if best is None and copies.smoothed is None and any(copies.smooth):    # no layout of the dense copies fits
+        copies.smoothed = True
+        copies.use_smoothed(True)
+        best = _fit_margins(copies, group, side, margin)
+        if best is None:
+            copies.smoothed = None
+            copies.use_smoothed(False)
+    if best is None:
+        return None
+    copies.try_smoothed(margin_fraction(best[0], side), side, best[0], cut)
+    copies.try_wide_angle(margin_fraction(best[0], side), side, best[0], cut)
+    copies.try_lightmap_pack(margin_fraction(best[0], side), side, best[0], cut)
+    return best[0]
+
+
+def _fit_margins(copies, group, side, margin):
+    """The layout of the largest margin (texels) of :func:`_margins` that fits at ``side`` and fills at least
+    MIN_CHART_AREA (else the fitting one that fills most), left in place: (margin, chart area), or None."""
     best = None
     for m in _margins(margin):
         copies.unwrap(margin_fraction(m, side), side)
         if _fits(copies, group, side):
             area = sum(chart_area(triangles_uv(o, LIGHTMAP)) for o in group)
             if area >= MIN_CHART_AREA:
-                best = (m, area)
-                break
+                return m, area
             if best is None or area > best[1]:
                 best = (m, area)
-    else:
-        if best is not None and best[0] != _margins(margin)[-1]:
-            copies.unwrap(margin_fraction(best[0], side), side)
-    if best is None:
-        return None
-    copies.try_wide_angle(margin_fraction(best[0], side), side, best[0], cut)
-    copies.try_lightmap_pack(margin_fraction(best[0], side), side, best[0], cut)
-    return best[0]
+    if best is not None and best[0] != _margins(margin)[-1]:
+        copies.unwrap(margin_fraction(best[0], side), side)
+    return best
 
 
 def _fit_side(copies, group, side):
@@ -238,16 +260,19 @@ class _Copies:
     """Temporary objects with canonical copies of the group's meshes (:func:`_canonical_copy`: all faces revealed
     and selected, one UV layer, scaled by :func:`unwrap_scale`, faces in an order given by their vertices), where
     the unwrappers run; :meth:`unwrap` copies the result into each mesh's "Lightmap" layer (through the copy's
-    map to the original loops). ``unwrapper`` names the layout in place (SMART or LIGHTMAP_PACK). Removed on
-    exit, also on errors."""
+    map to the original loops). ``unwrapper`` names the layout in place (SMART or LIGHTMAP_PACK). A copy whose
+    edges are shorter than a texel of ``texel`` metres is also unwrapped smoothed below the map's resolution
+    (:meth:`try_smoothed`). Removed on exit, also on errors."""
 
-    def __init__(self, scene, group, state, weld=True):
-        self.scene, self.group, self.state, self.weld = scene, list(group), state, weld
+    def __init__(self, scene, group, state, weld=True, texel=None):
+        self.scene, self.group, self.state, self.weld, self.texel = scene, list(group), state, weld, texel
         self.copies = []
         self.loops = []          # per copy: the original mesh's loop of each of the copy's loops
         self.unwrapper = SMART
         self.welded = False      # the weld joined vertices of some copy
         self.angle = None        # Smart UV Project's angle limit once :meth:`try_wide_angle` decided it
+        self.smooth = []         # per copy: (its positions, smoothed positions) when it is dense, else None
+        self.smoothed = None     # whether the copies' unwraps use the smoothed positions, once :meth:`try_smoothed` decided
 
     def __enter__(self):
         for o in self.group:
@@ -263,6 +288,7 @@ class _Copies:
             for o in self.group:
                 tmp = self.state.track(bpy.data.meshes, bpy.data.meshes.new(f"IL unwrap {o.data.name}"))
                 loops, welded = _canonical_copy(o.data, tmp, scale, self.weld)
+                self.smooth.append(_smoothed_copy(tmp, o.matrix_world, scale, self.texel))
                 self.loops.append(loops)
                 self.welded |= welded
                 tmp.uv_layers.new(name=LIGHTMAP, do_init=False)
@@ -279,6 +305,37 @@ class _Copies:
     def __exit__(self, *exc):
         self._remove()
         return False
+
+    def use_smoothed(self, smoothed):
+        """Put the dense copies' smoothed (or own) positions in place."""
+        for (_, obj), pair in zip(self.copies, self.smooth):
+            if pair is not None:
+                obj.data.vertices.foreach_set("co", pair[int(smoothed)])
+                obj.data.update()
+
+    def try_smoothed(self, margin_uv, side, margin, cut):
+        """When a copy is dense (:func:`_smoothed_copy`): the unwrap again with the dense copies smoothed, at the
+        same margin; kept when it fits a ``side``² map, fills more of it as baked (:func:`baked_fill`), its
+        texel density is as even (:func:`even_enough`: smoothing rounds a dense hard-surface mesh's edges, and its
+        faces there get fewer texels) and no more of its texels lie under several faces. Decided once per copies,
+        at the first side the search tries."""
+        if self.smoothed is not None or not any(self.smooth):
+            return
+        have = baked_fill(self.group, side, margin, cut)
+        spread, shared = density_spread(self.group), _overlap(self.group, side)
+        before, unwrapper = self._uvs([obj for _, obj in self.copies]), self.unwrapper
+        self.use_smoothed(True)
+        self.unwrap(margin_uv, side)
+        if (_fits(self, self.group, side) and baked_fill(self.group, side, margin, cut) > have
+                and even_enough(density_spread(self.group), spread) and _overlap(self.group, side) <= shared):
+            self.smoothed = True
+            return
+        self.smoothed = False
+        self.use_smoothed(False)
+        self.unwrapper = unwrapper
+        for (_, obj), (uv, *_) in zip(self.copies, before):
+            obj.data.uv_layers[LIGHTMAP].data.foreach_set("uv", uv)
+        self._write(before)
 
     def _remove(self):
         for _, obj in self.copies:
@@ -517,6 +574,27 @@ def _canonical_copy(me, tmp, scale, weld=True):
     while len(tmp.uv_layers):
         tmp.uv_layers.remove(tmp.uv_layers[0])
     return loops, changed
+
+
+def _smoothed_copy(tmp, matrix, scale, texel):
+    """(positions, smoothed positions) (flat float32) of the unwrap copy ``tmp`` (vertices × ``scale`` of an
+    object at ``matrix``) when it is dense: smoothed along its normals over two texels of ``texel`` metres
+    (:func:`core.smoothing.steps`: its median edge in the world is under about 1.4 texels); else None. Unwrapped
+    smoothed, the copy is charted by the shape the map resolves; the UVs go to the real mesh, whose vertices kept
+    their place on the surface (:meth:`_Copies.try_smoothed`)."""
+    if not texel or not len(tmp.loops):
+        return None
+    co = positions(tmp).astype(np.float64)
+    lv = corner_vertices(tmp).astype(np.int64)
+    start, total = np.zeros(len(tmp.polygons), np.int64), np.zeros(len(tmp.polygons), np.int64)
+    tmp.polygons.foreach_get("loop_start", start)
+    tmp.polygons.foreach_get("loop_total", total)
+    nxt = smoothing.corner_next(start, total)
+    world = co @ (np.array(matrix, float)[:3, :3].T / scale)
+    k = smoothing.steps(texel, smoothing.median_edge(world, lv, nxt))
+    if not k:
+        return None
+    return co.astype(np.float32).ravel(), smoothing.smoothed(co, lv, nxt, k).astype(np.float32).ravel()
 
 
 def _welded(co, lv, start, total):

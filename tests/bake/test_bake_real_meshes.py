@@ -644,3 +644,67 @@ def test_faces_that_cover_each_other_split_differently_are_unwrapped_unwelded(tm
                          scene=bpy.context.scene)
     assert rep["objects"]["Folded"]["ao"]["overlap"] == 0.0
     assert lightmap_overlap(uvmod.triangles_uv(obj, "Lightmap"), 32) == 0.0
+
+
+def _noisy_ico(level, noise):
+    """An ico sphere of radius 0.4 m, its vertices moved radially by a fixed pseudo-random ``noise`` of the radius
+    (a scan's noise; the level benchmark's "Scan")."""
+    ico = added(bpy.ops.mesh.primitive_ico_sphere_add, subdivisions=level, radius=0.4)
+    bm = bmesh.new()
+    bm.from_mesh(ico.data)
+    rng = np.random.default_rng(27)
+    for v in bm.verts:
+        v.co *= 1.0 + noise * float(rng.uniform(-1, 1))
+    bm.to_mesh(ico.data)
+    bm.free()
+    return ico
+
+
+@pytest.mark.both_versions
+def test_a_noisy_scan_is_charted_by_the_shape_its_map_resolves(tmp_path, monkeypatch):
+    """A 20,480-triangle ico sphere with 2 % radial noise (its normals turn by tens of degrees from face to face) at
+    64²: unwrapped as it is, Smart UV Project cuts it into thousands of charts that fill under 5 % of the map; the
+    unwrap copy smoothed along its normals over two texels (core.smoothing) gives a few charts filling over 50 %, at
+    an even texel density (unwrap.MIN_SPREAD) on the real, noisy triangles."""
+    from addon.bake import unwrap, uvchecks
+    from addon.bake.charts import chart_count
+    from addon.core import smoothing
+    scene = bpy.context.scene
+    scan = _noisy_ico(6, 0.02)
+    opts = BakeOptions(resolution=64, samples=1, margin=2)
+    with monkeypatch.context() as m:
+        m.setattr(smoothing, "MAX_STEPS", 0)
+        with pytest.warns(ILWarning, match="charts cover only"):
+            rough = bake_lightmaps([scan], ["ao"], tmp_path / "rough", opts, scene=scene)["objects"][scan.name]["ao"]
+        rough_charts = chart_count(scan.data, "Lightmap")
+    scan.data.uv_layers.remove(scan.data.uv_layers["Lightmap"])
+    smooth = bake_lightmaps([scan], ["ao"], tmp_path / "smooth", opts, scene=scene)["objects"][scan.name]["ao"]
+    assert rough["coverage"] < 0.05 and rough_charts > 1000, (rough["coverage"], rough_charts)
+    assert smooth["coverage"] > 0.5 and chart_count(scan.data, "Lightmap") <= 20, smooth
+    assert uvchecks.density_spread([scan]) >= unwrap.MIN_SPREAD and uvchecks._overlap([scan], 64) == 0
+
+
+def test_a_dense_hard_surface_mesh_keeps_its_unsmoothed_layout(tmp_path, monkeypatch):
+    """A cube subdivided 5 times (simple, applied: 6,144 faces, edges of 1/16 m) at 64²: smoothed over two texels
+    its edges would round and the faces there get fewer texels (density spread 0.71 against 1.0), so the layout
+    kept is the one unwrapped as it is (unwrap._Copies.try_smoothed), UV for UV."""
+    from addon.bake import uv as uvmod
+    from addon.core import smoothing
+    scene = bpy.context.scene
+    cube = added(bpy.ops.mesh.primitive_cube_add)
+    mod = cube.modifiers.new("Subdivision", "SUBSURF")
+    mod.subdivision_type, mod.levels = "SIMPLE", 5
+    with bpy.context.temp_override(object=cube, active_object=cube):
+        bpy.ops.object.modifier_apply(modifier="Subdivision")
+    opts = BakeOptions(resolution=64, samples=1, margin=2)
+    with monkeypatch.context() as m:
+        m.setattr(smoothing, "MAX_STEPS", 0)
+        bake_lightmaps([cube], ["ao"], tmp_path / "rough", opts, scene=scene)
+    rough = uvmod.triangles_uv(cube, "Lightmap").copy()
+    cube.data.uv_layers.remove(cube.data.uv_layers["Lightmap"])
+    tried = []
+    real = smoothing.smoothed
+    monkeypatch.setattr(smoothing, "smoothed", lambda *a, **k: tried.append(a[3]) or real(*a, **k))
+    bake_lightmaps([cube], ["ao"], tmp_path / "kept", opts, scene=scene)
+    assert tried and tried[0] >= 2
+    np.testing.assert_array_equal(uvmod.triangles_uv(cube, "Lightmap"), rough)
