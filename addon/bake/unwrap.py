@@ -10,6 +10,7 @@ are never written, only the finished UVs are copied into their "Lightmap" layer 
 and the one that renders stay as they were).
 """
 import contextlib
+import dataclasses
 import io
 import math
 import warnings
@@ -34,9 +35,11 @@ SMART, LIGHTMAP_PACK = "smart_project", "lightmap_pack"
 RASTER = "+raster_pack"
 """Added to the unwrapper's name when its charts were placed again by their texels (:mod:`core.pack`)."""
 UNWRAPPERS = (SMART, LIGHTMAP_PACK, SMART + RASTER, LIGHTMAP_PACK + RASTER)
-PACK_WORK = 64 * 256 * 256
-"""Most charts × map texels a layout is packed again for (:meth:`_Copies.try_raster_pack`; the packer's cost grows
-with both: a subdivided Suzanne's 64 charts at 256², about 2.5 s)."""
+PACK_CHARTS = 4096
+PACK_WORK = 2_000_000
+"""Most charts, and charts × map side, a layout is packed again for (:meth:`_Copies.try_raster_pack`; the packer
+searches each chart's place in bands of rows across the map: a subdivided Suzanne's 64 charts at 256² take 2.7 s,
+the quick level's atlas (270 charts, 217²) 1.0 s, 24,401 charts at 620² 44 s)."""
 ANGLE = 1.15192
 """Smart UV Project's angle limit (66°, its default)."""
 WIDE_ANGLE = math.radians(75)
@@ -45,6 +48,10 @@ fewer, larger charts, hence fewer margins. Measured (fill of the window at the s
 spread): an ico sphere (3 subdivisions) 0.44 -> 0.67 at 128², 0.32 -> 0.49 at 64², spread 0.92 both; a torus 0.31
 -> 0.39 at 128²; a UV sphere 0.69 -> 0.55 and a cylinder unchanged (kept at 66°). 85° and 89° fill more by
 foreshortening: spread 0.35-0.75."""
+SMOOTH_OVERLAP = 0.001
+"""Texels under several faces a smoothed layout may have (a tenth of uvchecks.MAX_OVERLAP, where a bake warns) when
+the layout it replaces has fewer: the full level's atlas with its scan smoothed shares 1.0e-4 of its texels against
+3.1e-5, and fills 0.76 of its map against 0.57."""
 SPREAD_SLACK = 0.05
 MIN_SPREAD = 0.8
 """A layout that would replace another (:meth:`_Copies.try_wide_angle`, :meth:`_Copies.try_lightmap_pack`) must be
@@ -85,16 +92,16 @@ def _margins(margin):
 def _unwrap_with_margin(scene, group, state, options, names):
     """Generate "Lightmap" for ``group``; return its :class:`_Made` (side, margin in texels, unwrapper): by
     :func:`_search` on copies whose coincident vertices are welded (:func:`_welded`), or again on copies as the
-    meshes are when the weld joined faces that cover each other (the welded layout fails, or puts texels under
-    several faces: MAX_OVERLAP at the map's side, up to OVERLAP_SIDE); the warnings of the layout not kept are
-    dropped."""
+    meshes are when the weld joined faces that cover each other (the welded layout fails, or puts texels of a welded
+    object under several of its faces: MAX_OVERLAP at the map's side, up to OVERLAP_SIDE; an object the weld left
+    as it was lays out alike either way); the warnings of the layout not kept are dropped."""
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always")
         try:
             made, welded = _search(scene, group, state, options, names, weld=True), None
         except InputError as e:
             made, welded = None, e
-    if made is not None and not (made.welded and _overlapping(group, made.side)):
+    if made is not None and not (made.welded and _overlapping(made.welded, made.side)):
         for w in said:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         return made
@@ -185,10 +192,10 @@ def _fit(copies, group, side, margin, cut):
     """Unwrap at ``side`` with the largest margin (texels) of :func:`_margins` whose layout fits and whose charts
     fill at least MIN_CHART_AREA of the map (else the fitting layout that fills most; dense copies smoothed when
     no layout of them fits, :meth:`_Copies.try_smoothed`); leave it in place and return that margin, or None when
-    none fits. The layout is then also tried with the dense copies smoothed, and a single mesh's by Smart UV Project at
-    WIDE_ANGLE (:meth:`_Copies.try_wide_angle`) and by Lightmap Pack with that margin
-    (:meth:`_Copies.try_lightmap_pack`), each kept when it fills more of the map as it is baked (``cut``: cut to
-    its window, :func:`baked_fill`)."""
+    none fits. A single mesh's layout is then also tried by Smart UV Project at WIDE_ANGLE
+    (:meth:`_Copies.try_wide_angle`) and by Lightmap Pack with that margin (:meth:`_Copies.try_lightmap_pack`), and
+    the layout with the dense copies smoothed (:meth:`_Copies.try_smoothed`), each kept when it fills more of the map
+    as it is baked (``cut``: cut to its window, :func:`baked_fill`)."""
     best = _fit_margins(copies, group, side, margin)
     if best is None and copies.smoothed is None and any(copies.smooth):    # no layout of the dense copies fits
         copies.smoothed = True
@@ -199,9 +206,9 @@ def _fit(copies, group, side, margin, cut):
             copies.use_smoothed(False)
     if best is None:
         return None
-    copies.try_smoothed(margin_fraction(best[0], side), side, best[0], cut)
     copies.try_wide_angle(margin_fraction(best[0], side), side, best[0], cut)
     copies.try_lightmap_pack(margin_fraction(best[0], side), side, best[0], cut)
+    copies.try_smoothed(margin_fraction(best[0], side), side, best[0], cut)
     return best[0]
 
 
@@ -269,9 +276,9 @@ class _Copies:
         self.copies = []
         self.loops = []          # per copy: the original mesh's loop of each of the copy's loops
         self.unwrapper = SMART
-        self.welded = False      # the weld joined vertices of some copy
+        self.welded = []         # the objects whose copies the weld joined vertices of
         self.angle = None        # Smart UV Project's angle limit once :meth:`try_wide_angle` decided it
-        self.smooth = []         # per copy: (its positions, smoothed positions) when it is dense, else None
+        self.smooth = []         # per copy: its _Smoothing when it is dense, else None
         self.smoothed = None     # whether the copies' unwraps use the smoothed positions, once :meth:`try_smoothed` decided
 
     def __enter__(self):
@@ -290,7 +297,8 @@ class _Copies:
                 loops, welded = _canonical_copy(o.data, tmp, scale, self.weld)
                 self.smooth.append(_smoothed_copy(tmp, o.matrix_world, scale, self.texel))
                 self.loops.append(loops)
-                self.welded |= welded
+                if welded:
+                    self.welded.append(o)
                 tmp.uv_layers.new(name=LIGHTMAP, do_init=False)
                 tmp.uv_layers.active_index = 0
                 obj = self.state.track(bpy.data.objects, bpy.data.objects.new(f"IL unwrap {o.name}", tmp))
@@ -308,30 +316,54 @@ class _Copies:
 
     def use_smoothed(self, smoothed):
         """Put the dense copies' smoothed (or own) positions in place."""
-        for (_, obj), pair in zip(self.copies, self.smooth):
-            if pair is not None:
-                obj.data.vertices.foreach_set("co", pair[int(smoothed)])
+        for (_, obj), dense in zip(self.copies, self.smooth):
+            if dense is not None:
+                obj.data.vertices.foreach_set("co", dense.positions(smoothed))
                 obj.data.update()
 
     def try_smoothed(self, margin_uv, side, margin, cut):
         """When a copy is dense (:func:`_smoothed_copy`): the unwrap again with the dense copies smoothed, at the
-        same margin; kept when it fits a ``side``² map, fills more of it as baked (:func:`baked_fill`), its
-        texel density is as even (:func:`even_enough`: smoothing rounds a dense hard-surface mesh's edges, and its
-        faces there get fewer texels) and no more of its texels lie under several faces. Decided once per copies,
-        at the first side the search tries."""
+        same margin and angle. Each layout is first packed by its texels as the search would end it
+        (:meth:`try_raster_pack`: a scan's thousands of tiny charts fill the gaps between an atlas's boxes with
+        texels of no use, which their boxes alone would count as fill); the smoothed one is kept when it fits a
+        ``side``² map, fills more of it as baked (:func:`baked_fill`), its texel density is as even
+        (:func:`even_enough`: smoothing rounds a dense hard-surface mesh's edges, and its faces there get fewer
+        texels) and no more of its texels lie under several faces (or at most SMOOTH_OVERLAP). A copy whose own
+        texels come to lie under several of its faces (more than uvchecks.MAX_OVERLAP; smoothed over its features)
+        is unwrapped as it is, the others smoothed again. Decided once per copies, at the first side the search
+        tries."""
         if self.smoothed is not None or not any(self.smooth):
             return
+        self.try_raster_pack(side, margin, cut)
         have = baked_fill(self.group, side, margin, cut)
         spread, shared = density_spread(self.group), _overlap(self.group, side)
+        clear = [not _overlapping([o], side) for o in self.group]
         before, unwrapper = self._uvs([obj for _, obj in self.copies]), self.unwrapper
         self.use_smoothed(True)
         self.unwrap(margin_uv, side)
+        folded = [i for i, o in enumerate(self.group) if self.smooth[i] and clear[i] and _overlapping([o], side)]
+        if folded:                 # smoothed over their features (a small prop's ears): unwrapped as they are
+            self.use_smoothed(False)
+            for i in folded:
+                self.smooth[i] = None
+            if not any(self.smooth):
+                self._restore(before, unwrapper)
+                self.smoothed = False
+                return
+            self.use_smoothed(True)
+            self.unwrap(margin_uv, side)
+        self.try_raster_pack(side, margin, cut)
         if (_fits(self, self.group, side) and baked_fill(self.group, side, margin, cut) > have
-                and even_enough(density_spread(self.group), spread) and _overlap(self.group, side) <= shared):
+                and even_enough(density_spread(self.group), spread)
+                and _overlap(self.group, side) <= max(shared, SMOOTH_OVERLAP)):
             self.smoothed = True
             return
-        self.smoothed = False
         self.use_smoothed(False)
+        self._restore(before, unwrapper)
+        self.smoothed = False
+
+    def _restore(self, before, unwrapper):
+        """Put back the layout ``before`` (:meth:`_uvs` of the copies) made by ``unwrapper``."""
         self.unwrapper = unwrapper
         for (_, obj), (uv, *_) in zip(self.copies, before):
             obj.data.uv_layers[LIGHTMAP].data.foreach_set("uv", uv)
@@ -453,41 +485,46 @@ class _Copies:
         return smart_fill, packed
 
     def try_raster_pack(self, side, margin, cut):
-        """For one copy whose layout fills under FILL of its map as baked (:func:`baked_fill`) and whose charts
-        × map texels stay within PACK_WORK: the charts of the layout in place placed again by their texels
-        (charts as the welded copy joins them, the same margin): at a fixed side scaled up as far as they fit
-        (:func:`core.pack.largest`), with a texel density (``cut``) at their size in the fewest rows they fit
-        (:func:`core.pack.lowest`: the map is cut to its window, the density asked, fewer texels). Kept when it
-        fits and fills more of its map as baked. The texel density stays as even (one scale for every chart) and no
-        chart comes nearer another than the unwrappers' margins let it."""
-        if len(self.copies) != 1:
+        """For an atlas, or one copy whose layout fills under FILL of its map as baked (:func:`baked_fill`), with at most
+        PACK_CHARTS charts and charts × map side within PACK_WORK: the charts of the layout in place (of every copy
+        of an atlas) placed again by their texels (charts as the welded copies join them, the same margin): at a
+        fixed side scaled up as far as they fit (:func:`core.pack.largest`), with a texel density (``cut``) at
+        their size in the fewest rows they fit (:func:`core.pack.lowest`: the map is cut to its window, the density
+        asked, fewer texels). Kept when it fits and fills more of its map as baked. The texel density stays as even
+        (one scale for every chart) and no chart comes nearer another than the unwrappers' margins let it."""
+        if self.unwrapper.endswith(RASTER):
             return
         have = baked_fill(self.group, side, margin, cut)
-        if have >= uvchecks.FILL:
+        if have >= uvchecks.FILL and len(self.copies) == 1:
             return
-        (o, obj), loops = self.copies[0], self.loops[0]
-        uv = corner_uv(o.data, LIGHTMAP)[loops]      # the layout kept so far (the copy may hold one not kept)
-        me = obj.data
-        tris = corner_triangles(me)
-        corners = tris.ravel()
-        labels = pack.chart_labels(np.repeat(np.arange(len(tris)), 3), corner_vertices(me)[corners],
-                                   uv[corners])
-        if not len(labels) or (int(labels.max()) + 1) * side * side > PACK_WORK:
+        layouts, tri, labels, count = [], [], [], 0
+        for (o, obj), loops in zip(self.copies, self.loops):
+            uv = corner_uv(o.data, LIGHTMAP)[loops]      # the layout kept so far (the copy may hold one not kept)
+            tris = corner_triangles(obj.data)
+            corners = tris.ravel()
+            label = pack.chart_labels(np.repeat(np.arange(len(tris)), 3), corner_vertices(obj.data)[corners],
+                                      uv[corners])
+            chart = np.full(len(uv), -1)
+            chart[corners] = np.repeat(label, 3)
+            if (chart < 0).any():
+                return
+            layouts.append((uv, chart + count))
+            tri.append(uv[tris])
+            labels.append(label + count)
+            count += int(label.max()) + 1 if len(label) else 0
+        if not count or count > PACK_CHARTS or count * side > PACK_WORK:
             return
-        packing = (pack.lowest if cut else pack.largest)(uv[tris], labels, side, margin)
+        packing = (pack.lowest if cut else pack.largest)(np.concatenate(tri), np.concatenate(labels), side, margin)
         if packing is None:
             return
-        chart = np.full(len(uv), -1)
-        chart[tris.ravel()] = np.repeat(labels, 3)
-        if (chart < 0).any():
-            return
-        new = pack.moved(uv, chart, packing, side).astype(np.float32).ravel()
-        self._write([(new,)])
+        new = [(pack.moved(uv, chart, packing, side).astype(np.float32).ravel(),) for uv, chart in layouts]
+        self._write(new)
         if _fits(self, self.group, side) and baked_fill(self.group, side, margin, cut) > have:
-            me.uv_layers[LIGHTMAP].data.foreach_set("uv", new)
+            for (_, obj), (uv,) in zip(self.copies, new):
+                obj.data.uv_layers[LIGHTMAP].data.foreach_set("uv", uv)
             self.unwrapper += RASTER
             return
-        self._write([(uv.ravel(),)])
+        self._write([(uv.ravel(),) for uv, _ in layouts])
 
     def _write(self, uvs):
         """The copies' UVs (:meth:`_uvs`) into their meshes' "Lightmap" layers (each copy loop to its original),
@@ -577,9 +614,9 @@ def _canonical_copy(me, tmp, scale, weld=True):
 
 
 def _smoothed_copy(tmp, matrix, scale, texel):
-    """(positions, smoothed positions) (flat float32) of the unwrap copy ``tmp`` (vertices × ``scale`` of an
-    object at ``matrix``) when it is dense: smoothed along its normals over two texels of ``texel`` metres
-    (:func:`core.smoothing.steps`: its median edge in the world is under about 1.4 texels); else None. Unwrapped
+    """A :class:`_Smoothing` of the unwrap copy ``tmp`` (vertices × ``scale`` of an object at ``matrix``) when it is
+    dense: to be smoothed along its normals over two texels of ``texel`` metres, at most an eighth of its size
+    (:func:`core.smoothing.steps`: its median edge in the world under about 1.4 texels); else None. Unwrapped
     smoothed, the copy is charted by the shape the map resolves; the UVs go to the real mesh, whose vertices kept
     their place on the surface (:meth:`_Copies.try_smoothed`)."""
     if not texel or not len(tmp.loops):
@@ -591,10 +628,28 @@ def _smoothed_copy(tmp, matrix, scale, texel):
     tmp.polygons.foreach_get("loop_total", total)
     nxt = smoothing.corner_next(start, total)
     world = co @ (np.array(matrix, float)[:3, :3].T / scale)
-    k = smoothing.steps(texel, smoothing.median_edge(world, lv, nxt))
-    if not k:
-        return None
-    return co.astype(np.float32).ravel(), smoothing.smoothed(co, lv, nxt, k).astype(np.float32).ravel()
+    k = smoothing.steps(texel, smoothing.median_edge(world, lv, nxt),
+                        math.sqrt(smoothing.surface_area(world, lv, nxt, start)))
+    return _Smoothing(co, lv, nxt, k) if k else None
+
+
+@dataclasses.dataclass
+class _Smoothing:
+    """A dense copy's own positions ``co`` (V, 3), its faces (corner vertices ``lv``, next corners ``nxt``) and the
+    ``steps`` that smooth it; :meth:`positions` computes the smoothed ones once, when first asked."""
+    co: np.ndarray
+    lv: np.ndarray
+    nxt: np.ndarray
+    steps: int
+    _smoothed: np.ndarray = None
+
+    def positions(self, smoothed):
+        """Flat float32 positions: smoothed, or the copy's own."""
+        if not smoothed:
+            return self.co.astype(np.float32).ravel()
+        if self._smoothed is None:
+            self._smoothed = smoothing.smoothed(self.co, self.lv, self.nxt, self.steps).astype(np.float32).ravel()
+        return self._smoothed
 
 
 def _welded(co, lv, start, total):

@@ -67,6 +67,14 @@ class Packing:
     scale: float
     placements: list
     covered: int
+    _moves: tuple = None
+
+    def moves(self):
+        """(K,) quarter turns and (K, 2) shifts (offset − low) of the charts, made once."""
+        if self._moves is None:
+            self._moves = (np.array([p.turns % 4 for p in self.placements], np.int64),
+                           np.array([np.asarray(p.offset, float) - p.low for p in self.placements]).reshape(-1, 2))
+        return self._moves
 
 
 def _turned(p, turns):
@@ -191,15 +199,34 @@ def _conflicts(occupied, foot, rows):
     return hits[h - 1:h - 1 + rows, w - 1:w - 1 + cols] >= 0.5
 
 
-def _first_free(occupied, foot, low, best_top):
+def _longest_runs(free):
+    """(R,) the longest run of True in each row of ``free`` (R, W)."""
+    padded = np.zeros((free.shape[0], free.shape[1] + 2), np.int8)
+    padded[:, 1:-1] = free
+    step = np.diff(padded, axis=1)
+    rows, start = np.nonzero(step == 1)
+    _, end = np.nonzero(step == -1)
+    out = np.zeros(free.shape[0], np.int64)
+    np.maximum.at(out, rows, end - start)
+    return out
+
+
+def _first_free(occupied, runs, foot, low, best_top):
     """(y, x) of the footprint's first free place in row-major order whose first texel row is at ``low`` or above
-    (the rows below are full), or None when there is none
-    or none whose top y + h could be at most ``best_top`` (None: no bound). Searched in bands of rows (BAND)."""
+    (the rows below are full), or None when there is none or none whose top y + h could be at most ``best_top``
+    (None: no bound). Searched in bands of rows (BAND) from the first row where the map's longest free run
+    (``runs``, per row) holds the footprint's longest run of texels in a row."""
     side_h, side_w = occupied.shape
     h, w = foot.shape
     if h > side_h or w > side_w or not foot.any():
         return None
-    y, band = max(0, low - int(np.argmax(foot.any(axis=1)))), max(BAND, 2 * h)
+    need = _longest_runs(foot)
+    dy = int(np.argmax(need))
+    start = max(0, low - int(np.argmax(foot.any(axis=1))))
+    fits = np.flatnonzero(runs[start + dy:side_h - h + 1 + dy] >= need[dy])
+    if not len(fits):
+        return None
+    y, band = start + int(fits[0]), max(BAND, 2 * h)
     while y <= side_h - h and (best_top is None or y + h <= best_top):
         rows = min(band, side_h - h + 1 - y)
         free = np.flatnonzero(~_conflicts(occupied[y:y + rows + h - 1], foot, rows))
@@ -219,6 +246,7 @@ def pack(tri, labels, side, margin, scale):
     occupied = np.zeros((side, side), bool)
     if border:
         occupied[:border], occupied[-border:], occupied[:, :border], occupied[:, -border:] = True, True, True, True
+    runs = _longest_runs(~occupied)
     charts = _charts(labels)
     shapes = _footprints(tri, charts, scale, side)
     order = sorted(range(len(charts)), key=lambda i: (-int(shapes[i][0][1].sum()), i))
@@ -230,7 +258,7 @@ def pack(tri, labels, side, margin, scale):
         best = None                                  # ((top, y, x, turn)): the lowest top, then row, column, turn
         for turns in sorted(range(4), key=lambda t: (shapes[i][t][1].shape[0], t)):
             foot = shapes[i][turns][1]
-            place = _first_free(occupied, foot, low, best[0][0] if best else None)
+            place = _first_free(occupied, runs, foot, low, best[0][0] if best else None)
             if place is not None:
                 key = (place[0] + foot.shape[0], place[0], place[1], turns)
                 if best is None or key < best[0]:
@@ -247,6 +275,7 @@ def pack(tri, labels, side, margin, scale):
         ys, xs = max(y0, 0), max(x0, 0)
         ye, xe = min(y0 + h + 2 * r, side), min(x0 + w + 2 * r, side)
         occupied[ys:ye, xs:xe] |= grown[ys - y0:ye - y0, xs - x0:xe - x0]
+        runs[ys:ye] = _longest_runs(~occupied[ys:ye])
         placements[i] = Placement(turns, low, (int(x), int(y)))
         covered += int(cov.sum())
     return Packing(scale, placements, covered)
@@ -293,9 +322,13 @@ def lowest(tri, labels, side, margin):
 def moved(uv, labels, packing, side):
     """UVs ``uv`` (N, 2) whose charts are ``labels`` (N,) moved by ``packing`` (:func:`pack`) in a ``side``² map."""
     uv = np.asarray(uv, float).reshape(-1, 2)
-    out = np.empty_like(uv)
-    for k, place in enumerate(packing.placements):
-        sel = labels == k
-        p = _turned(uv[sel] * (packing.scale * side), place.turns) - place.low + place.offset
-        out[sel] = p / side
-    return out
+    labels = np.asarray(labels, np.int64)
+    all_turns, all_shifts = packing.moves()
+    turns, shift = all_turns[labels], all_shifts[labels]
+    p = uv * (packing.scale * side)
+    x, y = p[:, 0].copy(), p[:, 1].copy()
+    for t in range(1, 4):                    # (x, y) -> (-y, x) per quarter turn (:func:`_turned`)
+        sel = turns == t
+        for _ in range(t):
+            x[sel], y[sel] = -y[sel], x[sel].copy()
+    return (np.stack([x, y], axis=1) + shift) / side

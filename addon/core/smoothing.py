@@ -14,6 +14,8 @@ triangles (a soup: all neighbours in the face's plane) do not move. k steps spre
 (an ico sphere of 81,920 triangles, 2 % radial noise) at 10 texels per metre: Smart UV Project makes 21,530 charts
 of it as it is, and tens once it is smoothed (docs/lightmaps.md).
 """
+import math
+
 import numpy as np
 
 LAMBDA = 0.5
@@ -27,12 +29,20 @@ RADIUS = 2.0
 """Smoothing radius in texels: a map resolves nothing finer than two texels (its Nyquist limit)."""
 
 
-def steps(texel, edge):
-    """Smoothing steps k for a texel of ``texel`` and a median edge of ``edge`` (one length unit): the radius
-    √k · edge reaches RADIUS texels, 0 below two steps, at most MAX_STEPS."""
-    if not edge > 0 or not texel > 0:
+SIZE_FRACTION = 8.0
+"""The radius is at most the mesh's size (√ of its area) over this: smoothed over more, a small prop's ears and nose
+fold into its head and the unwrapper's charts of the blob overlap on the real mesh (the full level's monkeys, a
+few texels wide: 1-4 % of their texels under several faces)."""
+
+
+def steps(texel, edge, size=math.inf):
+    """Smoothing steps k for a texel of ``texel``, a median edge of ``edge`` and a mesh of size ``size`` (one length
+    unit): the radius √k · edge reaches RADIUS texels or size / SIZE_FRACTION; 0 below two steps or for a mesh under
+    SIZE_FRACTION texels (a radius under a texel: its charts are a few texels whatever the unwrapper does), at most
+    MAX_STEPS."""
+    if not edge > 0 or not texel > 0 or size < SIZE_FRACTION * texel:
         return 0
-    k = int((RADIUS * texel / edge) ** 2)
+    k = int((min(RADIUS * texel, size / SIZE_FRACTION) / edge) ** 2)
     return min(k, MAX_STEPS) if k >= 2 else 0
 
 
@@ -50,6 +60,17 @@ def median_edge(co, corner_vertex, nxt):
     if not len(corner_vertex):
         return 0.0
     return float(np.median(np.linalg.norm(co[corner_vertex[nxt]] - co[corner_vertex], axis=1)))
+
+
+def surface_area(co, corner_vertex, nxt, start):
+    """Area of the faces (corners ``corner_vertex``, next corners ``nxt``, faces' first corners ``start``,
+    ascending) of vertices ``co`` (V, 3): half the norm of each face's Newell sum Σ p × p_next."""
+    if not len(corner_vertex):
+        return 0.0
+    p = np.asarray(co, np.float64).reshape(-1, 3).T
+    c = _cross(p[:, corner_vertex], p[:, corner_vertex[nxt]])
+    per_face = np.add.reduceat(c, np.asarray(start, np.int64), axis=1)
+    return float(0.5 * np.sqrt((per_face * per_face).sum(axis=0)).sum())
 
 
 def _cross(a, b):

@@ -366,10 +366,12 @@ def _lightmap_uvs(obj):
     return uv.reshape(-1, 2)
 
 
-def _chart_masks(obj, res):
-    """Coverage mask of each quad of ``obj`` in "Lightmap" (each face of a box or plane is a chart)."""
+def _chart_masks(obj, res, height=None):
+    """Coverage mask of each quad of ``obj`` in "Lightmap" (each face of a box or plane is a chart) in a res x height
+    map (square without ``height``)."""
     uv = _lightmap_uvs(obj)
-    return [lm.coverage_mask(uv[list(p.loop_indices)][[[0, 1, 2], [0, 2, 3]]], res, res) for p in obj.data.polygons]
+    return [lm.coverage_mask(uv[list(p.loop_indices)][[[0, 1, 2], [0, 2, 3]]], res, height or res)
+            for p in obj.data.polygons]
 
 
 def test_generated_atlas_keeps_texel_density_and_margins_and_dilation_hides_seams(tmp_path):
@@ -383,19 +385,20 @@ def test_generated_atlas_keeps_texel_density_and_margins_and_dilation_hides_seam
     rep = bake_lightmaps([a, b], ["ao"], tmp_path, BakeOptions(texel_density=density, samples=1, atlas=True,
                                                                margin=margin, ao_distance=1.0), scene=scene)
     ch = read(tmp_path, "atlas", "ao")[0]
-    res = ch["A"].shape[0]
-    assert rep["objects"]["A"]["ao"]["resolution"] == [res, res] and rep["objects"]["B"]["ao"]["file"].endswith(
+    height, res = ch["A"].shape
+    assert rep["objects"]["A"]["ao"]["resolution"] == [res, height] and rep["objects"]["B"]["ao"]["file"].endswith(
         "atlas_ao.exr")
     # the texel density holds: covered texels = T² × 10 m² (within the rasterisation of the chart borders)
     assert abs((ch["A"] > 0).sum() / (density ** 2 * 10.0) - 1) < 0.06
-    # the 7 charts lie at least 2 × margin texels apart (chessboard), so dilation never mixes two charts
-    charts = _chart_masks(a, res) + _chart_masks(b, res)
+    # the 7 charts' covered texels lie at least 2 × margin − 1 texels apart (chessboard: the texels they touch keep
+    # 2m − 2 free texels between them, core.pack), so each gap texel the dilation fills is nearest to one chart
+    charts = _chart_masks(a, res, height) + _chart_masks(b, res, height)
     for i, mask in enumerate(charts):
         others = np.any([m for j, m in enumerate(charts) if j != i], axis=0)
         src = lm.nearest_covered(others).ravel()
         ys, xs = np.nonzero(mask)
         sy, sx = np.divmod(src[ys * res + xs], res)
-        assert np.maximum(abs(sy - ys), abs(sx - xs)).min() >= 2 * margin
+        assert np.maximum(abs(sy - ys), abs(sx - xs)).min() >= 2 * margin - 1
     # nothing is occluded (k_A = 1 exactly on every covered texel), so a bilinear lookup anywhere on the
     # surface, even at a chart corner on a UV seam, must read 1; without the dilation it reads black there
     y, cov = np.flipud(ch["Y"]), np.flipud(ch["A"]) > 0

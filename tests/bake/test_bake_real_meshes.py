@@ -708,3 +708,40 @@ def test_a_dense_hard_surface_mesh_keeps_its_unsmoothed_layout(tmp_path, monkeyp
     bake_lightmaps([cube], ["ao"], tmp_path / "kept", opts, scene=scene)
     assert tried and tried[0] >= 2
     np.testing.assert_array_equal(uvmod.triangles_uv(cube, "Lightmap"), rough)
+
+
+def test_an_atlas_is_packed_by_its_texels_and_fills_more_than_pack_islands(tmp_path, monkeypatch):
+    """An atlas of a subdivided Suzanne, a torus and a cone at 128² (2-texel margins): its charts placed by their
+    texels (core.pack, every object's together) cover more of the map than Blender's uv.pack_islands of the same
+    charts (the level benchmark's measure, lab.bench.level.pack_islands_utilisation) and than the layout packed by
+    boxes, with no texel under faces of two objects."""
+    from addon.bake import unwrap, uvchecks
+    from addon.core import lightmap
+    from addon.lab.bench import level
+    scene = bpy.context.scene
+    suzanne = added(bpy.ops.mesh.primitive_monkey_add)
+    sub = suzanne.modifiers.new("Subdivision", "SUBSURF")
+    sub.levels = sub.render_levels = 1
+    with bpy.context.temp_override(object=suzanne, active_object=suzanne):
+        bpy.ops.object.modifier_apply(modifier=sub.name)
+    torus = added(bpy.ops.mesh.primitive_torus_add, location=(3, 0, 0))
+    cone = added(bpy.ops.mesh.primitive_cone_add, location=(-3, 0, 0))
+    group = [suzanne, torus, cone]
+    options = BakeOptions(resolution=128, samples=1, margin=2, atlas=True)
+
+    def bake(out):
+        for o in group:
+            if "Lightmap" in o.data.uv_layers:
+                o.data.uv_layers.remove(o.data.uv_layers["Lightmap"])
+        rep = bake_lightmaps(group, ["ao"], tmp_path / out, options, scene=scene)["objects"]
+        return rep[suzanne.name]["ao"], sum(rep[o.name]["ao"]["coverage"] for o in group)
+    with monkeypatch.context() as m:
+        m.setattr(unwrap, "PACK_CHARTS", 0)
+        boxes, boxes_fill = bake("boxes")
+    packed, packed_fill = bake("packed")
+    islands = level.pack_islands_utilisation(group, (128, 128), packed["margin"], cut=False)
+    assert packed["unwrap"].endswith("+raster_pack") and not boxes["unwrap"].endswith("+raster_pack")
+    assert packed_fill > max(boxes_fill, islands), (packed_fill, boxes_fill, islands)
+    assert packed_fill == pytest.approx(uvchecks.fill(group, 128), abs=1e-6 if compat.BAKE_TOUCHED_TEXELS else 0.01)
+    masks = [lightmap.coverage_mask(uvchecks.triangles_uv(o, "Lightmap"), 128, 128) for o in group]
+    assert not (np.sum(masks, axis=0) > 1).any()

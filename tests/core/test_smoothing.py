@@ -49,3 +49,16 @@ def test_loose_triangles_do_not_move():
     corners = np.arange(30)
     nxt = smoothing.corner_next(np.arange(0, 30, 3), np.full(10, 3))
     np.testing.assert_allclose(smoothing.smoothed(co, corners, nxt, 20), co, atol=1e-12)
+
+
+def test_surface_area_is_the_faces_area():
+    co, corners, nxt = _grid(5, 0.0)
+    assert smoothing.surface_area(co * 0.5, corners, nxt, np.arange(16) * 4) == 16 * 0.25
+    tri = np.array([[0, 0, 0], [2, 0, 0], [0, 0, 3]], float)
+    assert np.isclose(smoothing.surface_area(tri, np.arange(3), np.array([1, 2, 0]), [0]), 3.0)
+
+
+def test_a_small_mesh_is_smoothed_over_an_eighth_of_its_size_at_most():
+    assert smoothing.steps(1.0, 0.5, size=12.0) == 9      # (12 / 8 / 0.5)², not (2 / 0.5)² = 16
+    assert smoothing.steps(1.0, 0.5, size=20.0) == 16
+    assert smoothing.steps(1.0, 0.1, size=4.0) == 0       # under 8 texels: a few texels whatever the unwrapper does
