@@ -479,14 +479,14 @@ def test_very_large_and_very_small_objects_get_the_light_map_of_a_one_metre_obje
     largest map"): Smart UV Project lost their charts. Their unwrap copies are scaled to about 1 m, so a fixed
     resolution covers them as it covers a 1 m plane and cube; --texel-density stays texels per metre of the real
     object, and on the huge plane the memory limit refuses the side it asks for, naming the --max-resolution."""
-    from addon.bake import cost, unwrap
+    from addon.bake import cost, unwrap_copy
     from addon.core import budget
     from addon.core.errors import InputError
     scene = sc.new_scene("T")
     made = {"Huge": sc.plane(scene, "Huge", 4e6), "Plane": sc.plane(scene, "Plane", 1.0, location=(0, 0, 1e7)),
             "Tiny": sc.box(scene, "Tiny", 1e-6, location=(0, 0, -1e7)),
             "Cube": sc.box(scene, "Cube", 1.0, location=(0, 0, 2e7))}
-    assert unwrap.unwrap_scale([made["Huge"].data]) == 2.0 ** -22 and unwrap.unwrap_scale([made["Cube"].data]) == 1.0
+    assert unwrap_copy.unwrap_scale([made["Huge"].data]) == 2.0 ** -22 and unwrap_copy.unwrap_scale([made["Cube"].data]) == 1.0
     rep = bake_lightmaps(list(made.values()), ["ao"], tmp_path / "fixed", BakeOptions(resolution=32, samples=1),
                          scene=scene)["objects"]
     for big, one in (("Huge", "Plane"), ("Tiny", "Cube")):

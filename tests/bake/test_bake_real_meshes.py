@@ -554,7 +554,7 @@ def test_a_triangle_soup_is_unwrapped_as_the_surface_it_is(tmp_path, monkeypatch
     """A triangle soup (an ico sphere whose 320 faces share no vertex, as an STL or a scan arrives) gets the charts of
     the surface its faces make: as few charts as the welded sphere (counted through corners at one position) and
     as much of the map covered, where one chart per triangle (the unwrap copy not welded) covers less."""
-    from addon.bake import unwrap
+    from addon.bake import unwrap, unwrap_copy
     from addon.bake.charts import chart_count
     monkeypatch.setattr(unwrap, "LIGHTMAP_PACK_TRIANGLES", 0)
     scene = bpy.context.scene
@@ -574,7 +574,7 @@ def test_a_triangle_soup_is_unwrapped_as_the_surface_it_is(tmp_path, monkeypatch
     assert _fill(soup, 64) >= 0.95 * _fill(sphere, 64), (_fill(soup, 64), _fill(sphere, 64))
     assert rep["objects"]["Soup"]["ao"]["overlap"] == 0.0
     joined = _fill(soup, 64)
-    monkeypatch.setattr(unwrap, "_welded", lambda co, lv, start, total: (co, lv))
+    monkeypatch.setattr(unwrap_copy, "welded_vertices", lambda co, lv, start, total: (co, lv))
     soup.data.uv_layers.remove(soup.data.uv_layers["Lightmap"])
     bake_lightmaps([soup], ["ao"], tmp_path / "b", opts, scene=scene)
     assert chart_count(soup.data, "Lightmap") == 320 or _fill(soup, 64) < 0.8 * joined
@@ -621,12 +621,12 @@ def test_a_third_copy_of_every_face_gets_vertices_of_its_own(tmp_path):
     """A cube stored three times on its own vertices, the copy on the lowest vertex ids last: welded, the third
     copy would land on the first's vertices (a mesh Blender reports invalid, "face 1 is a duplicate of 0", and
     texels under two faces); each copy gets its own, the unwrap copy is valid and the map has no overlap."""
-    from addon.bake import unwrap, uv as uvmod
+    from addon.bake import unwrap_copy, uv as uvmod
     corners = [(x, y, z) for x in (0, 1) for y in (0, 1) for z in (0, 1)]
     box = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
     obj = _from_faces("Triple", corners * 3, [[v + 8 * k for v in f] for k in (1, 2, 0) for f in box])
     tmp = bpy.data.meshes.new("copy")
-    loops, welded = unwrap._canonical_copy(obj.data, tmp, 1.0)
+    loops, welded = unwrap_copy.canonical_copy(obj.data, tmp, 1.0)
     assert welded and not tmp.validate(verbose=False)
     assert sorted(loops) == list(range(len(obj.data.loops)))
     rep = bake_lightmaps([obj], ["ao"], tmp_path, BakeOptions(resolution=64, samples=1, margin=1),

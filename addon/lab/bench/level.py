@@ -20,7 +20,7 @@ import time
 import bpy
 import numpy as np
 
-from ...bake import unwrap, uv as uvmod
+from ...bake import unwrap, unwrap_copy, uv as uvmod
 from ...bake.options import BakeOptions
 from ...bake.pipeline import bake_lightmaps
 from ...blender import compat, render
@@ -228,7 +228,7 @@ def pack_islands_utilisation(objects, size, margin, cut=True):
     ``uv.pack_islands`` (same margin as a fraction of the side, bounding boxes, rotation; concave and convex shapes
     took minutes for a few hundred charts) in a square of the map's longer side, then (``cut``: a texel-density
     map) cut to the window of its charts as the pipeline cuts its own (``uv._cut_window``): packed as the pipeline packs, on the canonical copies
-    of the meshes (``unwrap._canonical_copy``, the same scale; the packer's result depends on the face order, which
+    of the meshes (``unwrap_copy.canonical_copy``, the same scale; the packer's result depends on the face order, which
     Blender's UV sphere changes from process to process), the charts carried back to the meshes' own loops (UVs of
     a w x h map given to the packer in texels / the longer side, so that its charts keep their shape)."""
     side = max(size)
@@ -236,13 +236,13 @@ def pack_islands_utilisation(objects, size, margin, cut=True):
     scene = bpy.context.scene
     vl = bpy.context.view_layer
     copies, loops = [], []
-    scale = unwrap.unwrap_scale(o.data for o in objects)
+    scale = unwrap_copy.unwrap_scale(o.data for o in objects)
     try:
         for o in objects:
             me = bpy.data.meshes.new(f"IL pack {o.name}")
             copy = bpy.data.objects.new(f"IL pack {o.name}", me)
             copies.append(copy)
-            loops.append(unwrap._canonical_copy(o.data, me, scale)[0])
+            loops.append(unwrap_copy.canonical_copy(o.data, me, scale)[0])
             uv = np.zeros(len(o.data.loops) * 2, np.float32)
             o.data.uv_layers[uvmod.LIGHTMAP].data.foreach_get("uv", uv)
             me.uv_layers.new(name=uvmod.LIGHTMAP, do_init=False).data.foreach_set(
