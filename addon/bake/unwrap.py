@@ -3,8 +3,9 @@ for a single mesh that fills under ``uvchecks.FILL``), or a single mesh's Lightm
 of the map as evenly (:func:`even_enough`); packed with a margin of ``margin`` texels (a fraction of the map: charts
 lie 2 × margin apart, so the dilation never reaches a neighbour), halved down to half a texel until the charts lie
 inside the unit square and cover the map (``uvchecks.MIN_COVERAGE``), at the side a texel density asks
-(:func:`_search`); a single mesh's layout that still fills under ``uvchecks.FILL`` then has its charts placed again by
-their texels (:meth:`_Copies.try_raster_pack`, :mod:`core.pack`). The unwrappers run on temporary canonical copies
+(:func:`_search`); an atlas's layout, and a single mesh's that still fills under ``uvchecks.FILL``, then has its charts
+placed again by their texels (:meth:`_Copies.try_raster_pack`, :mod:`core.pack`); a dense mesh is also unwrapped
+smoothed below the map's resolution (:meth:`_Copies.try_smoothed`). The unwrappers run on temporary canonical copies
 (:class:`_Copies`, :func:`unwrap_copy.canonical_copy`): the user's meshes never enter edit mode and their select / hide flags
 are never written, only the finished UVs are copied into their "Lightmap" layer (the other layers, the active one
 and the one that renders stay as they were).
@@ -89,7 +90,7 @@ def _margins(margin):
 
 def _unwrap_with_margin(scene, group, state, options, names):
     """Generate "Lightmap" for ``group``; return its :class:`_Made` (side, margin in texels, unwrapper): by
-    :func:`_search` on copies whose coincident vertices are welded (:func:`weld`), or again on copies as the
+    :func:`_search` on copies whose coincident vertices are welded (:func:`unwrap_copy.welded_vertices`), or again on copies as the
     meshes are when the weld joined faces that cover each other (the welded layout fails, or puts texels of a welded
     object under several of its faces: MAX_OVERLAP at the map's side, up to OVERLAP_SIDE; an object the weld left
     as it was lays out alike either way); the warnings of the layout not kept are dropped."""
@@ -188,8 +189,8 @@ def texel_size(group, options, fixed):
 
 def _fit(copies, group, side, margin, cut):
     """Unwrap at ``side`` with the largest margin (texels) of :func:`_margins` whose layout fits and whose charts
-    fill at least MIN_CHART_AREA of the map (else the fitting layout that fills most; dense copies smoothed when
-    no layout of them fits, :meth:`_Copies.try_smoothed`); leave it in place and return that margin, or None when
+    fill at least MIN_CHART_AREA of the map (else the fitting layout that fills most; when no layout of the copies as
+    they are fits, the dense copies are smoothed at once, :meth:`_Copies.use_smoothed`); leave it in place and return that margin, or None when
     none fits. A single mesh's layout is then also tried by Smart UV Project at WIDE_ANGLE
     (:meth:`_Copies.try_wide_angle`) and by Lightmap Pack with that margin (:meth:`_Copies.try_lightmap_pack`), and
     the layout with the dense copies smoothed (:meth:`_Copies.try_smoothed`), each kept when it fills more of the map
@@ -312,7 +313,7 @@ class _Copies:
         have = baked_fill(self.group, side, margin, cut)
         spread, shared = density_spread(self.group), _overlap(self.group, side)
         clear = [not _overlapping([o], side) for o in self.group]
-        before, unwrapper = self._uvs([obj for _, obj in self.copies]), self.unwrapper
+        before, unwrapper = self._kept(), self.unwrapper
         self.use_smoothed(True)
         self.unwrap(margin_uv, side)
         folded = [i for i, o in enumerate(self.group) if self.smooth[i] and clear[i] and _overlapping([o], side)]
@@ -336,8 +337,14 @@ class _Copies:
         self._restore(before, unwrapper)
         self.smoothed = False
 
+    def _kept(self):
+        """[(flat float32 UVs,)] per copy of the layout kept so far, in the copy's loop order, read from the user's
+        meshes (a copy may still hold a layout a try did not keep: Lightmap Pack's, an atlas's last re-pack)."""
+        return [(corner_uv(o.data, LIGHTMAP)[loops].astype(np.float32).ravel(),)
+                for (o, _), loops in zip(self.copies, self.loops)]
+
     def _restore(self, before, unwrapper):
-        """Put back the layout ``before`` (:meth:`_uvs` of the copies) made by ``unwrapper``."""
+        """Put back the layout ``before`` (:meth:`_kept`) made by ``unwrapper``, in the copies and the meshes."""
         self.unwrapper = unwrapper
         for (_, obj), (uv, *_) in zip(self.copies, before):
             obj.data.uv_layers[LIGHTMAP].data.foreach_set("uv", uv)

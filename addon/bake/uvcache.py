@@ -24,7 +24,7 @@ import numpy as np
 from ..blender.scene import corner_vertices, positions, read
 from ..core.io.files import write_bytes
 
-LAYOUT_VERSION = 8
+LAYOUT_VERSION = 9
 """Raised whenever the layout search (uv.py, unwrap.py) changes what it makes for the same input."""
 DIR = ".il-uv-cache"
 _SLACK = 1e-4

@@ -14,8 +14,9 @@ by two charts. With a margin of m
 texels (the map is dilated by m) the unwrappers leave 2m texels between charts' outlines and m to the map's border
 (a sampler that wraps reads the opposite border), where the texels they touch may reach a texel beyond the
 outline: footprints here are 2m − 2 texels apart (at least one) and m − 1 from the border, what those layouts
-keep at the least. The free places of a footprint are found for all offsets at once by the correlation of the map
-with the footprint (FFT).
+keep at the least. A footprint's free places are searched in bands of rows, from the first row whose longest free
+run holds the footprint's longest row up, for all offsets of a band at once: one shifted OR of the band per texel of
+a small footprint, the correlation of the band with a larger one (FFT).
 """
 import dataclasses
 import math
@@ -213,9 +214,11 @@ def _longest_runs(free):
 
 def _first_free(occupied, runs, foot, low, best_top):
     """(y, x) of the footprint's first free place in row-major order whose first texel row is at ``low`` or above
-    (the rows below are full), or None when there is none or none whose top y + h could be at most ``best_top``
-    (None: no bound). Searched in bands of rows (BAND) from the first row where the map's longest free run
-    (``runs``, per row) holds the footprint's longest run of texels in a row."""
+    (the rows below are full), or None when there is none. Searched in bands of rows (BAND) from the first row where
+    the map's longest free run (``runs``, per row) holds the footprint's longest run of texels in a row; with
+    ``best_top`` (None: no bound) no band is searched whose places would all have a top y + h above it, so None also
+    when no place's top can be at most ``best_top`` (a place found in a band may still be above it: the caller
+    compares)."""
     side_h, side_w = occupied.shape
     h, w = foot.shape
     if h > side_h or w > side_w or not foot.any():

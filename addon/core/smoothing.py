@@ -20,7 +20,8 @@ import numpy as np
 
 LAMBDA = 0.5
 NORMAL_EVERY = 4
-"""Steps between two computations of the vertex normals (four fifths of a step's cost; they turn slowly)."""
+"""Steps between two computations of the vertex normals after the first NORMAL_EVERY² steps, where they are computed
+at every step (four fifths of a step's cost; once the noise is gone they turn slowly)."""
 MAX_STEPS = 64
 """Most smoothing steps (a radius of 8 edges); the cost is about 10 ms per step per 100k corners."""
 

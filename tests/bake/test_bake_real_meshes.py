@@ -684,16 +684,18 @@ def test_a_noisy_scan_is_charted_by_the_shape_its_map_resolves(tmp_path, monkeyp
     assert uvchecks.density_spread([scan]) >= unwrap.MIN_SPREAD and uvchecks._overlap([scan], 64) == 0
 
 
-def test_a_dense_hard_surface_mesh_keeps_its_unsmoothed_layout(tmp_path, monkeypatch):
-    """A cube subdivided 5 times (simple, applied: 6,144 faces, edges of 1/16 m) at 64²: smoothed over two texels
-    its edges would round and the faces there get fewer texels (density spread 0.71 against 1.0), so the layout
-    kept is the one unwrapped as it is (unwrap._Copies.try_smoothed), UV for UV."""
+@pytest.mark.parametrize("levels", [4, 5])
+def test_a_dense_hard_surface_mesh_keeps_its_unsmoothed_layout(tmp_path, monkeypatch, levels):
+    """A cube subdivided 4 or 5 times (simple, applied: 1,536 or 6,144 faces, edges of 1/8 or 1/16 m) at 64²: smoothed
+    over two texels its edges would round and the faces there get fewer texels (density spread 0.71 against 1.0 at 5
+    levels), so the layout kept is the one unwrapped as it is (unwrap._Copies.try_smoothed), UV for UV; 4 levels are
+    under unwrap.LIGHTMAP_PACK_TRIANGLES, so the Lightmap Pack try runs before the smoothed one."""
     from addon.bake import uv as uvmod
     from addon.core import smoothing
     scene = bpy.context.scene
     cube = added(bpy.ops.mesh.primitive_cube_add)
     mod = cube.modifiers.new("Subdivision", "SUBSURF")
-    mod.subdivision_type, mod.levels = "SIMPLE", 5
+    mod.subdivision_type, mod.levels = "SIMPLE", levels
     with bpy.context.temp_override(object=cube, active_object=cube):
         bpy.ops.object.modifier_apply(modifier="Subdivision")
     opts = BakeOptions(resolution=64, samples=1, margin=2)

@@ -112,3 +112,31 @@ def test_a_chart_thinner_than_a_texel_keeps_its_distance():
         gap = np.maximum(lo1 - hi0, lo0 - hi1).max()              # texels between the boxes along one axis
         assert gap >= max(1, 2 * margin - 2) - 1, (margin, boxes)
         assert lo1.min() >= np.ceil(margin) - 1 - 1 and hi1.max() <= side - (np.ceil(margin) - 1) + 1
+
+
+def test_the_band_search_finds_the_first_free_place_in_row_major_order():
+    """pack._first_free (bands of rows, a row filter on the longest free run, shifted ORs for small footprints and
+    the FFT for large ones) against the exhaustive scan of every offset, row by row, on random maps and footprints;
+    a bound on the top only stops the search early, it never gives another place."""
+    rng = np.random.default_rng(11)
+    for trial in range(200):
+        side = int(rng.integers(8, 48))
+        occupied = rng.random((side, side)) < rng.uniform(0.2, 0.8)
+        h, w = int(rng.integers(1, 12)), int(rng.integers(1, 12))
+        foot = rng.random((h, w)) < 0.7
+        foot[0, 0] = foot[-1, -1] = True
+        want = None
+        for y in range(side - h + 1):
+            for x in range(side - w + 1):
+                if not (occupied[y:y + h, x:x + w] & foot).any():
+                    want = (y, x)
+                    break
+            if want:
+                break
+        runs = pack._longest_runs(~occupied)
+        low = int(np.argmin(occupied.all(axis=1))) if not occupied.all() else side
+        assert pack._first_free(occupied, runs, foot, low, None) == want, trial
+        if want is not None:
+            top = want[0] + h
+            assert pack._first_free(occupied, runs, foot, low, top) == want
+            assert pack._first_free(occupied, runs, foot, low, top - 1) in (None, want)   # a bound only prunes
