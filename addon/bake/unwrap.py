@@ -88,7 +88,7 @@ def _margins(margin):
     return out + [0.5]
 
 
-def _unwrap_with_margin(scene, group, state, options, names):
+def _unwrap_with_margin(group, state, options, names):
     """Generate "Lightmap" for ``group``; return its :class:`_Made` (side, margin in texels, unwrapper): by
     :func:`_search` on copies whose coincident vertices are welded (:func:`unwrap_copy.welded_vertices`), or again on copies as the
     meshes are when the weld joined faces that cover each other (the welded layout fails, or puts texels of a welded
@@ -97,7 +97,7 @@ def _unwrap_with_margin(scene, group, state, options, names):
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always")
         try:
-            made, welded = _search(scene, group, state, options, names, weld=True), None
+            made, welded = _search(group, state, options, names, weld=True), None
         except InputError as e:
             made, welded = None, e
     if made is not None and not (made.welded and _overlapping(made.welded, made.side)):
@@ -106,10 +106,10 @@ def _unwrap_with_margin(scene, group, state, options, names):
         return made
     if made is None and welded is not None and not getattr(welded, "welded", False):
         raise welded
-    return _search(scene, group, state, options, names, weld=False)
+    return _search(group, state, options, names, weld=False)
 
 
-def _search(scene, group, state, options, names, weld=True):
+def _search(group, state, options, names, weld=True):
     """Generate "Lightmap" for ``group`` on its unwrap copies (welded with ``weld``); return its :class:`_Made`.
 
     A fixed resolution gives the side at once; the margin is lowered (down to half a texel, with a
@@ -121,7 +121,7 @@ def _search(scene, group, state, options, names, weld=True):
     """
     label = ", ".join(f"'{o.name}'" for o in group)
     fixed = fixed_side(group[0], options)
-    with _Copies(scene, group, state, weld, texel_size(group, options, fixed)) as copies:
+    with _Copies(group, state, weld, texel_size(group, options, fixed)) as copies:
         try:
             made = _search_copies(copies, group, options, names, label, fixed)
         except InputError as e:
@@ -249,8 +249,8 @@ class _Copies:
     it costs in an empty scene (measured in the full level's scene: an unwrap of a quad with its two mode switches
     2.9 -> 0.5 ms, a removal with the view layer's update 7.4 -> 0.9 ms)."""
 
-    def __init__(self, scene, group, state, weld=True, texel=None):
-        self.scene, self.group, self.state, self.weld, self.texel = scene, list(group), state, weld, texel
+    def __init__(self, group, state, weld=True, texel=None):
+        self.group, self.state, self.weld, self.texel = list(group), state, weld, texel
         self.scratch = None      # the scene the copies live in (the user's scene and its depsgraph never see them)
         self.copies = []
         self.loops = []          # per copy: the original mesh's loop of each of the copy's loops
@@ -524,18 +524,8 @@ class _Copies:
 
     @staticmethod
     def _uvs(temps):
-        """[(flat float32 "Lightmap" UVs, each loop's next loop in its face, each face's first loop)] of the copies."""
-        out = []
-        for obj in temps:
-            me = obj.data
-            uv = corner_uv(me, LIGHTMAP).ravel()
-            start, total = np.zeros(len(me.polygons), np.int64), np.zeros(len(me.polygons), np.int64)
-            me.polygons.foreach_get("loop_start", start)
-            me.polygons.foreach_get("loop_total", total)
-            nxt = np.arange(len(me.loops)) + 1
-            nxt[start + total - 1] = start
-            out.append((uv, nxt, start))
-        return out
+        """[(flat float32 "Lightmap" UVs,)] of the copies (the shape :meth:`_write` takes)."""
+        return [(corner_uv(obj.data, LIGHTMAP).ravel(),) for obj in temps]
 
 
 @contextlib.contextmanager

@@ -248,7 +248,7 @@ def _layout(scene, group, state, options, names, together, cache):
         return _from_entry(group, entry, state, options)
     if not together and LIGHTMAP in group[0].data.uv_layers and _reusable(group[0], options):
         return None
-    made = _cut_window(group, _unwrap_with_margin(scene, group, state, options, names), state, names, options)
+    made = _cut_window(group, _unwrap_with_margin(group, state, options, names), state, names, options)
     if cache is not None:
         uvs = [corner_uv(o.data, LIGHTMAP).ravel() for o in group]
         cache.put(digest, uvcache.Entry(uvs, made.side, made.margin, made.unwrap, made.enlarged_from, made.window))
