@@ -172,12 +172,14 @@ _PACK = re.compile(r"^[0-9a-f]{32}\.npz$")
 
 
 class Store:
-    """Figures kept in ``folder`` across processes: packs ``<digest of their keys>.npz`` (numbers and arrays only,
-    read back without pickle; a pack that cannot be read, or an entry that does not decode, is ignored and the figure
-    made again). Keys are :func:`digest` s joined with :func:`code_digest`. The results added are written as one
-    pack when the store closes, once a :meth:`flush` allowed it (a run writes its figures only after it wrote a map),
-    or earlier when they pass PENDING_BYTES; then the packs beyond MAX_PACKS are removed, the least recently written
-    or read first, never one this store wrote or read."""
+    """Figures kept in ``folder`` across processes: packs ``<digest of their keys>.npz`` of two arrays, ``index`` (JSON:
+    each figure's spec and its arrays' offset, dtype and shape) and ``blob`` (their bytes, read once per pack, on its
+    first use: one read instead of a zip member per array); numbers and arrays only, read back without pickle; a pack
+    that cannot be read, or an entry that does not decode, is ignored and the figure made again). Keys are
+    :func:`digest` s joined with :func:`code_digest`. The results added are written as one pack when the store closes,
+    once a :meth:`flush` allowed it (a run writes its figures only after it wrote a map), or earlier when they pass
+    PENDING_BYTES; then the packs beyond MAX_PACKS are removed, the least recently written or read first, never one
+    this store wrote or read."""
 
     MAX_PACKS = 64
     PENDING_BYTES = 64 << 20
@@ -187,7 +189,8 @@ class Store:
         self.pending, self.pending_bytes = {}, 0
         self.allowed = False
         self.index = None            # hex key -> pack path
-        self.open = {}               # pack path -> np.lib.npyio.NpzFile
+        self.open = {}               # pack path -> [np.lib.npyio.NpzFile, its blob once read]
+        self.entries = {}            # pack path -> {hex key: [spec, [[offset, dtype, shape], ...]]}
         self.used = set()            # packs this store wrote or read
 
     def _key(self, key):
@@ -206,22 +209,38 @@ class Store:
             self.index = {}
             for path in self._packs():
                 try:
-                    z = self.open[path] = np.load(path, allow_pickle=False)
-                    self.index.update((n[:-5], path) for n in z.files if n.endswith(".spec"))
+                    z = np.load(path, allow_pickle=False)
+                    entries = json.loads(str(z["index"]))
                 except Exception:
                     continue
+                self.open[path] = [z, None]
+                self.index.update((k, path) for k in entries)
+                self.entries[path] = entries
         k = self._key(key)
         path = self.index.get(k)
         if path is None:
             return None
         try:
-            z = self.open[path]
-            spec = json.loads(str(z[f"{k}.spec"]))
-            value = _decode(spec, [np.asarray(z[f"{k}.{i}"]) for i in range(_count(spec))])
+            spec, refs = self.entries[path][k]
+            value = _decode(spec, [self._array(path, *ref) for ref in refs])
         except Exception:
             return None
         self.used.add(path)
         return value
+
+    def _array(self, path, offset, dtype, shape):
+        """The array at ``offset`` of a pack's blob (read once per pack, on its first use)."""
+        pack = self.open[path]
+        if pack[1] is None:
+            pack[1] = pack[0]["blob"]
+        dtype = np.dtype(dtype)
+        if dtype.kind not in "biuf":
+            raise ValueError(f"not a figure's dtype: {dtype}")
+        n = int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
+        data = pack[1][int(offset):int(offset) + n]
+        if offset < 0 or len(data) != n:
+            raise ValueError("an array past the end of its pack")
+        return data.view(dtype).reshape(shape)
 
     def add(self, key, value):
         """Keep ``value`` for the next pack (nothing when it holds what a pack cannot)."""
@@ -242,14 +261,20 @@ class Store:
         """Write the pending results as one pack (a failed write is dropped: the store is an optimisation)."""
         if not self.pending:
             return
-        entries = {}
+        index, chunks, offset = {}, [], 0
         for k, (spec, arrays) in sorted(self.pending.items()):
-            entries[f"{k}.spec"] = np.array(json.dumps(spec))
-            entries.update((f"{k}.{i}", a) for i, a in enumerate(arrays))
+            refs = []
+            for a in arrays:
+                a = np.ascontiguousarray(a)
+                refs.append([offset, a.dtype.str, list(a.shape)])
+                pad = -a.nbytes % 16                    # each array aligned in the blob
+                chunks.append(a.tobytes() + bytes(pad))
+                offset += a.nbytes + pad
+            index[k] = [spec, refs]
         name = hashlib.blake2b("|".join(sorted(self.pending)).encode(), digest_size=16).hexdigest()
         path = os.path.join(self.folder, f"{name}.npz")
         buf = io.BytesIO()
-        np.savez(buf, **entries)
+        np.savez(buf, index=np.array(json.dumps(index)), blob=np.frombuffer(b"".join(chunks), np.uint8))
         self.pending, self.pending_bytes = {}, 0
         with contextlib.suppress(OSError):
             write_bytes(path, buf.getvalue())
@@ -266,7 +291,7 @@ class Store:
 
     def close(self):
         """Write the pending results when allowed, prune, and close the packs read."""
-        for z in self.open.values():
+        for z, _ in self.open.values():
             z.close()
         self.open = {}
         if self.allowed:

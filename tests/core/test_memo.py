@@ -1,6 +1,7 @@
 """core.memo: a result is made once per input, a changed input (bytes, dtype or shape) is a new result, arrays come
 back read-only and the least recently used results go first; a store on disk gives them to another process,
 never unpickles, and drops what another version of the code made."""
+import json
 import os
 import re
 
@@ -97,8 +98,11 @@ def test_a_store_ignores_packs_it_cannot_read_and_keeps_the_newest(tmp_path, mon
         store.flush()
     (pack,) = tmp_path.iterdir()
     with np.load(pack, allow_pickle=False) as z:
-        entries = {k: z[k] for k in z.files}
-    np.savez(pack, **{k: (np.array([{"pickled": 1}], object) if k.endswith(".0") else v) for k, v in entries.items()})
+        index = json.loads(str(z["index"]))
+        blob = z["blob"]
+    for spec, refs in index.values():
+        refs[0][1] = "|O"                                          # the array said to hold Python objects
+    np.savez(pack, index=np.array(json.dumps(index)), blob=blob)
     (tmp_path / ("0" * 32 + ".npz")).write_bytes(b"PK\x03\x04 not a zip")
     reader = Memo()
     with reader.stored(tmp_path):
@@ -151,3 +155,21 @@ def test_a_run_writes_one_pack_once_allowed_and_keeps_the_packs_it_reads(tmp_pat
     with unused.stored(tmp_path) as store:                           # a run that writes no map writes nothing
         unused.call(shells, co, 99)
     assert len(os.listdir(tmp_path)) == 2 and made[-1] == 99
+
+
+def test_a_figure_whose_arrays_lie_past_the_end_of_its_pack_is_made_again(tmp_path):
+    made = []
+    shells = _counted(made)
+    co = np.ones((6, 3), np.float32)
+    writer = Memo()
+    with writer.stored(tmp_path) as store:
+        first = writer.call(shells, co, 7)
+        store.flush()
+    (pack,) = tmp_path.iterdir()
+    with np.load(pack, allow_pickle=False) as z:
+        index, blob = json.loads(str(z["index"])), z["blob"]
+    np.savez(pack, index=np.array(json.dumps(index)), blob=blob[:len(blob) // 2])    # a truncated blob
+    reader = Memo()
+    with reader.stored(tmp_path):
+        again = reader.call(shells, co, 7)
+    assert made == [7, 7] and np.array_equal(again[0], first[0])
