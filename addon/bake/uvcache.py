@@ -7,8 +7,9 @@ faces' first loops and corner counts: what the unwrappers see, and the loop orde
 evaluated mesh (the modifiers' result), the metric MᵀM of its world matrix (world area, hence the side chosen from a
 texel density; the matrix itself for an atlas; both to 6 digits), and the layout options (margin, resolution, texel density, maximum
 resolution, fixed sizes, atlas), :data:`LAYOUT_VERSION` and Blender's version (the unwrappers may change). An
-entry holds each object's UVs (float32, its loop order), the side, margin and unwrapper, and the window the layout
-was carried into (width, height and the side it was cut from; 0 0 0 for none); a file that cannot be read,
+entry holds each object's UVs (float32, its loop order; one array for all, read at once) and a JSON head: the side,
+margin and unwrapper, each object's loop count and the window the layout was carried into (width, height and the
+side it was cut from; 0 0 0 for none); a file that cannot be read,
 or whose arrays do not match the meshes (shape, dtype, finite values inside the unit square), is ignored and
 rebuilt. Files are written (atomically) only after a map of the run is written, never outside the output folder,
 named by the digest only.
@@ -16,6 +17,7 @@ named by the digest only.
 import dataclasses
 import hashlib
 import io
+import json
 import os
 
 import bpy
@@ -101,10 +103,11 @@ class UVCache:
         while self.pending:
             digest, entry = self.pending.popitem()
             buf = io.BytesIO()
-            np.savez(buf, side=np.int64(entry.side), margin=np.float64(entry.margin),
-                     unwrap=np.array(entry.unwrap), enlarged_from=np.int64(entry.enlarged_from),
-                     window=np.array(entry.window or (0, 0, 0), np.int64),
-                     **{f"uv{i}": uv for i, uv in enumerate(entry.uvs)})
+            head = {"side": int(entry.side), "margin": float(entry.margin), "unwrap": entry.unwrap,
+                    "enlarged_from": int(entry.enlarged_from), "window": list(entry.window or (0, 0, 0)),
+                    "loops": [len(uv) // 2 for uv in entry.uvs]}
+            np.savez(buf, head=np.array(json.dumps(head)),
+                     uv=np.concatenate([np.asarray(uv, np.float32) for uv in entry.uvs] or [np.zeros(0, np.float32)]))
             try:
                 write_bytes(self.path(digest), buf.getvalue())
             except OSError:
@@ -114,10 +117,13 @@ class UVCache:
 def _read(path):
     try:
         with np.load(path, allow_pickle=False) as z:
-            n = sum(1 for k in z.files if k.startswith("uv"))
-            window = tuple(int(x) for x in z["window"])
-            return Entry([np.asarray(z[f"uv{i}"]) for i in range(n)], int(z["side"]), float(z["margin"]),
-                         str(z["unwrap"]), int(z["enlarged_from"]), window if all(window) else None)
+            head, flat = json.loads(str(z["head"])), np.asarray(z["uv"])
+        ends = np.cumsum([2 * int(n) for n in head["loops"]])
+        if flat.dtype != np.float32 or (len(ends) and ends[-1] != len(flat)):
+            return None
+        window = tuple(int(x) for x in head["window"])
+        return Entry(np.split(flat, ends[:-1]) if len(ends) else [], int(head["side"]), float(head["margin"]),
+                     str(head["unwrap"]), int(head["enlarged_from"]), window if all(window) else None)
     except Exception:      # missing, truncated, not an npz, a field missing or of another kind: rebuilt
         return None
 

@@ -2,6 +2,7 @@
 a corrupt entry is rebuilt, files stay inside the output folder; the figures of unchanged meshes are read, not
 measured again, by a new process; the UV step's progress (objects done / total)."""
 import functools
+import json
 import os
 import pathlib
 import re
@@ -77,8 +78,9 @@ def test_a_corrupt_or_mismatched_entry_is_ignored_and_rebuilt(tmp_path, unwraps)
     fresh = _bake(objects, tmp_path)
     entries = _entries(tmp_path)
     entries[0].write_bytes(b"PK\x03\x04 not a zip")
-    np.savez(entries[1].open("wb"), side=np.int64(16), margin=np.float64(1.0), unwrap=np.array("smart_project"),
-             enlarged_from=np.int64(0), uv0=np.zeros(6, np.float32))          # fewer loops than the mesh
+    head = {"side": 16, "margin": 1.0, "unwrap": "smart_project", "enlarged_from": 0, "window": [0, 0, 0],
+            "loops": [3]}
+    np.savez(entries[1].open("wb"), head=np.array(json.dumps(head)), uv=np.zeros(6, np.float32))  # too few loops
     entries[2].write_bytes(b"")
     unwraps.clear()
     again = _bake(objects, tmp_path)
@@ -87,7 +89,7 @@ def test_a_corrupt_or_mismatched_entry_is_ignored_and_rebuilt(tmp_path, unwraps)
         assert np.array_equal(again[name], fresh[name]), name
     for path in _entries(tmp_path):                                            # rewritten, readable
         with np.load(path, allow_pickle=False) as z:
-            assert z["uv0"].dtype == np.float32 and z["uv0"].size > 6
+            assert z["uv"].dtype == np.float32 and z["uv"].size > 6
 
 
 def test_meshes_of_equal_geometry_unwrap_once_and_files_stay_in_the_output_folder(tmp_path, unwraps):
