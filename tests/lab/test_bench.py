@@ -91,3 +91,29 @@ def test_quick_bench_writes_every_chart_and_table(script, tmp_path):
         assert errors == sorted(errors, reverse=True), table
         for r in plain:
             assert float(r[column]) <= 0.5 / math.sqrt(int(r["samples"])) + 0.01, (table, r)
+
+
+def test_the_level_benchmarks_evaluation_figure_evaluates_the_modifiers_and_leaves_the_uv_layers(tmp_path):
+    """lab.bench.level.evaluation_seconds: after it, every mesh has the UV layers it had, and the evaluated meshes
+    are the modifiers' result (a Subdivision's vertices, not the base mesh's)."""
+    import bpy
+    from addon.blender.scene import remove_scene
+    from addon.lab.bench import level
+    scene = bpy.data.scenes.new("IL evaluation test")
+    try:
+        me = bpy.data.meshes.new("IL evaluation cube")
+        me.from_pydata([(x, y, z) for x in (0, 1) for y in (0, 1) for z in (0, 1)], [],
+                       [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)])
+        me.uv_layers.new(name="UVMap")
+        obj = bpy.data.objects.new("IL evaluation cube", me)
+        scene.collection.objects.link(obj)
+        obj.modifiers.new("Subdivision", "SUBSURF").levels = 2
+        seconds = level.evaluation_seconds(scene, [obj])
+        assert math.isfinite(seconds) and seconds > 0
+        assert [l.name for l in me.uv_layers] == ["UVMap"]
+        evaluated = obj.evaluated_get(scene.view_layers[0].depsgraph).data
+        assert len(evaluated.vertices) == 98 and [l.name for l in evaluated.uv_layers] == ["UVMap"]
+    finally:
+        remove_scene(scene)
+        if "IL evaluation cube" in bpy.data.meshes:
+            bpy.data.meshes.remove(bpy.data.meshes["IL evaluation cube"])

@@ -10,7 +10,9 @@ also run at production samples (:data:`PRODUCTION_SAMPLES`), and each is redone 
 light changed (irradiance rebaked, AO resumed) and the "Lightmap" layers gone, as a new process finds an unsaved
 file: the layouts come from the UV cache (``bake/uvcache.py``) and the figures from its store
 (``core/memo.py``); the time outside Cycles over the time inside is
-the figure issue 27 bounds (at most 1 on a first run, 0.1 on such a rerun).
+the figure issue 27 bounds (at most 1 on a first run, 0.1 on such a rerun). Such a rerun's row also gives the
+seconds Blender takes to evaluate the level's meshes once their UV layers changed (:func:`evaluation_seconds`), a
+share of the time outside Cycles no pipeline that reads the baked meshes before the bake avoids.
 """
 import os
 import resource
@@ -305,7 +307,26 @@ def _changed_light_rerun(scene, objects, out, options):
     wall, cycles, report = _timed(scene, objects, out, options)
     return {"pipeline_seconds": round(wall, 3), "pipeline_cycles_seconds": round(cycles, 3),
             "outside_over_cycles": round((wall - cycles) / max(cycles, 1e-9), 3),
-            "maps_baked": sum(len(m) for m in report["objects"].values())}
+            "maps_baked": sum(len(m) for m in report["objects"].values()),
+            "evaluation_seconds": round(evaluation_seconds(scene, objects), 3)}
+
+
+def evaluation_seconds(scene, objects):
+    """Seconds Blender takes to evaluate the objects' meshes (their modifiers) once a UV layer is added to each, as a
+    rerun adds the light-map layers: paid once by whoever reads an evaluated mesh first (a bare bake inside its
+    Cycles call; the pipeline outside it, in its checks and the batch's proxy mesh)."""
+    added = [me for me in {o.data for o in objects} if me.uv_layers.new(name="IL evaluation") is not None]
+    vl = scene.view_layers[0]
+    t = time.perf_counter()
+    vl.update()
+    for o in objects:
+        len(o.evaluated_get(vl.depsgraph).data.vertices)         # a Subdivision's result is made when first read
+    seconds = time.perf_counter() - t
+    for me in added:
+        me.uv_layers.remove(me.uv_layers["IL evaluation"])
+        me.update()                                   # a layer removed does not tag the mesh for evaluation
+    vl.update()
+    return seconds
 
 
 def run(output_dir, quick=False, props=None, texel_density=None, samples=None):
