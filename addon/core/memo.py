@@ -299,14 +299,6 @@ class Store:
             self._prune()
 
 
-def _count(spec):
-    """Arrays a spec refers to."""
-    if "a" in spec:
-        return spec["a"] + 1
-    parts = spec.get("t", spec.get("l", spec.get("fields", ())))
-    return max((_count(p) for p in parts), default=0)
-
-
 def _mtime(path):
     try:
         return os.path.getmtime(path)
