@@ -313,9 +313,10 @@ def _changed_light_rerun(scene, objects, out, options):
 def evaluation_seconds(scene, objects):
     """Seconds Blender takes to evaluate the objects' meshes (their modifiers) once a UV layer is added to each, as a
     rerun adds the light-map layers: paid once by whoever reads an evaluated mesh first (a bare bake inside its
-    Cycles call; the pipeline outside it, in its checks and the batch's proxy mesh). Measured last: it leaves the
-    meshes tagged as edited, and a bake after it paid for that (the full level's rerun at 64 spp: 13.5 s outside
-    Cycles against 7.5 s)."""
+    Cycles call; the pipeline outside it, in its checks and the batch's proxy mesh). Measured last, so that no run's
+    figures follow it: it leaves the meshes tagged as edited (one full-level run with it between the reruns gave
+    13.5 s outside Cycles at 64 spp against 7.5 s without, though single runs on 2 shared cores vary by nearly as
+    much)."""
     added = [me for me in {o.data for o in objects} if me.uv_layers.new(name="IL evaluation") is not None]
     vl = scene.view_layers[0]
     t = time.perf_counter()
