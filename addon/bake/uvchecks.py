@@ -56,19 +56,20 @@ def _disjoint(tri_uv):
     _DISJOINT[digest(tri)] = lightmap.uv_area(tri)
 
 
-def coverage(tri_uv, width, height):
+def coverage(tri_uv, width, height, stored=False):
     """``lightmap.coverage_mask`` of ``tri_uv`` in a ``width`` × ``height`` map (read-only), remembered per layout and
-    size (the plan, the fill check, the bake's centre mask and the files ask for the same ones); not kept in the
-    figure store (the UV search measures many trial layouts, a byte a texel each, that a rerun never asks for)."""
-    return FIGURES.call(lightmap.coverage_mask, np.ascontiguousarray(tri_uv), int(width), int(height), stored=False)
+    size (the plan, the fill check, the bake's centre mask and the files ask for the same ones); kept in the figure
+    store only when ``stored`` (a baked layout at its map's size: the UV search measures many trial layouts, a byte a
+    texel each, that a rerun never asks for)."""
+    return FIGURES.call(lightmap.coverage_mask, np.ascontiguousarray(tri_uv), int(width), int(height), stored=stored)
 
 
-def coverage_ratio(tri_uv, width, height):
+def coverage_ratio(tri_uv, width, height, stored=False):
     """(covered texels / (W H × chart area), chart area); (0, 0) for charts without area."""
     area = chart_area(tri_uv)
     if area <= 0:
         return 0.0, 0.0
-    return float(coverage(tri_uv, width, height).sum()) / (area * width * height), area
+    return float(coverage(tri_uv, width, height, stored).sum()) / (area * width * height), area
 
 
 def _outside(tri_uv):
@@ -84,7 +85,7 @@ def check_coverage(objects, layers, size):
     for o in objects:
         layer = layers[o.name]
         tri = triangles_uv(o, layer)
-        ratio, area = coverage_ratio(tri, w, h)
+        ratio, area = coverage_ratio(tri, w, h, stored=True)      # the layout baked, at its map's size
         if area <= 0:
             raise InputError(f"UV layer '{layer}' of '{o.name}' has no area inside the unit square (its faces "
                              f"collapse to points or lines, or lie outside 0..1): unwrap it, or let the bake "

@@ -75,6 +75,8 @@ class Memo:
         remembered (in the store too unless ``stored`` is False)."""
         if key in self.items:
             self.items.move_to_end(key)
+            if stored and self.store is not None:
+                self.store.keep(key, self.items[key])     # made unstored first (a trial layout), now asked stored
             return self.items[key]
         value = self.store.get(key) if self.store is not None and stored else None
         if value is None:
@@ -241,6 +243,12 @@ class Store:
         if offset < 0 or len(data) != n:
             raise ValueError("an array past the end of its pack")
         return data.view(dtype).reshape(shape)
+
+    def keep(self, key, value):
+        """:meth:`add` ``value`` unless the store holds ``key`` already (pending, or in a pack it has read)."""
+        k = self._key(key)
+        if k not in self.pending and (self.index is None or k not in self.index):
+            self.add(key, value)
 
     def add(self, key, value):
         """Keep ``value`` for the next pack (nothing when it holds what a pack cannot)."""

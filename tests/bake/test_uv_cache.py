@@ -223,8 +223,8 @@ def test_an_atlas_covers_at_least_the_texels_pack_islands_gives_its_charts(tmp_p
 
 @pytest.mark.both_versions
 def test_a_rerun_in_a_new_process_reads_the_figures_instead_of_measuring_them_again(tmp_path, monkeypatch):
-    """The overlap, seams and inward shells of unchanged meshes and layouts come from the store beside the
-    maps (core.memo.Store), with the same pixels and report figures; code that changed measures them again. (The
+    """The overlap, seams, inward shells and coverage masks of unchanged meshes and layouts come from the store
+    beside the maps (core.memo.Store), with the same pixels and report figures; code that changed measures them again. (The
     box has no bevel here: 4.5's Bevel modifier gives UVs that differ in the last bit from one evaluation to the
     next, whose figures are then measured again.)"""
     objects = _props()
@@ -240,7 +240,8 @@ def test_a_rerun_in_a_new_process_reads_the_figures_instead_of_measuring_them_ag
             return real(*args)
         monkeypatch.setattr(module, name, wrapper)
 
-    for module, name in ((lightmap, "overlap_fraction"), (lightmap, "inward_shells"), (seams, "_seam_edges")):
+    for module, name in ((lightmap, "overlap_fraction"), (lightmap, "inward_shells"), (seams, "_seam_edges"),
+                         (lightmap, "coverage_mask")):
         counted(module, name)
 
     def bake():
@@ -256,7 +257,7 @@ def test_a_rerun_in_a_new_process_reads_the_figures_instead_of_measuring_them_ag
                 for n, e in rep["objects"].items()}
 
     first = bake()
-    assert {"overlap_fraction", "inward_shells", "_seam_edges"} <= set(calls)
+    assert {"overlap_fraction", "inward_shells", "_seam_edges", "coverage_mask"} <= set(calls)
     packs = os.listdir(pipeline.figures_folder(tmp_path))
     assert packs and all(re.fullmatch(r"[0-9a-f]{32}\.npz", p) for p in packs)
     again = bake()

@@ -173,3 +173,18 @@ def test_a_figure_whose_arrays_lie_past_the_end_of_its_pack_is_made_again(tmp_pa
     with reader.stored(tmp_path):
         again = reader.call(shells, co, 7)
     assert made == [7, 7] and np.array_equal(again[0], first[0])
+
+
+def test_a_figure_made_unstored_reaches_the_store_when_asked_for_stored(tmp_path):
+    made = []
+    shells = _counted(made)
+    co = np.ones((2, 3), np.float32)
+    writer = Memo()
+    with writer.stored(tmp_path) as store:
+        writer.call(shells, co, 3, stored=False)              # a trial layout's figure: not for the store
+        writer.call(shells, co, 3)                            # the same figure, now of the layout baked
+        store.flush()
+    reader = Memo()
+    with reader.stored(tmp_path):
+        reader.call(shells, co, 3)
+    assert made == [3]
