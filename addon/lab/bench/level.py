@@ -7,16 +7,20 @@ median fill of the maps and how many warned of a low fill, peak RSS, texels per 
 (covered texels / map texels: baked, and of its layout) against Blender's ``uv.pack_islands`` on the same charts
 (measured alike: :func:`layout_utilisation`, :func:`pack_islands_utilisation`). The per-object bake is
 also run at production samples (:data:`PRODUCTION_SAMPLES`), and each is redone with its meshes unchanged but a
-light changed (irradiance rebaked, AO resumed) and the "Lightmap" layers gone, as a new process finds an unsaved
-file: the layouts come from the UV cache (``bake/uvcache.py``) and the figures from its store
+light changed (irradiance rebaked, AO resumed) and the "Lightmap" layers gone, in a new process that opens the level
+saved: the layouts come from the UV cache (``bake/uvcache.py``) and the figures from its store
 (``core/memo.py``); the time outside Cycles over the time inside is
 the figure issue 27 bounds (at most 1 on a first run, 0.1 on such a rerun). The production rerun's row also gives
 the seconds Blender takes to evaluate the level's meshes once their UV layers changed (:func:`evaluation_seconds`,
 measured last), a share of the time outside Cycles no pipeline that reads the baked meshes before the bake avoids.
 """
+import dataclasses
+import json
 import os
 import resource
 import shutil
+import subprocess
+import sys
 import time
 
 import bpy
@@ -28,7 +32,6 @@ from ...bake.pipeline import bake_lightmaps
 from ...blender import compat, render
 from ...blender.scene import remove_scene
 from ...core import lightmap
-from ...core.memo import FIGURES
 from .result import BenchResult
 
 KEY = "level"
@@ -294,20 +297,56 @@ def _timed(scene, objects, out, options):
 
 
 def _changed_light_rerun(scene, objects, out, options):
-    """A rerun of the bake into ``out`` with the meshes unchanged, the "Lightmap" layers removed and the figures'
-    memo emptied (a new process opening the unsaved file: layouts and figures come from the output folder) and the
-    lights 1 % brighter (irradiance rebaked, AO unchanged): its row figures."""
+    """A rerun of the bake into ``out`` in a new process, as a farm or a reopened file reruns it: the level saved
+    with its meshes unchanged, the "Lightmap" layers removed and the lights 1 % brighter (irradiance rebaked, AO
+    unchanged), then opened and baked by another Blender (:func:`rerun_job`: layouts and figures come from the
+    output folder, Blender's own caches are cold): its row figures. The layers are put back here afterwards (the
+    bare bakes bake through them)."""
+    saved = {}
     for me in {o.data for o in objects}:
         if uvmod.LIGHTMAP in me.uv_layers:
+            saved[me] = np.zeros(2 * len(me.loops), np.float32)
+            me.uv_layers[uvmod.LIGHTMAP].data.foreach_get("uv", saved[me])
             me.uv_layers.remove(me.uv_layers[uvmod.LIGHTMAP])
-    FIGURES.clear()
     for o in scene.objects:
         if o.type == "LIGHT":
             o.data.energy *= 1.01
-    wall, cycles, report = _timed(scene, objects, out, options)
-    return {"pipeline_seconds": round(wall, 3), "pipeline_cycles_seconds": round(cycles, 3),
-            "outside_over_cycles": round((wall - cycles) / max(cycles, 1e-9), 3),
-            "maps_baked": sum(len(m) for m in report["objects"].values())}
+    folder = os.path.dirname(os.path.abspath(out))
+    job = {"blend": os.path.join(folder, "rerun_level.blend"), "scene": scene.name, "out": os.path.abspath(out),
+           "objects": [o.name for o in objects], "options": dataclasses.asdict(options)}
+    bpy.ops.wm.save_as_mainfile(filepath=job["blend"], copy=True, check_existing=False)
+    job_file = os.path.join(folder, "rerun_job.json")
+    with open(job_file, "w") as f:
+        json.dump(job, f)
+    code = f"import sys; sys.path.insert(0, {ROOT!r}); from addon.lab.bench import level; level.rerun_job()"
+    cmd = ([bpy.app.binary_path, "-b", "--factory-startup", "--python-expr", code] if bpy.app.binary_path else
+           [sys.executable, "-c", code])
+    proc = subprocess.run(cmd, stdout=subprocess.PIPE, text=True, env={**os.environ, "IL_RERUN_JOB": job_file})
+    for me, uv in saved.items():
+        me.uv_layers.new(name=uvmod.LIGHTMAP, do_init=False).data.foreach_set("uv", uv)
+        me.update()
+    rows = [line[len(_ROW):] for line in proc.stdout.splitlines() if line.startswith(_ROW)]
+    if proc.returncode or not rows:
+        raise RuntimeError(f"the rerun in a new process failed (exit {proc.returncode})")
+    return json.loads(rows[-1])
+
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
+_ROW = "IL rerun row: "
+
+
+def rerun_job():
+    """The new process of :func:`_changed_light_rerun`: open the saved level, bake it, print its row."""
+    with open(os.environ["IL_RERUN_JOB"]) as f:
+        job = json.load(f)
+    bpy.ops.wm.open_mainfile(filepath=job["blend"])
+    scene = bpy.data.scenes[job["scene"]]
+    objects = [bpy.data.objects[n] for n in job["objects"]]
+    wall, cycles, report = _timed(scene, objects, job["out"], BakeOptions(**job["options"]))
+    row = {"pipeline_seconds": round(wall, 3), "pipeline_cycles_seconds": round(cycles, 3),
+           "outside_over_cycles": round((wall - cycles) / max(cycles, 1e-9), 3),
+           "maps_baked": sum(len(m) for m in report["objects"].values())}
+    print(_ROW + json.dumps(row), flush=True)
 
 
 def evaluation_seconds(scene, objects):
