@@ -2,7 +2,7 @@
 beside a bake's maps (:class:`Store`).
 
 A rerun of a bake asks again for figures of layouts and meshes that did not change: their overlap, seams, inward
-shells and chart counts. The key is the bytes, dtype and shape of every input array (and the repr of the other
+shells, chart counts and the coverage masks of the layouts baked. The key is the bytes, dtype and shape of every input array (and the repr of the other
 inputs), so a changed input is a new key, never a stale result. Results are returned as they were made: numpy
 arrays among them (in tuples, lists and dataclasses) are made read-only.
 """
@@ -177,7 +177,7 @@ class Store:
     """Figures kept in ``folder`` across processes: packs ``<digest of their keys>.npz`` of two arrays, ``index`` (JSON:
     each figure's spec and its arrays' offset, dtype and shape) and ``blob`` (their bytes, read once per pack, on its
     first use: one read instead of a zip member per array); numbers and arrays only, read back without pickle; a pack
-    that cannot be read, or an entry that does not decode, is ignored and the figure made again). Keys are
+    that cannot be read, or an entry that does not decode, is ignored and the figure made again. Keys are
     :func:`digest` s joined with :func:`code_digest`. The results added are written as one pack when the store closes,
     once a :meth:`flush` allowed it (a run writes its figures only after it wrote a map), or earlier when they pass
     PENDING_BYTES; then the packs beyond MAX_PACKS are removed, the least recently written or read first, never one
@@ -205,19 +205,29 @@ class Store:
             return []
         return [os.path.join(self.folder, n) for n in names if _PACK.match(n)]
 
+    def _load(self):
+        """Read the index of every pack in the folder, once (a pack that cannot be read is left out)."""
+        if self.index is not None:
+            return
+        self.index = {}
+        for path in self._packs():
+            z = None
+            try:
+                z = np.load(path, allow_pickle=False)
+                entries = json.loads(str(z["index"]))
+                if not isinstance(entries, dict):
+                    raise ValueError("a pack's index is not a mapping")
+            except Exception:
+                with contextlib.suppress(Exception):
+                    z.close()
+                continue
+            self.open[path] = [z, None]
+            self.index.update((k, path) for k in entries)
+            self.entries[path] = entries
+
     def get(self, key):
         """The stored result of ``key``, or None."""
-        if self.index is None:
-            self.index = {}
-            for path in self._packs():
-                try:
-                    z = np.load(path, allow_pickle=False)
-                    entries = json.loads(str(z["index"]))
-                except Exception:
-                    continue
-                self.open[path] = [z, None]
-                self.index.update((k, path) for k in entries)
-                self.entries[path] = entries
+        self._load()
         k = self._key(key)
         path = self.index.get(k)
         if path is None:
@@ -234,7 +244,7 @@ class Store:
         """The array at ``offset`` of a pack's blob (read once per pack, on its first use)."""
         pack = self.open[path]
         if pack[1] is None:
-            pack[1] = pack[0]["blob"]
+            pack[1] = np.asarray(pack[0]["blob"], np.uint8).ravel()
         dtype = np.dtype(dtype)
         if dtype.kind not in "biuf":
             raise ValueError(f"not a figure's dtype: {dtype}")
@@ -242,12 +252,14 @@ class Store:
         data = pack[1][int(offset):int(offset) + n]
         if offset < 0 or len(data) != n:
             raise ValueError("an array past the end of its pack")
-        return data.view(dtype).reshape(shape)
+        return data.view(dtype).reshape(shape).copy()      # a copy: a small figure does not hold its pack's blob
 
     def keep(self, key, value):
-        """:meth:`add` ``value`` unless the store holds ``key`` already (pending, or in a pack it has read)."""
+        """:meth:`add` ``value`` unless the store holds ``key`` already (pending, or in a pack of the folder or one
+        it wrote)."""
+        self._load()
         k = self._key(key)
-        if k not in self.pending and (self.index is None or k not in self.index):
+        if k not in self.pending and k not in self.index:
             self.add(key, value)
 
     def add(self, key, value):
@@ -269,11 +281,12 @@ class Store:
         """Write the pending results as one pack (a failed write is dropped: the store is an optimisation)."""
         if not self.pending:
             return
+        self._load()                                   # the folder's packs before this one is written
         index, chunks, offset = {}, [], 0
         for k, (spec, arrays) in sorted(self.pending.items()):
             refs = []
             for a in arrays:
-                a = np.ascontiguousarray(a)
+                a = np.asarray(a)                       # a 0-d array keeps its shape ()
                 refs.append([offset, a.dtype.str, list(a.shape)])
                 pad = -a.nbytes % 16                    # each array aligned in the blob
                 chunks.append(a.tobytes() + bytes(pad))
@@ -281,12 +294,17 @@ class Store:
             index[k] = [spec, refs]
         name = hashlib.blake2b("|".join(sorted(self.pending)).encode(), digest_size=16).hexdigest()
         path = os.path.join(self.folder, f"{name}.npz")
+        blob = np.frombuffer(b"".join(chunks), np.uint8)
         buf = io.BytesIO()
-        np.savez(buf, index=np.array(json.dumps(index)), blob=np.frombuffer(b"".join(chunks), np.uint8))
+        np.savez(buf, index=np.array(json.dumps(index)), blob=blob)
         self.pending, self.pending_bytes = {}, 0
         with contextlib.suppress(OSError):
             write_bytes(path, buf.getvalue())
             self.used.add(path)
+        if path in self.open and self.open[path][0] is not None:
+            self.open[path][0].close()                 # a pack of the same figures read before
+        self.open[path], self.entries[path] = [None, blob], index     # read back, and not added again
+        self.index.update((k, path) for k in index)
 
     def _prune(self):
         for path in self.used:                       # read or written now: the most recently used
@@ -300,8 +318,9 @@ class Store:
     def close(self):
         """Write the pending results when allowed, prune, and close the packs read."""
         for z, _ in self.open.values():
-            z.close()
-        self.open = {}
+            if z is not None:
+                z.close()
+        self.open, self.entries, self.index = {}, {}, None
         if self.allowed:
             self._write()
             self._prune()
@@ -315,4 +334,5 @@ def _mtime(path):
 
 
 FIGURES = Memo()
-"""The process's memo of figures the bake derives from meshes and layouts (overlap, seams, shells, charts)."""
+"""The process's memo of figures the bake derives from meshes and layouts (overlap, seams, shells, charts, coverage
+masks)."""

@@ -289,3 +289,23 @@ def test_temporaries_a_killed_run_left_in_the_cache_folders_are_removed(tmp_path
         os.utime(path, (time.time() - 600, time.time() - 600))
     _bake(_props()[:1], tmp_path)
     assert not any(p.exists() for p in left)
+
+
+def test_an_entry_whose_head_does_not_match_its_uvs_reads_as_none(tmp_path):
+    """uvcache._read: the loop counts of the head must add up to the UV array, every field be there, the head be
+    JSON; a good entry reads back as written."""
+    good = {"side": 16, "margin": 1.0, "unwrap": "smart_project", "enlarged_from": 0, "window": [0, 0, 0],
+            "loops": [3, 2]}
+    uv = np.linspace(0, 1, 10, dtype=np.float32)
+
+    def entry(head, uvs=uv, raw=None):
+        path = tmp_path / f"{len(list(tmp_path.iterdir()))}.npz"
+        np.savez(path, head=np.array(raw if raw is not None else json.dumps(head)), uv=uvs)
+        return uvcache._read(str(path))
+
+    read = entry(good)
+    assert [u.tolist() for u in read.uvs] == [uv[:6].tolist(), uv[6:].tolist()] and read.side == 16
+    assert entry({**good, "loops": [3, 3]}) is None                        # 12 UVs said, 10 stored
+    assert entry({k: v for k, v in good.items() if k != "margin"}) is None
+    assert entry(good, raw="{not json") is None
+    assert entry(good, uvs=uv.astype(np.float64)) is None

@@ -101,7 +101,7 @@ def test_a_store_ignores_packs_it_cannot_read_and_keeps_the_newest(tmp_path, mon
         index = json.loads(str(z["index"]))
         blob = z["blob"]
     for spec, refs in index.values():
-        refs[0][1] = "|O"                                          # the array said to hold Python objects
+        refs[0][1] = "|S8"                                         # bytes a view would give: not a figure's dtype
     np.savez(pack, index=np.array(json.dumps(index)), blob=blob)
     (tmp_path / ("0" * 32 + ".npz")).write_bytes(b"PK\x03\x04 not a zip")
     reader = Memo()
@@ -188,3 +188,48 @@ def test_a_figure_made_unstored_reaches_the_store_when_asked_for_stored(tmp_path
     with reader.stored(tmp_path):
         reader.call(shells, co, 3)
     assert made == [3]
+
+
+def test_packs_whose_index_is_not_a_mapping_or_pickled_are_ignored_and_scalars_stay_scalars(tmp_path):
+    def figure(co, k):
+        return np.float64(co.sum()) / 3, np.int32(k), np.arange(k)
+
+    writer, co = Memo(), np.ones((2, 3), np.float32)
+    with writer.stored(tmp_path) as store:
+        first = writer.call(figure, co, 4)
+        store.flush()
+    (pack,) = tmp_path.iterdir()
+    with np.load(pack, allow_pickle=False) as z:
+        index, blob = json.loads(str(z["index"])), z["blob"]
+    np.savez(tmp_path / ("1" * 32 + ".npz"), index=np.array(json.dumps([[1]])), blob=blob)
+    np.savez(tmp_path / ("2" * 32 + ".npz"), index=np.array([index], object), blob=blob)   # pickled: never loaded
+    reader = Memo()
+    with reader.stored(tmp_path):
+        again = reader.call(figure, co, 4)
+    assert type(again[0]) is np.float64 and type(again[1]) is np.int32 and np.ndim(again[0]) == 0
+    assert again[0] == first[0] and again[1] == 4 and np.array_equal(again[2], np.arange(4))
+    for spec, refs in index.values():
+        refs[0][0] = -16                                            # an offset before the blob
+    np.savez(pack, index=np.array(json.dumps(index)), blob=blob)
+    other = Memo()
+    with other.stored(tmp_path):
+        assert other.call(figure, co, 4)[0] == first[0]            # made again, not read from before the blob
+
+
+def test_a_second_bake_in_the_same_session_writes_only_its_new_figures(tmp_path):
+    made = []
+    shells = _counted(made)
+    co = np.ones((2, 3), np.float32)
+    session = Memo()
+    with session.stored(tmp_path) as store:
+        session.call(shells, co, 1)
+        store.flush()
+    first = set(tmp_path.iterdir())
+    with session.stored(tmp_path) as store:
+        session.call(shells, co, 1)                                 # remembered, and in the folder's pack
+        session.call(shells, co, 2)
+        store.flush()
+    (second,) = set(tmp_path.iterdir()) - first
+    with np.load(second, allow_pickle=False) as z:
+        assert len(json.loads(str(z["index"]))) == 1                # the new figure only
+    assert made == [1, 2]

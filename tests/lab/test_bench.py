@@ -117,3 +117,37 @@ def test_the_level_benchmarks_evaluation_figure_evaluates_the_modifiers_and_leav
         remove_scene(scene)
         if "IL evaluation cube" in bpy.data.meshes:
             bpy.data.meshes.remove(bpy.data.meshes["IL evaluation cube"])
+
+
+def test_the_level_benchmarks_rerun_runs_in_a_new_process_and_puts_the_layers_back(tmp_path):
+    """lab.bench.level._changed_light_rerun: another process opens the level saved and rebakes the irradiance the
+    brighter light changed (the AO maps stay), the parent's light-map layers come back as they were, and the saved
+    level and job file are gone."""
+    import bpy
+    from addon.bake import uv as uvmod
+    from addon.bake.options import BakeOptions
+    from addon.blender.scene import remove_scene
+    from addon.lab.bench import level
+    scene = bpy.data.scenes.new("IL rerun test")
+    try:
+        objects = []
+        for name, verts in (("IL rerun floor", [(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)]),
+                            ("IL rerun wall", [(-2, 2, 0), (2, 2, 0), (2, 2, 2), (-2, 2, 2)])):
+            me = bpy.data.meshes.new(name)
+            me.from_pydata(verts, [], [(0, 1, 2, 3)])
+            obj = bpy.data.objects.new(name, me)
+            scene.collection.objects.link(obj)
+            objects.append(obj)
+        sun = bpy.data.objects.new("IL rerun sun", bpy.data.lights.new("IL rerun sun", "SUN"))
+        scene.collection.objects.link(sun)
+        out = tmp_path / "per_object"
+        options = BakeOptions(resolution=16, samples=1, overwrite=True)
+        level._timed(scene, objects, str(out), options)
+        layers = {o.name: np.array([d.uv[:] for d in o.data.uv_layers[uvmod.LIGHTMAP].data]) for o in objects}
+        row = level._changed_light_rerun(scene, objects, str(out), options)
+        assert row["maps_baked"] == len(objects) and row["pipeline_seconds"] >= row["pipeline_cycles_seconds"] > 0
+        for o in objects:
+            assert np.array_equal(np.array([d.uv[:] for d in o.data.uv_layers[uvmod.LIGHTMAP].data]), layers[o.name])
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["per_object"]
+    finally:
+        remove_scene(scene)

@@ -14,6 +14,7 @@ the figure issue 27 bounds (at most 1 on a first run, 0.1 on such a rerun). The 
 the seconds Blender takes to evaluate the level's meshes once their UV layers changed (:func:`evaluation_seconds`,
 measured last), a share of the time outside Cycles no pipeline that reads the baked meshes before the bake avoids.
 """
+import contextlib
 import dataclasses
 import json
 import os
@@ -300,8 +301,8 @@ def _changed_light_rerun(scene, objects, out, options):
     """A rerun of the bake into ``out`` in a new process, as a farm or a reopened file reruns it: the level saved
     with its meshes unchanged, the "Lightmap" layers removed and the lights 1 % brighter (irradiance rebaked, AO
     unchanged), then opened and baked by another Blender (:func:`rerun_job`: layouts and figures come from the
-    output folder, Blender's own caches are cold): its row figures. The layers are put back here afterwards (the
-    bare bakes bake through them)."""
+    output folder, Blender's own caches are cold): its row figures. The saved level and the job file are written
+    beside ``out`` and removed afterwards; the layers are put back here (the bare bakes bake through them)."""
     saved = {}
     for me in {o.data for o in objects}:
         if uvmod.LIGHTMAP in me.uv_layers:
@@ -312,22 +313,28 @@ def _changed_light_rerun(scene, objects, out, options):
         if o.type == "LIGHT":
             o.data.energy *= 1.01
     folder = os.path.dirname(os.path.abspath(out))
-    job = {"blend": os.path.join(folder, "rerun_level.blend"), "scene": scene.name, "out": os.path.abspath(out),
-           "objects": [o.name for o in objects], "options": dataclasses.asdict(options)}
-    bpy.ops.wm.save_as_mainfile(filepath=job["blend"], copy=True, check_existing=False)
-    job_file = os.path.join(folder, "rerun_job.json")
-    with open(job_file, "w") as f:
-        json.dump(job, f)
-    code = f"import sys; sys.path.insert(0, {ROOT!r}); from addon.lab.bench import level; level.rerun_job()"
-    cmd = ([bpy.app.binary_path, "-b", "--factory-startup", "--python-expr", code] if bpy.app.binary_path else
-           [sys.executable, "-c", code])
-    proc = subprocess.run(cmd, stdout=subprocess.PIPE, text=True, env={**os.environ, "IL_RERUN_JOB": job_file})
-    for me, uv in saved.items():
-        me.uv_layers.new(name=uvmod.LIGHTMAP, do_init=False).data.foreach_set("uv", uv)
-        me.update()
+    blend, job_file = os.path.join(folder, "rerun_level.blend"), os.path.join(folder, "rerun_job.json")
+    try:
+        bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True, check_existing=False)
+        with open(job_file, "w") as f:
+            json.dump({"blend": blend, "scene": scene.name, "out": os.path.abspath(out),
+                       "objects": [o.name for o in objects], "options": dataclasses.asdict(options)}, f)
+        code = f"import sys; sys.path.insert(0, {ROOT!r}); from addon.lab.bench import level; level.rerun_job()"
+        cmd = ([bpy.app.binary_path, "-b", "--factory-startup", "--python-exit-code", "1", "--python-expr", code]
+               if bpy.app.binary_path else [sys.executable, "-c", code])
+        proc = subprocess.run(cmd, stdout=subprocess.PIPE, text=True, errors="replace",
+                              env={**os.environ, "IL_RERUN_JOB": job_file})
+    finally:
+        for me, uv in saved.items():
+            me.uv_layers.new(name=uvmod.LIGHTMAP, do_init=False).data.foreach_set("uv", uv)
+            me.update()
+        for path in (blend, blend + "1", job_file):
+            with contextlib.suppress(OSError):
+                os.remove(path)
     rows = [line[len(_ROW):] for line in proc.stdout.splitlines() if line.startswith(_ROW)]
     if proc.returncode or not rows:
-        raise RuntimeError(f"the rerun in a new process failed (exit {proc.returncode})")
+        tail = " | ".join(proc.stdout.strip().splitlines()[-3:])
+        raise RuntimeError(f"the rerun in a new process failed (exit {proc.returncode}): {tail}")
     return json.loads(rows[-1])
 
 
