@@ -6,6 +6,7 @@ import bpy
 import numpy as np
 
 from ..blender import compat
+from ..blender.digest import node_tree_digest, rna_digest
 from ..blender.scene import corner_triangles, corner_uv, corner_vertices, positions
 from ..core.io import exr
 from .kinds import KINDS
@@ -15,48 +16,9 @@ from .plan import map_file
 HASH_KEY = "il:input_hash"
 
 
-def _rna_digest(h, struct):
-    """A modifier's type and every setting (objects and node groups it uses by name, a node group's tree)."""
-    h.update(struct.bl_rna.identifier.encode())
-    for prop in struct.bl_rna.properties:
-        if prop.identifier in ("rna_type", "name", "is_override_data_editable", "show_expanded", "is_active",
-                               "show_viewport", "show_in_editmode", "show_on_cage", "persistent_uid"):
-            continue
-        value = getattr(struct, prop.identifier, None)
-        if hasattr(value, "name") and hasattr(value, "bl_rna"):
-            h.update(f"{prop.identifier}={value.name}".encode())
-            if isinstance(value, bpy.types.NodeTree):
-                _node_tree_digest(h, value)
-        elif isinstance(value, (int, float, str, bool)) or value is None:
-            h.update(f"{prop.identifier}={value!r}".encode())
-        elif hasattr(value, "__len__") and not hasattr(value, "bl_rna"):
-            try:
-                h.update(f"{prop.identifier}={tuple(value)!r}".encode())
-            except TypeError:
-                pass
-
-
 _HASHED_OPTIONS = ("resolution", "texel_density", "max_resolution", "samples", "target_error", "pilot_samples",
                    "max_samples", "ao_distance", "margin", "denoise", "seam_fix", "uv_layer", "target", "atlas",
                    "seed")
-
-
-def _node_tree_digest(h, tree):
-    """Node types, their unlinked input values and the links of a node tree (what shades, not where nodes sit)."""
-    if tree is None:
-        h.update(b"-")
-        return
-    for n in sorted(tree.nodes, key=lambda n: n.name):
-        h.update(f"{n.name}:{n.bl_idname}".encode())
-        if getattr(n, "image", None) is not None:
-            h.update(n.image.name.encode())
-        for sock in n.inputs:
-            value = getattr(sock, "default_value", None)
-            if value is not None and not sock.is_linked:
-                h.update(repr(tuple(value) if hasattr(value, "__len__") else value).encode())
-    for link in tree.links:
-        h.update(f"{link.from_node.name}.{link.from_socket.identifier}>{link.to_node.name}.{link.to_socket.identifier}"
-                 .encode())
 
 
 def lighting_digest(scene):
@@ -69,11 +31,11 @@ def lighting_digest(scene):
             h.update(f"{o.name}:{d.type}:{tuple(d.color)}:{d.energy}:{getattr(d, 'shadow_soft_size', 0)}:"
                      f"{getattr(d, 'angle', 0)}:{getattr(d, 'spot_size', 0)}:{getattr(d, 'size', 0)}".encode())
             h.update(np.array(o.matrix_world, np.float64).tobytes())
-            _node_tree_digest(h, d.node_tree if compat.uses_nodes(d) else None)
+            node_tree_digest(h, d.node_tree if compat.uses_nodes(d) else None)
     world = scene.world
     h.update(b"world" if world is not None else b"no world")
     if world is not None:
-        _node_tree_digest(h, world.node_tree)
+        node_tree_digest(h, world.node_tree)
     return h.hexdigest()
 
 
@@ -104,7 +66,7 @@ def input_hash(scene, group, kind, options, lighting):
         h.update(tris.tobytes())
         for mod in o.modifiers:
             if mod.show_render:
-                _rna_digest(h, mod)
+                rna_digest(h, mod)
         ev = o.evaluated_get(depsgraph).data
         h.update(f"{len(ev.vertices)}:{len(ev.polygons)}".encode())
         if options.uv_layer and options.uv_layer in me.uv_layers:
@@ -114,7 +76,7 @@ def input_hash(scene, group, kind, options, lighting):
             h.update((mat.name if mat else "-").encode())
             if KINDS[kind].lit and mat is not None:
                 h.update(repr(tuple(mat.diffuse_color)).encode())
-                _node_tree_digest(h, mat.node_tree)
+                node_tree_digest(h, mat.node_tree)
     return h.hexdigest()
 
 
