@@ -7,7 +7,7 @@ import numpy as np
 
 from ..blender import compat
 from ..blender.digest import node_tree_digest, rna_digest
-from ..blender.scene import corner_triangles, corner_uv, corner_vertices, positions
+from ..blender.scene import corner_triangles, corner_uv, corner_vertices, positions, subdivided_only
 from ..core.io import exr
 from .kinds import KINDS
 from .plan import map_file
@@ -41,7 +41,8 @@ def lighting_digest(scene):
 
 def input_hash(scene, group, kind, options, lighting):
     """Hash of what determines map ``kind`` of ``group``: each object's evaluated mesh, as its base mesh (positions
-    and triangles, exact), its modifiers' settings and the evaluated counts (the evaluated positions themselves
+    and triangles, exact), its modifiers' settings and the evaluated counts (none for a mesh only subdivided,
+    ``blender.scene.subdivided_only``, whose evaluated mesh is not read; the evaluated positions themselves
     change in their last bit when a UV layer is added under a Subdivision; the UVs of ``options.uv_layer`` when
     given), its transform and its materials' node trees, the
     lights and world (``lighting``, :func:`lighting_digest`; a ``lit`` kind only: irradiance) and the options that
@@ -64,11 +65,13 @@ def input_hash(scene, group, kind, options, lighting):
         tris = corner_vertices(me)[corner_triangles(me)]
         h.update(co.tobytes())
         h.update(tris.tobytes())
+        subdivided = subdivided_only(o)             # the mesh and the settings hashed give the evaluated mesh
         for mod in o.modifiers:
-            if mod.show_render:
+            if mod.show_render or (subdivided and mod.show_viewport):
                 rna_digest(h, mod)
-        ev = o.evaluated_get(depsgraph).data
-        h.update(f"{len(ev.vertices)}:{len(ev.polygons)}".encode())
+        if not subdivided:
+            ev = o.evaluated_get(depsgraph).data
+            h.update(f"{len(ev.vertices)}:{len(ev.polygons)}".encode())
         if options.uv_layer and options.uv_layer in me.uv_layers:
             h.update(corner_uv(me, options.uv_layer).tobytes())
         for slot in o.material_slots:

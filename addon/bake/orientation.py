@@ -68,9 +68,11 @@ def holds_something(scene, obj):
 
 
 def empty_inward_shells(scene, obj):
-    """(fraction of the evaluated mesh's triangles in empty inward shells, number of such shells)."""
+    """(fraction of the evaluated mesh's triangles in empty inward shells, number of such shells). A mesh only
+    subdivided (:func:`blender.scene.subdivided_only`) is read as it is, before the subdivision: the same closed
+    parts facing the same side (a shell's box is then its cage's, which holds the subdivided one)."""
     vl = scene.view_layers[0]
-    co, tris = sc.evaluated_triangles(obj, vl.depsgraph)
+    co, tris = sc.mesh_triangles(obj.data) if sc.subdivided_only(obj) else sc.evaluated_triangles(obj, vl.depsgraph)
     if not len(tris):
         return 0.0, 0
     labels, inward, _ = FIGURES.call(lightmap.inward_shells, co, tris)

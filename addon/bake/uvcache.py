@@ -4,10 +4,11 @@ reruns and resumed bakes.
 
 The key is a digest of everything the layout depends on: per object its mesh (vertex positions, loops' vertices,
 faces' first loops and corner counts: what the unwrappers see, and the loop order the UVs come back in), its
-evaluated mesh (the modifiers' result), the metric MᵀM of its world matrix (world area, hence the side chosen from a
-texel density; the matrix itself for an atlas; both to 6 digits), and the layout options (margin, resolution, texel density, maximum
-resolution, fixed sizes, atlas), :data:`LAYOUT_VERSION` and Blender's version (the unwrappers may change). An
-entry holds each object's UVs (float32, its loop order; one array for all, read at once) and a JSON head: the side,
+evaluated mesh (the modifiers' result; for a mesh only subdivided, ``blender.scene.subdivided_only``, the
+modifiers' settings instead, which need no evaluation), the metric MᵀM of its world matrix (world area, hence the
+side chosen from a texel density; the matrix itself for an atlas; both to 6 digits), and the layout options (margin,
+resolution, texel density, maximum resolution, fixed sizes, atlas), :data:`LAYOUT_VERSION` and Blender's version
+(the unwrappers may change). An entry holds each object's UVs (float32, its loop order; one array for all, read at once) and a JSON head: the side,
 margin and unwrapper, each object's loop count and the window the layout was carried into (width, height and the
 side it was cut from; 0 0 0 for none); a file that cannot be read,
 or whose arrays do not match the meshes (shape, dtype, finite values inside the unit square), is ignored and
@@ -23,7 +24,8 @@ import os
 import bpy
 import numpy as np
 
-from ..blender.scene import corner_vertices, positions, read
+from ..blender.digest import rna_digest
+from ..blender.scene import corner_vertices, positions, read, subdivided_only
 from ..core.io.files import write_bytes
 
 LAYOUT_VERSION = 9
@@ -59,7 +61,14 @@ def key(objects, depsgraph, options, together=False):
         sizes = options.sizes.get(o.name) if options.sizes else None
         m = np.array(o.matrix_world, float)[:3, :3]
         h.update(repr((tuple(sizes) if sizes else None, _rounded(m if together else m.T @ m))).encode())
-        for me in (o.data, o.evaluated_get(depsgraph).data):
+        if subdivided_only(o):          # the mesh and the settings give the evaluated mesh: it is not read
+            meshes = (o.data,)
+            for mod in o.modifiers:
+                if mod.show_viewport or mod.show_render:
+                    rna_digest(h, mod)
+        else:
+            meshes = (o.data, o.evaluated_get(depsgraph).data)
+        for me in meshes:
             for a in _arrays(me):
                 h.update(np.int64(a.size).tobytes())
                 h.update(a.tobytes())

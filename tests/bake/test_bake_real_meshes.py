@@ -63,6 +63,38 @@ def test_cube_added_with_negative_scale_bakes_its_outside(tmp_path):
     assert np.array_equal(before[0], after[0]) and np.array_equal(before[1], after[1])
 
 
+def test_a_subdivided_mesh_is_checked_hashed_and_keyed_from_its_cage(tmp_path, monkeypatch):
+    """blender.scene.subdivided_only: a cube added inside out under a Subdivision modifier is found inside out from
+    its cage, without reading its evaluated mesh (Blender would compute the subdivision for it, and again once the
+    light-map layer is written), and is baked from outside as the cube is (convex: k_A = 1); its input hash and
+    layout key need no depsgraph either. With a Solidify added, the evaluated mesh is read again."""
+    import types
+    from addon.bake import inputs, orientation, uvcache
+    scene = bpy.context.scene
+    sc.world(scene, strength=0.5)
+    cube = added(bpy.ops.mesh.primitive_cube_add, size=1.0, scale=(-1.0, 1.0, 1.0))
+    cube.modifiers.new("Subdivision", "SUBSURF").levels = 1
+
+    def read(*args):
+        raise AssertionError("the evaluated mesh was read")
+
+    with monkeypatch.context() as m:
+        m.setattr(sc, "evaluated_triangles", read)
+        assert orientation.empty_inward_shells(scene, cube) == (1.0, 1)
+    options = BakeOptions(resolution=32, samples=4, margin=1)
+    no_depsgraph = types.SimpleNamespace(view_layers=[types.SimpleNamespace(depsgraph=None)])
+    inputs.input_hash(no_depsgraph, [cube], "ao", options, "")      # Object.evaluated_get(None) raises
+    uvcache.key([cube], None, options)
+    with pytest.warns(ILWarning, match="normals point into"):
+        bake_lightmaps([cube], ["ao"], tmp_path, options, scene=scene)
+    ch, _ = exr.read_exr(tmp_path / "Cube_ao.exr")
+    covered = ch["A"] > 0.5
+    assert covered.sum() > 100 and np.all(ch["Y"][covered] == 1.0)
+    cube.modifiers.new("Solidify", "SOLIDIFY")
+    with pytest.raises(TypeError):
+        uvcache.key([cube], None, options)
+
+
 def test_inside_out_room_with_a_light_inside_keeps_its_normals(tmp_path):
     """A cube whose normals face inward with a light in it is a room: its inside is baked, no warning, and its
     AO of 0 everywhere (closed, smaller than the AO distance) is a result, not an error.
