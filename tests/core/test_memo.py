@@ -57,6 +57,17 @@ def _counted(made):
     return shells
 
 
+def _one_pack(folder, fn, *args):
+    """(fn(*args), the pack a store in ``folder`` wrote for it, its index, its blob)."""
+    writer = Memo()
+    with writer.stored(folder) as store:
+        result = writer.call(fn, *args)
+        store.flush()
+    (pack,) = folder.iterdir()
+    with np.load(pack, allow_pickle=False) as z:
+        return result, pack, json.loads(str(z["index"])), z["blob"]
+
+
 def test_a_store_gives_another_process_the_same_figures(tmp_path, monkeypatch):
     made = []
     shells = _counted(made)
@@ -92,14 +103,7 @@ def test_a_store_ignores_packs_it_cannot_read_and_keeps_the_newest(tmp_path, mon
     made = []
     shells = _counted(made)
     co = np.ones((4, 3), np.float32)
-    writer = Memo()
-    with writer.stored(tmp_path) as store:
-        writer.call(shells, co, 1)
-        store.flush()
-    (pack,) = tmp_path.iterdir()
-    with np.load(pack, allow_pickle=False) as z:
-        index = json.loads(str(z["index"]))
-        blob = z["blob"]
+    _, pack, index, blob = _one_pack(tmp_path, shells, co, 1)
     for spec, refs in index.values():
         refs[0][1] = "|S8"                                         # bytes a view would give: not a figure's dtype
     np.savez(pack, index=np.array(json.dumps(index)), blob=blob)
@@ -161,13 +165,7 @@ def test_a_figure_whose_arrays_lie_past_the_end_of_its_pack_is_made_again(tmp_pa
     made = []
     shells = _counted(made)
     co = np.ones((6, 3), np.float32)
-    writer = Memo()
-    with writer.stored(tmp_path) as store:
-        first = writer.call(shells, co, 7)
-        store.flush()
-    (pack,) = tmp_path.iterdir()
-    with np.load(pack, allow_pickle=False) as z:
-        index, blob = json.loads(str(z["index"])), z["blob"]
+    first, pack, index, blob = _one_pack(tmp_path, shells, co, 7)
     np.savez(pack, index=np.array(json.dumps(index)), blob=blob[:len(blob) // 2])    # a truncated blob
     reader = Memo()
     with reader.stored(tmp_path):
@@ -175,32 +173,12 @@ def test_a_figure_whose_arrays_lie_past_the_end_of_its_pack_is_made_again(tmp_pa
     assert made == [7, 7] and np.array_equal(again[0], first[0])
 
 
-def test_a_figure_made_unstored_reaches_the_store_when_asked_for_stored(tmp_path):
-    made = []
-    shells = _counted(made)
-    co = np.ones((2, 3), np.float32)
-    writer = Memo()
-    with writer.stored(tmp_path) as store:
-        writer.call(shells, co, 3, stored=False)              # a trial layout's figure: not for the store
-        writer.call(shells, co, 3)                            # the same figure, now of the layout baked
-        store.flush()
-    reader = Memo()
-    with reader.stored(tmp_path):
-        reader.call(shells, co, 3)
-    assert made == [3]
-
-
 def test_packs_whose_index_is_not_a_mapping_or_pickled_are_ignored_and_scalars_stay_scalars(tmp_path):
     def figure(co, k):
         return np.float64(co.sum()) / 3, np.int32(k), np.arange(k)
 
-    writer, co = Memo(), np.ones((2, 3), np.float32)
-    with writer.stored(tmp_path) as store:
-        first = writer.call(figure, co, 4)
-        store.flush()
-    (pack,) = tmp_path.iterdir()
-    with np.load(pack, allow_pickle=False) as z:
-        index, blob = json.loads(str(z["index"])), z["blob"]
+    co = np.ones((2, 3), np.float32)
+    first, pack, index, blob = _one_pack(tmp_path, figure, co, 4)
     np.savez(tmp_path / ("1" * 32 + ".npz"), index=np.array(json.dumps([[1]])), blob=blob)
     np.savez(tmp_path / ("2" * 32 + ".npz"), index=np.array([index], object), blob=blob)   # pickled: never loaded
     reader = Memo()
@@ -216,14 +194,21 @@ def test_packs_whose_index_is_not_a_mapping_or_pickled_are_ignored_and_scalars_s
         assert other.call(figure, co, 4)[0] == first[0]            # made again, not read from before the blob
 
 
-def test_a_second_bake_in_the_same_session_writes_only_its_new_figures(tmp_path):
+def test_a_figure_reaches_the_store_once_also_when_made_unstored_first_or_in_an_earlier_bake(tmp_path):
+    """Store.keep: a figure made unstored (a trial layout's) and then asked for stored is written, and a second bake
+    in the same session writes only its new figures, not those its memo remembers from the first."""
     made = []
     shells = _counted(made)
     co = np.ones((2, 3), np.float32)
     session = Memo()
     with session.stored(tmp_path) as store:
+        session.call(shells, co, 1, stored=False)
         session.call(shells, co, 1)
         store.flush()
+    reader = Memo()
+    with reader.stored(tmp_path):
+        reader.call(shells, co, 1)
+    assert made == [1]                                              # read from the pack, not made
     first = set(tmp_path.iterdir())
     with session.stored(tmp_path) as store:
         session.call(shells, co, 1)                                 # remembered, and in the folder's pack
