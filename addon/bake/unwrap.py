@@ -6,8 +6,8 @@ inside the unit square and cover the map (``uvchecks.MIN_COVERAGE``), at the sid
 (:func:`_search`); an atlas's layout, and a single mesh's that still fills under ``uvchecks.FILL``, then has its charts
 placed again by their texels (:meth:`_Copies.try_raster_pack`, :mod:`core.pack`); a dense mesh is also unwrapped
 smoothed below the map's resolution (:meth:`_Copies.try_smoothed`). The unwrappers run on temporary canonical copies
-(:class:`_Copies`, :func:`unwrap_copy.canonical_copy`): the user's meshes never enter edit mode and their select / hide flags
-are never written, only the finished UVs are copied into their "Lightmap" layer (the other layers, the active one
+(:class:`_Copies`, :func:`unwrap_copy.canonical_copy`): the user's meshes never enter edit mode and their select / hide
+flags are never written, only the finished UVs are copied into their "Lightmap" layer (the other layers, the active one
 and the one that renders stay as they were).
 """
 import contextlib
@@ -90,10 +90,10 @@ def _margins(margin):
 
 def _unwrap_with_margin(group, state, options, names):
     """Generate "Lightmap" for ``group``; return its :class:`_Made` (side, margin in texels, unwrapper): by
-    :func:`_search` on copies whose coincident vertices are welded (:func:`unwrap_copy.welded_vertices`), or again on copies as the
-    meshes are when the weld joined faces that cover each other (the welded layout fails, or puts texels of a welded
-    object under several of its faces: MAX_OVERLAP at the map's side, up to OVERLAP_SIDE; an object the weld left
-    as it was lays out alike either way); the warnings of the layout not kept are dropped."""
+    :func:`_search` on copies whose coincident vertices are welded (:func:`unwrap_copy.welded_vertices`), or again on
+    copies as the meshes are when the weld joined faces that cover each other (the welded layout fails, or puts texels
+    of a welded object under several of its faces: MAX_OVERLAP at the map's side, up to OVERLAP_SIDE; an object the weld
+    left as it was lays out alike either way); the warnings of the layout not kept are dropped."""
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always")
         try:
@@ -188,13 +188,13 @@ def texel_size(group, options, fixed):
 
 
 def _fit(copies, group, side, margin, cut):
-    """Unwrap at ``side`` with the largest margin (texels) of :func:`_margins` whose layout fits and whose charts
-    fill at least MIN_CHART_AREA of the map (else the fitting layout that fills most; when no layout of the copies as
-    they are fits, the dense copies are smoothed at once, :meth:`_Copies.use_smoothed`); leave it in place and return that margin, or None when
-    none fits. A single mesh's layout is then also tried by Smart UV Project at WIDE_ANGLE
-    (:meth:`_Copies.try_wide_angle`) and by Lightmap Pack with that margin (:meth:`_Copies.try_lightmap_pack`), and
-    the layout with the dense copies smoothed (:meth:`_Copies.try_smoothed`), each kept when it fills more of the map
-    as it is baked (``cut``: cut to its window, :func:`baked_fill`)."""
+    """Unwrap at ``side`` with the largest margin (texels) of :func:`_margins` whose layout fits and whose charts fill
+    at least MIN_CHART_AREA of the map (else the fitting layout that fills most; when no layout of the copies as they
+    are fits, the dense copies are smoothed at once, :meth:`_Copies.use_smoothed`); leave it in place and return that
+    margin, or None when none fits. A single mesh's layout is then also tried by Smart UV Project at WIDE_ANGLE
+    (:meth:`_Copies.try_wide_angle`) and by Lightmap Pack with that margin (:meth:`_Copies.try_lightmap_pack`), and the
+    layout with the dense copies smoothed (:meth:`_Copies.try_smoothed`), each kept when it fills more of the map as it
+    is baked (``cut``: cut to its window, :func:`baked_fill`)."""
     best = _fit_margins(copies, group, side, margin)
     if best is None and copies.smoothed is None and any(copies.smooth):    # no layout of the dense copies fits
         copies.smoothed = True
@@ -239,15 +239,15 @@ def _fit_side(copies, group, side):
 
 
 class _Copies:
-    """Temporary objects with canonical copies of the group's meshes (:func:`unwrap_copy.canonical_copy`: all faces revealed
-    and selected, one UV layer, scaled by :func:`unwrap_copy.unwrap_scale`, faces in an order given by their vertices), where
-    the unwrappers run; :meth:`unwrap` copies the result into each mesh's "Lightmap" layer (through the copy's
-    map to the original loops). ``unwrapper`` names the layout in place (SMART or LIGHTMAP_PACK). A copy whose
+    """Temporary objects with canonical copies of the group's meshes (:func:`unwrap_copy.canonical_copy`: all faces
+    revealed and selected, one UV layer, scaled by :func:`unwrap_copy.unwrap_scale`, faces in an order given by their
+    vertices), where the unwrappers run; :meth:`unwrap` copies the result into each mesh's "Lightmap" layer (through the
+    copy's map to the original loops). ``unwrapper`` names the layout in place (SMART or LIGHTMAP_PACK). A copy whose
     edges are shorter than a texel of ``texel`` metres is also unwrapped smoothed below the map's resolution
-    (:meth:`try_smoothed`). The copies live in a scene of their own, removed with them on exit (also on errors):
-    the user's scene, its selection and its depsgraph never see them, and an edit session or a removal costs what
-    it costs in an empty scene (measured in the full level's scene: an unwrap of a quad with its two mode switches
-    2.9 -> 0.5 ms, a removal with the view layer's update 7.4 -> 0.9 ms)."""
+    (:meth:`try_smoothed`). The copies live in a scene of their own, removed with them on exit (also on errors): the
+    user's scene, its selection and its depsgraph never see them, and an edit session or a removal costs what it costs
+    in an empty scene (measured in the full level's scene: an unwrap of a quad with its two mode switches 2.9 -> 0.5 ms,
+    a removal with the view layer's update 7.4 -> 0.9 ms)."""
 
     def __init__(self, group, state, weld=True, texel=None):
         self.group, self.state, self.weld, self.texel = list(group), state, weld, texel
@@ -258,7 +258,7 @@ class _Copies:
         self.welded = []         # the objects whose copies the weld joined vertices of
         self.angle = None        # Smart UV Project's angle limit once :meth:`try_wide_angle` decided it
         self.smooth = []         # per copy: its Smoothing when it is dense, else None
-        self.smoothed = None     # whether the copies' unwraps use the smoothed positions, once :meth:`try_smoothed` decided
+        self.smoothed = None     # the copies' unwraps use the smoothed positions, once :meth:`try_smoothed` decided
 
     def __enter__(self):
         for o in self.group:
@@ -302,16 +302,15 @@ class _Copies:
                 obj.data.update()
 
     def try_smoothed(self, margin_uv, side, margin, cut):
-        """When a copy is dense (:func:`unwrap_copy.smoothed_copy`): the unwrap again with the dense copies smoothed, at the
-        same margin and angle. Each layout is first packed by its texels as the search would end it
-        (:meth:`try_raster_pack`: a scan's thousands of tiny charts fill the gaps between an atlas's boxes with
-        texels of no use, which their boxes alone would count as fill); the smoothed one is kept when it fits a
-        ``side``² map, fills more of it as baked (:func:`baked_fill`), its texel density is as even
-        (:func:`even_enough`: smoothing rounds a dense hard-surface mesh's edges, and its faces there get fewer
-        texels) and no more of its texels lie under several faces (or at most SMOOTH_OVERLAP). A copy whose own
-        texels come to lie under several of its faces (more than uvchecks.MAX_OVERLAP; smoothed over its features)
-        is unwrapped as it is, the others smoothed again. Decided once per copies, at the first side the search
-        tries."""
+        """When a copy is dense (:func:`unwrap_copy.smoothed_copy`): the unwrap again with the dense copies smoothed, at
+        the same margin and angle. Each layout is first packed by its texels as the search would end it
+        (:meth:`try_raster_pack`: a scan's thousands of tiny charts fill the gaps between an atlas's boxes with texels
+        of no use, which their boxes alone would count as fill); the smoothed one is kept when it fits a ``side``² map,
+        fills more of it as baked (:func:`baked_fill`), its texel density is as even (:func:`even_enough`: smoothing
+        rounds a dense hard-surface mesh's edges, and its faces there get fewer texels) and no more of its texels lie
+        under several faces (or at most SMOOTH_OVERLAP). A copy whose own texels come to lie under several of its faces
+        (more than uvchecks.MAX_OVERLAP; smoothed over its features) is unwrapped as it is, the others smoothed again.
+        Decided once per copies, at the first side the search tries."""
         if self.smoothed is not None or not any(self.smooth):
             return
         self.try_raster_pack(side, margin, cut)
@@ -382,8 +381,9 @@ class _Copies:
         ctx = self._context()
         self.unwrapper = SMART
         with _edit(ctx, lead):
-            bpy.ops.uv.smart_project(angle_limit=angle or self.angle or ANGLE, island_margin=float(margin_uv), margin_method="FRACTION",
-                                     area_weight=0.0, correct_aspect=True, scale_to_bounds=False)
+            bpy.ops.uv.smart_project(angle_limit=angle or self.angle or ANGLE, island_margin=float(margin_uv),
+                                     margin_method="FRACTION", area_weight=0.0, correct_aspect=True,
+                                     scale_to_bounds=False)
         best = self._uvs(temps)
         if len(temps) > 1:
             tris = [_copy_triangles(o.data) for o, _ in self.copies]     # the triangles each mesh is baked with
@@ -472,13 +472,13 @@ class _Copies:
         return smart_fill, packed
 
     def try_raster_pack(self, side, margin, cut):
-        """For an atlas, or one copy whose layout fills under FILL of its map as baked (:func:`baked_fill`), with at most
-        PACK_CHARTS charts and charts × map side within PACK_WORK: the charts of the layout in place (of every copy
-        of an atlas) placed again by their texels (charts as the welded copies join them, the same margin): at a
-        fixed side scaled up as far as they fit (:func:`core.pack.largest`), with a texel density (``cut``) at
-        their size in the fewest rows they fit (:func:`core.pack.lowest`: the map is cut to its window, the density
-        asked, fewer texels). Kept when it fits and fills more of its map as baked. The texel density stays as even
-        (one scale for every chart) and no chart comes nearer another than the unwrappers' margins let it."""
+        """For an atlas, or one copy whose layout fills under FILL of its map as baked (:func:`baked_fill`), with at
+        most PACK_CHARTS charts and charts × map side within PACK_WORK: the charts of the layout in place (of every copy
+        of an atlas) placed again by their texels (charts as the welded copies join them, the same margin): at a fixed
+        side scaled up as far as they fit (:func:`core.pack.largest`), with a texel density (``cut``) at their size in
+        the fewest rows they fit (:func:`core.pack.lowest`: the map is cut to its window, the density asked, fewer
+        texels). Kept when it fits and fills more of its map as baked. The texel density stays as even (one scale for
+        every chart) and no chart comes nearer another than the unwrappers' margins let it."""
         if self.unwrapper.endswith(RASTER):
             return
         have = baked_fill(self.group, side, margin, cut)

@@ -2,18 +2,17 @@
 same geometry, linked duplicates) and on disk in the output folder (``<out>/.il-uv-cache/<digest hex>.npz``) for
 reruns and resumed bakes.
 
-The key is a digest of everything the layout depends on: per object its mesh (vertex positions, loops' vertices,
-faces' first loops and corner counts: what the unwrappers see, and the loop order the UVs come back in), its
-evaluated mesh (the modifiers' result; for a mesh only subdivided, ``blender.scene.subdivided_only``, the
-modifiers' settings instead, which need no evaluation), the metric MᵀM of its world matrix (world area, hence the
-side chosen from a texel density; the matrix itself for an atlas; both to 6 digits), and the layout options (margin,
-resolution, texel density, maximum resolution, fixed sizes, atlas), :data:`LAYOUT_VERSION` and Blender's version
-(the unwrappers may change). An entry holds each object's UVs (float32, its loop order; one array for all, read at once) and a JSON head: the side,
-margin and unwrapper, each object's loop count and the window the layout was carried into (width, height and the
-side it was cut from; 0 0 0 for none); a file that cannot be read,
-or whose arrays do not match the meshes (shape, dtype, finite values inside the unit square), is ignored and
-rebuilt. Files are written (atomically) only after a map of the run is written, never outside the output folder,
-named by the digest only.
+The key is a digest of everything the layout depends on: per object its mesh (vertex positions, loops' vertices, faces'
+first loops and corner counts: what the unwrappers see, and the loop order the UVs come back in), its evaluated mesh
+(the modifiers' result; for a mesh only subdivided, ``blender.scene.subdivided_only``, the modifiers' settings instead,
+which need no evaluation), the metric MᵀM of its world matrix (world area, hence the side chosen from a texel density;
+the matrix itself for an atlas; both to 6 digits), and the layout options (margin, resolution, texel density, maximum
+resolution, fixed sizes, atlas), :data:`LAYOUT_VERSION` and Blender's version (the unwrappers may change). An entry
+holds each object's UVs (float32, its loop order; one array for all, read at once) and a JSON head: the side, margin and
+unwrapper, each object's loop count and the window the layout was carried into (width, height and the side it was cut
+from; 0 0 0 for none); a file that cannot be read, or whose arrays do not match the meshes (shape, dtype, finite values
+inside the unit square), is ignored and rebuilt. Files are written (atomically) only after a map of the run is written,
+never outside the output folder, named by the digest only.
 """
 import dataclasses
 import hashlib

@@ -1,10 +1,10 @@
 """Results of costly pure functions of arrays, remembered for the process by a digest of their inputs, and on disk
 beside a bake's maps (:class:`Store`).
 
-A rerun of a bake asks again for figures of layouts and meshes that did not change: their overlap, seams, inward
-shells, chart counts and the coverage masks of the layouts baked. The key is the bytes, dtype and shape of every input array (and the repr of the other
-inputs), so a changed input is a new key, never a stale result. Results are returned as they were made: numpy
-arrays among them (in tuples, lists and dataclasses) are made read-only.
+A rerun of a bake asks again for figures of layouts and meshes that did not change: their overlap, seams, inward shells,
+chart counts and the coverage masks of the layouts baked. The key is the bytes, dtype and shape of every input array
+(and the repr of the other inputs), so a changed input is a new key, never a stale result. Results are returned as they
+were made: numpy arrays among them (in tuples, lists and dataclasses) are made read-only.
 """
 import collections
 import contextlib
