@@ -8,7 +8,8 @@ import numpy as np
 
 from ..blender.scene import (attribute, corner_triangles, corner_uv, corner_vertices, positions, read,
                              set_attribute, triangle_polygons)
-from . import cost, cycles
+from ..core.memo import storable
+from . import cost, cycles, evaluated
 from .passes import BakeResult, PassSum, denoised, estimated, fixed_calls, sample_passes
 from .plan import speed
 
@@ -44,12 +45,17 @@ def _batch_refusal(obj, layers, state, depsgraph, instanced):
         return "ray visibility"
     if obj.name in instanced:
         return "instanced"
-    me = obj.evaluated_get(depsgraph).data
-    if getattr(me, "has_custom_normals", False):
+    custom, carried = evaluated.figure(obj, depsgraph, "batchable", _batchable, layers.get(obj.name)) or (False, False)
+    if custom:
         return "custom normals"
-    if layers.get(obj.name) not in me.uv_layers:
+    if not carried:
         return "light-map layer not in the evaluated mesh"
     return None
+
+
+def _batchable(me, layer):
+    """(evaluated mesh ``me`` has custom normals, it carries UV layer ``layer``)."""
+    return bool(getattr(me, "has_custom_normals", False)), layer in me.uv_layers
 
 
 def _instanced(scene):
@@ -132,7 +138,7 @@ class _Proxy:
         parts, materials_ = [], []
         for target in self.batch:
             for o in target.group:
-                part = _Part.of(o.evaluated_get(depsgraph).data, self.layers[o.name], o.matrix_world)
+                part = evaluated.figure(o, depsgraph, "part", _Part.of, self.layers[o.name]).placed(o.matrix_world)
                 slots = self.temporary.batch_slots(o, self.kind, target.name, self.images[target.name])
                 part.material = len(materials_) + np.clip(part.material, 0, len(slots) - 1)
                 materials_ += slots
@@ -161,11 +167,12 @@ class _Proxy:
         return False
 
 
+@storable
 @dataclasses.dataclass
 class _Part:
-    """One object's loop triangles (the triangles Blender bakes, chosen in object space) as arrays: world-space
-    positions (V, 3), triangle vertices (T, 3), UVs of its light-map layer per corner (T, 3, 2), per triangle its
-    material index and smooth flag, the sharp edges (E, 2)."""
+    """One object's loop triangles (the triangles Blender bakes, chosen in object space) as arrays: positions (V, 3)
+    (object space as read, world space once :meth:`placed`), triangle vertices (T, 3), UVs of its light-map layer per
+    corner (T, 3, 2), per triangle its material index and smooth flag, the sharp edges (E, 2)."""
     co: np.ndarray
     tris: np.ndarray
     uv: np.ndarray
@@ -174,7 +181,7 @@ class _Part:
     sharp: np.ndarray
 
     @classmethod
-    def of(cls, me, layer, matrix):
+    def of(cls, me, layer):
         tl = corner_triangles(me)
         tp = triangle_polygons(me)
         nf = len(me.polygons)
@@ -183,12 +190,17 @@ class _Part:
         ev = attribute(me, ".edge_verts", np.int32)
         ev = (ev if ev is not None else read(me.edges, "vertices", np.int32, 2)).reshape(-1, 2)
         sharp = attribute(me, "sharp_edge", bool)
-        m = np.array(matrix, np.float64)
-        world = (positions(me).astype(np.float64) @ m[:3, :3].T + m[:3, 3]).astype(np.float32)
-        return cls(world, corner_vertices(me)[tl].astype(np.int64), corner_uv(me, layer)[tl],
+        return cls(positions(me), corner_vertices(me)[tl], corner_uv(me, layer)[tl],
                    (mat if mat is not None else np.zeros(nf, np.int32))[tp],
                    ~(flat if flat is not None else np.zeros(nf, bool))[tp],
-                   ev[sharp].astype(np.int64) if sharp is not None else np.zeros((0, 2), np.int64))
+                   ev[sharp] if sharp is not None else np.zeros((0, 2), np.int32))
+
+    def placed(self, matrix):
+        """This part with its positions in world space by ``matrix`` (indices as int64, for the join)."""
+        m = np.array(matrix, np.float64)
+        world = (self.co.astype(np.float64) @ m[:3, :3].T + m[:3, 3]).astype(np.float32)
+        return _Part(world, self.tris.astype(np.int64), self.uv, self.material, self.smooth,
+                     self.sharp.astype(np.int64))
 
     @staticmethod
     def joined(parts, mesh):

@@ -12,10 +12,10 @@ import math
 
 import numpy as np
 
-from ..blender.scene import corner_triangles, corner_uv, corner_vertices, evaluated_mesh, positions, read
+from ..blender.scene import corner_triangles, corner_uv, corner_vertices, positions, read
 from ..core import lightmap, seams as core
 from ..core.memo import FIGURES
-from . import uv as uvmod
+from . import evaluated, uv as uvmod
 
 
 def mesh_seams(obj, layer, depsgraph, width, height):
@@ -23,18 +23,17 @@ def mesh_seams(obj, layer, depsgraph, width, height):
     ``height`` map; None when the evaluated mesh lacks the layer. Found once per object and map size while the
     layouts are fixed (every map kind of an object has the same seams)."""
     return uvmod.remembered(("seams", obj.as_pointer(), layer, width, height),
-                            lambda: _mesh_seams(obj, layer, depsgraph, width, height))
+                            lambda: evaluated.figure(obj, depsgraph, "seams", _mesh_seams, layer, width, height))
 
 
-def _mesh_seams(obj, layer, depsgraph, width, height):
-    with evaluated_mesh(obj, depsgraph) as me:
-        if me is None or layer not in me.uv_layers:
-            return None
-        loops = corner_triangles(me).astype(np.int64)
-        verts = corner_vertices(me)[loops]
-        co = positions(me).astype(np.float64)
-        uv = corner_uv(me, layer)
-        normals = read(me.corner_normals, "vector", np.float32, 3)
+def _mesh_seams(me, layer, width, height):
+    if layer not in me.uv_layers:
+        return None
+    loops = corner_triangles(me).astype(np.int64)
+    verts = corner_vertices(me)[loops]
+    co = positions(me).astype(np.float64)
+    uv = corner_uv(me, layer)
+    normals = read(me.corner_normals, "vector", np.float32, 3)
     return FIGURES.call(_seam_edges, co, verts, loops, uv, normals, width, height)
 
 

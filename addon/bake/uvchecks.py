@@ -12,10 +12,11 @@ import numpy as np
 from ..core import errors, lightmap
 from ..core.memo import FIGURES, digest
 from ..core.errors import InputError
+from . import evaluated
 from .charts import chart_count, side_for_fill
 from .options import article
-from .uv import (LIGHTMAP, evaluated_triangles_uv, group_triangles_uv, triangles_uv, window, world_area,
-                 world_triangles)
+from .uv import (LIGHTMAP, evaluated_triangles_uv, group_triangles_uv, mesh_triangles_uv, triangles_uv, window,
+                 world_area, world_triangles)
 
 MIN_COVERAGE = 0.5
 """A map is accepted when its covered texels (texel centres inside a chart) are at least this fraction of
@@ -118,16 +119,16 @@ def check_overlap(scene, objects, layers, size):
     scale = min(1.0, OVERLAP_SIDE / max(size))
     w, h = max(1, round(size[0] * scale)), max(1, round(size[1] * scale))
     depsgraph = scene.view_layers[0].depsgraph
-    fractions, every = {}, []
+    fractions = {}
     for o in objects:
         layer = layers[o.name]
-        tri = evaluated_triangles_uv(o, layer, depsgraph)
-        if tri is None:
-            tri = triangles_uv(o, layer)
-        every.append(tri)
-        fractions[o.name] = frac = FIGURES.call(lightmap.overlap_fraction, tri, w, h)
+        frac = evaluated.figure(o, depsgraph, "overlap", _overlap_fraction, layer, w, h)
+        if frac is None:
+            frac = FIGURES.call(lightmap.overlap_fraction, triangles_uv(o, layer), w, h)
+        fractions[o.name] = frac
         if frac <= MAX_OVERLAP:
             continue
+        tri = _rendered_uv(o, layer, depsgraph)
         copies = [m for m in o.modifiers if m.type in _COPIES and m.show_render]
         if copies and FIGURES.call(lightmap.overlap_fraction, triangles_uv(o, layer), w, h) <= MAX_OVERLAP:
             kinds = " and ".join(dict.fromkeys(_COPIES[m.type] for m in copies))
@@ -140,8 +141,23 @@ def check_overlap(scene, objects, layers, size):
             errors.warn(f"'{o.name}': faces share texels of UV layer '{layer}' ({100 * frac:.0f} % of its texels "
                         f"hold several faces, which get one value): use a layer without overlapping charts, or let "
                         f"the bake generate one")
-    group = FIGURES.call(lightmap.overlap_fraction, np.concatenate(every), w, h) if len(objects) > 1 else fractions[objects[0].name]
-    return fractions, group
+    if len(objects) == 1:
+        return fractions, fractions[objects[0].name]
+    every = np.concatenate([_rendered_uv(o, layers[o.name], depsgraph) for o in objects])
+    return fractions, FIGURES.call(lightmap.overlap_fraction, every, w, h)
+
+
+def _overlap_fraction(me, layer, w, h):
+    """``lightmap.overlap_fraction`` of evaluated mesh ``me``'s triangles in ``layer``; None when it lacks it."""
+    if layer not in me.uv_layers:
+        return None
+    return FIGURES.call(lightmap.overlap_fraction, mesh_triangles_uv(me, layer), w, h)
+
+
+def _rendered_uv(obj, layer, depsgraph):
+    """The UVs in ``layer`` of the triangles Cycles bakes of ``obj``: its evaluated mesh's, else its mesh's."""
+    tri = evaluated_triangles_uv(obj, layer, depsgraph)
+    return tri if tri is not None else triangles_uv(obj, layer)
 
 
 FINE_SIDE = 2048

@@ -11,7 +11,8 @@ import bpy
 import numpy as np
 import pytest
 
-from addon.bake import BakeOptions, bake_lightmaps, cycles, pipeline, seams, unwrap, uv as uvmod, uvcache, uvchecks
+from addon.bake import (BakeOptions, bake_lightmaps, cycles, evaluated, pipeline, seams, unwrap, uv as uvmod, uvcache,
+                        uvchecks)
 from addon.blender import progress
 from addon.core import lightmap, memo
 from addon.core.memo import FIGURES
@@ -269,6 +270,50 @@ def test_a_rerun_in_a_new_process_reads_the_figures_instead_of_measuring_them_ag
     monkeypatch.setattr(memo, "code_digest", lambda: b"another version")
     bake()
     assert {"overlap_fraction", "inward_shells", "_seam_edges"} <= set(calls)
+
+
+@pytest.mark.both_versions
+def test_a_rerun_reads_no_evaluated_mesh_of_a_subdivided_mesh_and_bakes_the_same_pixels(tmp_path, monkeypatch):
+    """bake/evaluated.py: a rerun takes the overlap, seams, batch check and batched triangles of a mesh only subdivided
+    from the store (Blender does not subdivide it outside Cycles); its maps are those of a run that reads the
+    evaluated mesh (into a new folder), byte for byte. Other meshes are read every run; an edge crease or a
+    Solidify makes the mesh read again."""
+    objects = _props()
+    objects[1].modifiers.clear()
+    ball = objects[2]
+    ball.modifiers.new("Subdivision", "SUBSURF").levels = 1
+    read = []
+    real = evaluated._of
+
+    def reading(obj, *args):
+        read.append(obj.name)
+        return real(obj, *args)
+    monkeypatch.setattr(evaluated, "_of", reading)
+
+    def bake(out):
+        for o in objects:
+            if uvmod.LIGHTMAP in o.data.uv_layers:
+                o.data.uv_layers.remove(o.data.uv_layers[uvmod.LIGHTMAP])
+        FIGURES.clear()                                      # a new process remembers nothing
+        read.clear()
+        rep = bake_lightmaps(objects, ["ao"], str(out), BakeOptions(**OPTIONS), scene=bpy.context.scene)
+        return {n: exr.read_exr(e["ao"]["file"])[0]["Y"] for n, e in rep["objects"].items()}
+
+    first = bake(tmp_path / "a")
+    assert "Ball" in read
+    again = bake(tmp_path / "a")
+    assert "Ball" not in read and {"Floor", "Box"} <= set(read)
+    fresh = bake(tmp_path / "b")
+    assert "Ball" in read
+    assert first.keys() == again.keys() == fresh.keys() == {"Floor", "Box", "Ball"}
+    for name in first:
+        assert np.array_equal(again[name], fresh[name]) and np.array_equal(first[name], fresh[name]), name
+    crease = ball.data.attributes.new("crease_edge", "FLOAT", "EDGE")
+    crease.data.foreach_set("value", np.ones(len(ball.data.edges), np.float32))
+    creased = bake(tmp_path / "a")
+    assert "Ball" in read and not np.array_equal(creased["Ball"], first["Ball"])
+    ball.modifiers.new("Solidify", "SOLIDIFY")
+    assert evaluated.cage_key(ball, bpy.context.evaluated_depsgraph_get()) is None
 
 
 def test_temporaries_a_killed_run_left_in_the_cache_folders_are_removed(tmp_path):
