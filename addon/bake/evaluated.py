@@ -29,10 +29,11 @@ _UNREAD = (".select_", ".uv_select_", ".hide_")
 
 def cage_key(obj, depsgraph):
     """16-byte digest of everything ``obj``'s evaluated mesh is made from, or None when that is not known without
-    evaluating it (not only subdivided, in Edit Mode, an attribute of a kind not read here)."""
-    if obj.mode == "EDIT" or not subdivided_only(obj):
-        return None
+    evaluating it (not only subdivided, in Edit Mode, custom normals: Blender 4.5 keeps them outside the attributes,
+    an attribute of a kind not read here)."""
     me = obj.data
+    if obj.mode == "EDIT" or not subdivided_only(obj) or getattr(me, "has_custom_normals", False):
+        return None
     h = hashlib.blake2b(repr(tuple(bpy.app.version)).encode(), digest_size=16)
     render = depsgraph.scene.render
     h.update(repr((render.use_simplify, render.simplify_subdivision, depsgraph.mode)).encode())
