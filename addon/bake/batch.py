@@ -6,9 +6,7 @@ import time
 import bpy
 import numpy as np
 
-from ..blender.scene import (attribute, corner_triangles, corner_uv, corner_vertices, positions, read,
-                             set_attribute, triangle_polygons)
-from ..core.memo import storable
+from ..blender.scene import attribute, set_attribute
 from . import cost, cycles, evaluated
 from .passes import BakeResult, PassSum, denoised, estimated, fixed_calls, sample_passes
 from .plan import speed
@@ -45,7 +43,7 @@ def _batch_refusal(obj, layers, state, depsgraph, instanced):
         return "ray visibility"
     if obj.name in instanced:
         return "instanced"
-    custom, carried = evaluated.figure(obj, depsgraph, "batchable", _batchable, layers.get(obj.name)) or (False, False)
+    custom, carried = evaluated.figure(obj, depsgraph, _batchable, layers.get(obj.name)) or (False, False)
     if custom:
         return "custom normals"
     if not carried:
@@ -138,13 +136,14 @@ class _Proxy:
         parts, materials_ = [], []
         for target in self.batch:
             for o in target.group:
-                part = evaluated.figure(o, depsgraph, "part", _Part.of, self.layers[o.name]).placed(o.matrix_world)
+                part = evaluated.figure(o, depsgraph, evaluated.Triangles.of, self.layers[o.name])
+                part = part.placed(o.matrix_world)
                 slots = self.temporary.batch_slots(o, self.kind, target.name, self.images[target.name])
                 part.material = len(materials_) + np.clip(part.material, 0, len(slots) - 1)
                 materials_ += slots
                 parts.append(part)
         mesh = self.state.track(bpy.data.meshes, bpy.data.meshes.new(PROXY))
-        _Part.joined(parts, mesh)
+        _joined(parts, mesh)
         for mat in materials_:
             mesh.materials.append(mat)
         self.obj = self.state.track(bpy.data.objects, bpy.data.objects.new(PROXY, mesh))
@@ -167,71 +166,35 @@ class _Proxy:
         return False
 
 
-@storable
-@dataclasses.dataclass
-class _Part:
-    """One object's loop triangles (the triangles Blender bakes, chosen in object space) as arrays: positions (V, 3)
-    (object space as read, world space once :meth:`placed`), triangle vertices (T, 3), UVs of its light-map layer per
-    corner (T, 3, 2), per triangle its material index and smooth flag, the sharp edges (E, 2)."""
-    co: np.ndarray
-    tris: np.ndarray
-    uv: np.ndarray
-    material: np.ndarray
-    smooth: np.ndarray
-    sharp: np.ndarray
-
-    @classmethod
-    def of(cls, me, layer):
-        tl = corner_triangles(me)
-        tp = triangle_polygons(me)
-        nf = len(me.polygons)
-        mat = attribute(me, "material_index", np.int32)
-        flat = attribute(me, "sharp_face", bool)
-        ev = attribute(me, ".edge_verts", np.int32)
-        ev = (ev if ev is not None else read(me.edges, "vertices", np.int32, 2)).reshape(-1, 2)
-        sharp = attribute(me, "sharp_edge", bool)
-        return cls(positions(me), corner_vertices(me)[tl], corner_uv(me, layer)[tl],
-                   (mat if mat is not None else np.zeros(nf, np.int32))[tp],
-                   ~(flat if flat is not None else np.zeros(nf, bool))[tp],
-                   ev[sharp] if sharp is not None else np.zeros((0, 2), np.int32))
-
-    def placed(self, matrix):
-        """This part with its positions in world space by ``matrix`` (indices as int64, for the join)."""
-        m = np.array(matrix, np.float64)
-        world = (self.co.astype(np.float64) @ m[:3, :3].T + m[:3, 3]).astype(np.float32)
-        return _Part(world, self.tris.astype(np.int64), self.uv, self.material, self.smooth,
-                     self.sharp.astype(np.int64))
-
-    @staticmethod
-    def joined(parts, mesh):
-        """Fill the empty ``mesh`` with every part (vertices offset, one triangle per loop triangle), UVs as
-        PROXY_UV, material indices, flat faces and sharp edges kept."""
-        offsets = np.cumsum([0] + [len(p.co) for p in parts])
-        co = np.concatenate([p.co for p in parts]) if parts else np.zeros((0, 3), np.float32)
-        tris = np.concatenate([p.tris + k for p, k in zip(parts, offsets)]) if parts else np.zeros((0, 3), np.int64)
-        sharp = np.concatenate([p.sharp + k for p, k in zip(parts, offsets)]) if parts else np.zeros((0, 2), np.int64)
-        t = len(tris)
-        mesh.vertices.add(len(co))
-        set_attribute(mesh, "position", "FLOAT_VECTOR", "POINT", co.astype(np.float32).ravel())
-        mesh.loops.add(3 * t)
-        set_attribute(mesh, ".corner_vert", "INT", "CORNER", tris.astype(np.int32).ravel())
-        mesh.polygons.add(t)
-        mesh.polygons.foreach_set("loop_start", np.arange(0, 3 * t, 3, dtype=np.int32))
-        mesh.update(calc_edges=True)
-        if not t:
-            return
-        material = np.concatenate([p.material for p in parts]).astype(np.int32)
-        set_attribute(mesh, "material_index", "INT", "FACE", material)
-        set_attribute(mesh, "sharp_face", "BOOLEAN", "FACE", ~np.concatenate([p.smooth for p in parts]))
-        mesh.uv_layers.new(name=PROXY_UV, do_init=False)
-        uv = np.concatenate([p.uv for p in parts]).astype(np.float32).ravel()
-        set_attribute(mesh, PROXY_UV, "FLOAT2", "CORNER", uv)
-        if len(sharp):
-            n = len(co) + 1
-            key = lambda e: np.minimum(e[:, 0], e[:, 1]) * n + np.maximum(e[:, 0], e[:, 1])
-            edges = attribute(mesh, ".edge_verts", np.int32).reshape(-1, 2).astype(np.int64)
-            set_attribute(mesh, "sharp_edge", "BOOLEAN", "EDGE", np.isin(key(edges), key(sharp)))
-        mesh.update()
+def _joined(parts, mesh):
+    """Fill the empty ``mesh`` with every part (:class:`evaluated.Triangles` in world space; vertices offset, one
+    triangle per loop triangle), UVs as PROXY_UV, material indices, flat faces and sharp edges kept."""
+    offsets = np.cumsum([0] + [len(p.co) for p in parts])
+    co = np.concatenate([p.co for p in parts]) if parts else np.zeros((0, 3), np.float32)
+    tris = np.concatenate([p.tris + k for p, k in zip(parts, offsets)]) if parts else np.zeros((0, 3), np.int64)
+    sharp = np.concatenate([p.sharp + k for p, k in zip(parts, offsets)]) if parts else np.zeros((0, 2), np.int64)
+    t = len(tris)
+    mesh.vertices.add(len(co))
+    set_attribute(mesh, "position", "FLOAT_VECTOR", "POINT", co.astype(np.float32).ravel())
+    mesh.loops.add(3 * t)
+    set_attribute(mesh, ".corner_vert", "INT", "CORNER", tris.astype(np.int32).ravel())
+    mesh.polygons.add(t)
+    mesh.polygons.foreach_set("loop_start", np.arange(0, 3 * t, 3, dtype=np.int32))
+    mesh.update(calc_edges=True)
+    if not t:
+        return
+    material = np.concatenate([p.material for p in parts]).astype(np.int32)
+    set_attribute(mesh, "material_index", "INT", "FACE", material)
+    set_attribute(mesh, "sharp_face", "BOOLEAN", "FACE", ~np.concatenate([p.smooth for p in parts]))
+    mesh.uv_layers.new(name=PROXY_UV, do_init=False)
+    uv = np.concatenate([p.uv for p in parts]).astype(np.float32).ravel()
+    set_attribute(mesh, PROXY_UV, "FLOAT2", "CORNER", uv)
+    if len(sharp):
+        n = len(co) + 1
+        key = lambda e: np.minimum(e[:, 0], e[:, 1]) * n + np.maximum(e[:, 0], e[:, 1])
+        edges = attribute(mesh, ".edge_verts", np.int32).reshape(-1, 2).astype(np.int64)
+        set_attribute(mesh, "sharp_edge", "BOOLEAN", "EDGE", np.isin(key(edges), key(sharp)))
+    mesh.update()
 
 
 def bake_batch(scene, batch, kind, options, layers, temporary, state):

@@ -1,69 +1,113 @@
 """Figures of what Cycles bakes of an object, its evaluated mesh (modifiers applied), read without making Blender
 evaluate it again when they are known.
 
-For a mesh only subdivided (``blender.scene.subdivided_only``) the evaluated mesh is a function of the mesh (every
-attribute, its UV layers among them, and its faces), the modifiers' settings, the scene's Simplify cap and Blender's
-version: :func:`cage_key` digests them, and :func:`figure` remembers each figure under that digest (in the figure
-store too, ``core.memo.FIGURES``), so a rerun reads the overlap, the seams and the batch's triangles of such a mesh
-from the output folder. Blender makes a Subdivision's result when an evaluated mesh is first read after a change, a
-new UV layer too (0.05-0.08 s a prop of the level benchmark): a rerun that reads none leaves it to Cycles, which
-skips the objects a batch's joined mesh stands in for. Other meshes are read as they are evaluated, every time.
+A mesh only subdivided (``blender.scene.subdivided_only``) evaluates to a function of the mesh, the modifiers'
+settings and visibility, the scene's Simplify caps and Blender's build: :func:`cage_key` digests them, and
+:func:`figure` remembers each figure under that digest, in the figure store too (``core.memo.FIGURES``), so a rerun
+reads the overlap, the seams and the triangles (:class:`Triangles`) of such a mesh from the output folder, and
+Blender does not subdivide it outside Cycles. Other meshes are read as evaluated every run.
 """
+import dataclasses
 import hashlib
 
 import bpy
 import numpy as np
 
 from ..blender.digest import rna_digest
-from ..blender.scene import evaluated_mesh, read, subdivided_only
-from ..core.memo import FIGURES, digest
+from ..blender.scene import (attribute, corner_triangles, corner_uv, corner_vertices, evaluated_mesh, positions, read,
+                             subdivided_only, triangle_polygons)
+from ..core.memo import FIGURES, digest, storable
+from . import uv as uvmod
 
-_DTYPES = {"FLOAT": (np.float32, "value", 1), "INT": (np.int32, "value", 1), "BOOLEAN": (bool, "value", 1),
-           "INT8": (np.int32, "value", 1), "FLOAT_VECTOR": (np.float32, "vector", 3),
-           "FLOAT2": (np.float32, "vector", 2), "INT32_2D": (np.int32, "value", 2),
-           "FLOAT_COLOR": (np.float32, "color", 4), "BYTE_COLOR": (np.float32, "color", 4)}
-
-_UNREAD = (".select_", ".uv_select_", ".hide_")
-"""Attributes a Subdivision Surface does not read (Edit Mode's selection and hiding)."""
+_DTYPES = {"FLOAT": np.float32, "INT": np.int32, "BOOLEAN": bool, "INT8": np.int32, "FLOAT_VECTOR": np.float32,
+           "FLOAT2": np.float32, "INT32_2D": np.int32, "FLOAT_COLOR": np.float32, "BYTE_COLOR": np.float32}
+_UNREAD = (".select_", ".uv_select_", ".hide_", ".vs.", ".es.", ".pn.")
+"""Attributes a Subdivision Surface does not read: Edit Mode's selection, hiding and UV pins."""
 
 
 def cage_key(obj, depsgraph):
     """16-byte digest of everything ``obj``'s evaluated mesh is made from, or None when that is not known without
     evaluating it (not only subdivided, in Edit Mode, custom normals: Blender 4.5 keeps them outside the attributes,
-    an attribute of a kind not read here)."""
+    an attribute of a kind not read here). Read once per object while the layouts are fixed
+    (``uv.fixed_layouts``)."""
+    return uvmod.remembered(("cage", obj.as_pointer(), depsgraph.mode), lambda: _cage_key(obj, depsgraph))
+
+
+def _cage_key(obj, depsgraph):
     me = obj.data
     if obj.mode == "EDIT" or not subdivided_only(obj) or getattr(me, "has_custom_normals", False):
         return None
-    h = hashlib.blake2b(repr(tuple(bpy.app.version)).encode(), digest_size=16)
+    h = hashlib.blake2b(repr((tuple(bpy.app.version), bpy.app.build_hash)).encode(), digest_size=16)
     render = depsgraph.scene.render
-    h.update(repr((render.use_simplify, render.simplify_subdivision, depsgraph.mode)).encode())
+    caps = (render.simplify_subdivision, render.simplify_subdivision_render) if render.use_simplify else None
+    h.update(repr((caps, depsgraph.mode)).encode())
     for mod in obj.modifiers:
-        if mod.show_viewport or mod.show_render:
-            rna_digest(h, mod)
+        h.update(repr((mod.show_viewport, mod.show_render)).encode())
+        rna_digest(h, mod)
     h.update(repr((len(me.vertices), len(me.edges), len(me.loops), len(me.polygons))).encode())
     h.update(read(me.polygons, "loop_start", np.int32).tobytes())
     for a in sorted(me.attributes, key=lambda a: a.name):
         if a.name.startswith(_UNREAD):
             continue
-        kind = _DTYPES.get(a.data_type)
-        if kind is None:
+        dtype = _DTYPES.get(a.data_type)
+        if dtype is None:
             return None
-        dtype, prop, width = kind
         h.update(f"{a.name}:{a.domain}:{a.data_type}".encode())
-        h.update(read(a.data, prop, dtype, width).tobytes())
+        h.update(attribute(me, a.name, dtype).tobytes())
     return h.digest()
 
 
-def figure(obj, depsgraph, name, fn, *args):
-    """``fn(mesh, *args)`` of ``obj``'s evaluated mesh (None when it has none); remembered, and stored, under
-    :func:`cage_key` with ``name`` and ``args`` when that is known, so the mesh is read only when the figure is new.
+def figure(obj, depsgraph, fn, *args):
+    """``fn(mesh, *args)`` of ``obj``'s evaluated mesh (None when it has none), remembered and stored under
+    :func:`cage_key`, ``fn``'s name and ``args`` when that is known: the mesh is read only for a new figure.
+    ``depsgraph`` is up to date with ``obj.data`` (the key is read from the mesh, the figure from the evaluation);
     ``fn`` returns what a figure store holds (numbers, arrays, tuples, storable dataclasses)."""
     key = cage_key(obj, depsgraph)
     if key is None:
         return _of(obj, depsgraph, fn, args)
-    return FIGURES.get(digest("evaluated", name, key, *args), lambda: _of(obj, depsgraph, fn, args))
+    return FIGURES.get(digest("evaluated", fn.__module__, fn.__qualname__, key, *args),
+                       lambda: _of(obj, depsgraph, fn, args))
 
 
 def _of(obj, depsgraph, fn, args):
     with evaluated_mesh(obj, depsgraph) as me:
         return None if me is None else fn(me, *args)
+
+
+@storable
+@dataclasses.dataclass
+class Triangles:
+    """An evaluated mesh's loop triangles (the triangles Cycles bakes, chosen in object space) as arrays: positions
+    (V, 3) (object space as read, world space once :meth:`placed`), triangle vertices (T, 3), UVs of one layer per
+    corner (T, 3, 2), per triangle its material index and smooth flag, the sharp edges (E, 2)."""
+    co: np.ndarray
+    tris: np.ndarray
+    uv: np.ndarray
+    material: np.ndarray
+    smooth: np.ndarray
+    sharp: np.ndarray
+
+    @classmethod
+    def of(cls, me, layer):
+        """Those of mesh ``me`` with UV layer ``layer``; None when it lacks the layer."""
+        if layer not in me.uv_layers:
+            return None
+        tl = corner_triangles(me)
+        tp = triangle_polygons(me)
+        nf = len(me.polygons)
+        mat = attribute(me, "material_index", np.int32)
+        flat = attribute(me, "sharp_face", bool)
+        ev = attribute(me, ".edge_verts", np.int32)
+        ev = (ev if ev is not None else read(me.edges, "vertices", np.int32, 2)).reshape(-1, 2)
+        sharp = attribute(me, "sharp_edge", bool)
+        return cls(positions(me), corner_vertices(me)[tl], corner_uv(me, layer)[tl],
+                   (mat if mat is not None else np.zeros(nf, np.int32))[tp],
+                   ~(flat if flat is not None else np.zeros(nf, bool))[tp],
+                   ev[sharp] if sharp is not None else np.zeros((0, 2), np.int32))
+
+    def placed(self, matrix):
+        """These triangles with their positions in world space by ``matrix`` (indices as int64, for a join)."""
+        m = np.array(matrix, np.float64)
+        world = (self.co.astype(np.float64) @ m[:3, :3].T + m[:3, 3]).astype(np.float32)
+        return Triangles(world, self.tris.astype(np.int64), self.uv, self.material, self.smooth,
+                         self.sharp.astype(np.int64))

@@ -68,6 +68,7 @@ def input_hash(scene, group, kind, options, lighting):
         subdivided = subdivided_only(o)             # the mesh and the settings hashed give the evaluated mesh
         for mod in o.modifiers:
             if mod.show_render or (subdivided and mod.show_viewport):
+                h.update(repr((mod.show_viewport, mod.show_render)).encode())
                 rna_digest(h, mod)
         if not subdivided:
             ev = o.evaluated_get(depsgraph).data

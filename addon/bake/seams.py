@@ -23,7 +23,7 @@ def mesh_seams(obj, layer, depsgraph, width, height):
     ``height`` map; None when the evaluated mesh lacks the layer. Found once per object and map size while the
     layouts are fixed (every map kind of an object has the same seams)."""
     return uvmod.remembered(("seams", obj.as_pointer(), layer, width, height),
-                            lambda: evaluated.figure(obj, depsgraph, "seams", _mesh_seams, layer, width, height))
+                            lambda: evaluated.figure(obj, depsgraph, _mesh_seams, layer, width, height))
 
 
 def _mesh_seams(me, layer, width, height):

@@ -13,7 +13,7 @@ import math
 import bpy
 import numpy as np
 
-from ..blender.scene import corner_triangles, corner_uv, corner_vertices, evaluated_mesh, positions, read
+from ..blender.scene import corner_triangles, corner_uv, corner_vertices, positions, read
 from ..core import errors, lightmap
 from ..core.errors import InputError
 from . import uvcache
@@ -129,13 +129,6 @@ def check_layer(obj, name):
     if name not in obj.data.uv_layers:
         have = ", ".join(l.name for l in obj.data.uv_layers) or "none"
         raise InputError(f"object '{obj.name}' has no UV layer '{name}' (it has: {have})")
-
-
-def evaluated_triangles_uv(obj, layer, depsgraph):
-    """(T, 3, 2) UVs in ``layer`` of the loop triangles of ``obj``'s evaluated mesh (modifiers applied, what
-    Cycles bakes), or None when the evaluated mesh does not carry the layer."""
-    with evaluated_mesh(obj, depsgraph) as me:
-        return mesh_triangles_uv(me, layer) if me is not None and layer in me.uv_layers else None
 
 
 # ------------------------------------------------------------------ generated layouts

@@ -15,8 +15,8 @@ from ..core.errors import InputError
 from . import evaluated
 from .charts import chart_count, side_for_fill
 from .options import article
-from .uv import (LIGHTMAP, evaluated_triangles_uv, group_triangles_uv, mesh_triangles_uv, triangles_uv, window,
-                 world_area, world_triangles)
+from .uv import (LIGHTMAP, group_triangles_uv, mesh_triangles_uv, triangles_uv, window, world_area,
+                 world_triangles)
 
 MIN_COVERAGE = 0.5
 """A map is accepted when its covered texels (texel centres inside a chart) are at least this fraction of
@@ -113,30 +113,27 @@ def check_overlap(scene, objects, layers, size):
     """Fraction of each object's covered texels shared by several faces of its evaluated mesh
     (``core.lightmap.overlap_fraction``): ``({object name: fraction}, fraction over the whole group)``.
 
-    Measured at the map's size, scaled down to OVERLAP_SIDE. Warns above MAX_OVERLAP, naming the Array / Mirror modifiers whose copies repeat the base mesh's UVs (the
-    light-map layer is made on the base mesh, so every copy gets the same texels; Solidify's second shell is such a
-    copy), else too few texels for the triangles (:func:`too_few_texels`), else the layer itself."""
+    Measured at the map's size, scaled down to OVERLAP_SIDE. Warns above MAX_OVERLAP, naming the Array / Mirror
+    modifiers whose copies repeat the base mesh's UVs (the light-map layer is made on the base mesh, so every copy gets
+    the same texels; Solidify's second shell is such a copy), else too few texels for the triangles
+    (:func:`too_few_texels`), else the layer itself."""
     scale = min(1.0, OVERLAP_SIDE / max(size))
     w, h = max(1, round(size[0] * scale)), max(1, round(size[1] * scale))
     depsgraph = scene.view_layers[0].depsgraph
     fractions = {}
     for o in objects:
         layer = layers[o.name]
-        frac = evaluated.figure(o, depsgraph, "overlap", _overlap_fraction, layer, w, h)
-        if frac is None:
-            frac = FIGURES.call(lightmap.overlap_fraction, triangles_uv(o, layer), w, h)
-        fractions[o.name] = frac
+        fractions[o.name] = frac = _rendered_overlap(o, layer, depsgraph, w, h)
         if frac <= MAX_OVERLAP:
             continue
-        tri = _rendered_uv(o, layer, depsgraph)
         copies = [m for m in o.modifiers if m.type in _COPIES and m.show_render]
         if copies and FIGURES.call(lightmap.overlap_fraction, triangles_uv(o, layer), w, h) <= MAX_OVERLAP:
             kinds = " and ".join(dict.fromkeys(_COPIES[m.type] for m in copies))
             names = ", ".join(f"'{m.name}'" for m in copies)
             errors.warn(f"'{o.name}': {kinds} copies share the light-map texels ({100 * frac:.0f} % of its texels "
                         f"hold several faces, modifier {names}): apply the modifier to give each copy its own")
-        elif FIGURES.call(lightmap.overlap_fraction, tri, FINE_SIDE, FINE_SIDE) <= MAX_OVERLAP:
-            errors.warn(too_few_texels(o, tri, size))
+        elif _rendered_overlap(o, layer, depsgraph, FINE_SIDE, FINE_SIDE) <= MAX_OVERLAP:
+            errors.warn(too_few_texels(o, _rendered_uv(o, layer, depsgraph), size))
         else:
             errors.warn(f"'{o.name}': faces share texels of UV layer '{layer}' ({100 * frac:.0f} % of its texels "
                         f"hold several faces, which get one value): use a layer without overlapping charts, or let "
@@ -147,6 +144,13 @@ def check_overlap(scene, objects, layers, size):
     return fractions, FIGURES.call(lightmap.overlap_fraction, every, w, h)
 
 
+def _rendered_overlap(obj, layer, depsgraph, w, h):
+    """``lightmap.overlap_fraction`` in a ``w`` x ``h`` map of the triangles Cycles bakes of ``obj``
+    (:func:`_rendered_uv`), a figure of its evaluated mesh (``evaluated.figure``)."""
+    frac = evaluated.figure(obj, depsgraph, _overlap_fraction, layer, w, h)
+    return frac if frac is not None else FIGURES.call(lightmap.overlap_fraction, triangles_uv(obj, layer), w, h)
+
+
 def _overlap_fraction(me, layer, w, h):
     """``lightmap.overlap_fraction`` of evaluated mesh ``me``'s triangles in ``layer``; None when it lacks it."""
     if layer not in me.uv_layers:
@@ -155,9 +159,10 @@ def _overlap_fraction(me, layer, w, h):
 
 
 def _rendered_uv(obj, layer, depsgraph):
-    """The UVs in ``layer`` of the triangles Cycles bakes of ``obj``: its evaluated mesh's, else its mesh's."""
-    tri = evaluated_triangles_uv(obj, layer, depsgraph)
-    return tri if tri is not None else triangles_uv(obj, layer)
+    """The UVs in ``layer`` of the triangles Cycles bakes of ``obj``: its evaluated mesh's (``evaluated.Triangles``),
+    else its mesh's."""
+    tri = evaluated.figure(obj, depsgraph, evaluated.Triangles.of, layer)
+    return tri.uv if tri is not None else triangles_uv(obj, layer)
 
 
 FINE_SIDE = 2048

@@ -178,12 +178,11 @@ class Store:
     """Figures kept in ``folder`` across processes: packs ``<digest of their keys>.npz`` of two arrays, ``index`` (JSON:
     each figure's spec and its arrays' offset, dtype and shape) and ``blob`` (their bytes, zlib level 1: a quarter of
     the bytes of a level's batched triangles, decompressed at 300 MB/s; read once per pack, on its first use: one read
-    instead of a zip member per array); numbers and arrays only, read back without pickle; a pack
-    that cannot be read, or an entry that does not decode, is ignored and the figure made again. Keys are
-    :func:`digest` s joined with :func:`code_digest`. The results added are written as one pack when the store closes,
-    once a :meth:`flush` allowed it (a run writes its figures only after it wrote a map), or earlier when they pass
-    PENDING_BYTES; then the packs beyond MAX_PACKS are removed, the least recently written or read first, never one
-    this store wrote or read."""
+    instead of a zip member per array); numbers and arrays only, read back without pickle; a pack that cannot be read,
+    or an entry that does not decode, is ignored and the figure made again. Keys are :func:`digest` s joined with
+    :func:`code_digest`. The results added are written as one pack when the store closes, once a :meth:`flush` allowed
+    it (a run writes its figures only after it wrote a map), or earlier when they pass PENDING_BYTES; then the packs
+    beyond MAX_PACKS are removed, the least recently written or read first, never one this store wrote or read."""
 
     MAX_PACKS = 64
     PENDING_BYTES = 64 << 20
@@ -246,7 +245,8 @@ class Store:
         """The array at ``offset`` of a pack's blob (read once per pack, on its first use)."""
         pack = self.open[path]
         if pack[1] is None:
-            pack[1] = np.frombuffer(zlib.decompress(np.asarray(pack[0]["blob"], np.uint8).tobytes()), np.uint8)
+            pack[1] = np.zeros(0, np.uint8)              # a blob that does not decompress holds no array
+            pack[1] = np.frombuffer(zlib.decompress(np.ascontiguousarray(pack[0]["blob"], np.uint8)), np.uint8)
         dtype = np.dtype(dtype)
         if dtype.kind not in "biuf":
             raise ValueError(f"not a figure's dtype: {dtype}")
@@ -305,7 +305,7 @@ class Store:
             self.used.add(path)
         if path in self.open and self.open[path][0] is not None:
             self.open[path][0].close()                 # a pack of the same figures read before
-        self.open[path], self.entries[path] = [None, np.frombuffer(blob, np.uint8)], index   # read back, not added again
+        self.open[path], self.entries[path] = [None, np.frombuffer(blob, np.uint8)], index   # read back, not again
         self.index.update((k, path) for k in index)
 
     def _prune(self):

@@ -83,7 +83,10 @@ def test_a_subdivided_mesh_is_checked_hashed_and_keyed_from_its_cage(tmp_path, m
         assert orientation.empty_inward_shells(scene, cube) == (1.0, 1)
     options = BakeOptions(resolution=32, samples=4, margin=1)
     no_depsgraph = types.SimpleNamespace(view_layers=[types.SimpleNamespace(depsgraph=None)])
-    inputs.input_hash(no_depsgraph, [cube], "ao", options, "")      # Object.evaluated_get(None) raises
+    digest = inputs.input_hash(no_depsgraph, [cube], "ao", options, "")      # Object.evaluated_get(None) raises
+    cube.modifiers["Subdivision"].show_viewport = False                # what the viewport's evaluation leaves out
+    assert inputs.input_hash(no_depsgraph, [cube], "ao", options, "") != digest
+    cube.modifiers["Subdivision"].show_viewport = True
     uvcache.key([cube], None, options)
     with pytest.warns(ILWarning, match="normals point into"):
         bake_lightmaps([cube], ["ao"], tmp_path, options, scene=scene)

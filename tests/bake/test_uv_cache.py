@@ -13,7 +13,7 @@ import pytest
 
 from addon.bake import (BakeOptions, bake_lightmaps, cycles, evaluated, pipeline, seams, unwrap, uv as uvmod, uvcache,
                         uvchecks)
-from addon.blender import progress
+from addon.blender import progress, scene as sc
 from addon.core import lightmap, memo
 from addon.core.memo import FIGURES
 from addon.core.errors import ILError
@@ -275,43 +275,71 @@ def test_a_rerun_in_a_new_process_reads_the_figures_instead_of_measuring_them_ag
 @pytest.mark.both_versions
 def test_a_rerun_reads_no_evaluated_mesh_of_a_subdivided_mesh_and_bakes_the_same_pixels(tmp_path, monkeypatch):
     """bake/evaluated.py: a rerun takes the overlap, seams, batch check and batched triangles of a mesh only subdivided
-    from the store (Blender does not subdivide it outside Cycles); its maps are those of a run that reads the
-    evaluated mesh (into a new folder), byte for byte. Other meshes are read every run; an edge crease or a
-    Solidify makes the mesh read again."""
+    from the store (Blender does not subdivide it outside Cycles), per object and in an atlas; its maps are those of a
+    run that reads the evaluated mesh (into a new folder), byte for byte. Other meshes are read every run; a crease,
+    the levels, the modifier's viewport switch or Simplify make the mesh read again, and the maps follow them."""
     objects = _props()
     objects[1].modifiers.clear()
+    sc.light(bpy.context.scene, "Sun", "SUN", 3.0, rotation=(0.6, 0.3, 0.0))     # E = 3 cos θ: the normals show
     ball = objects[2]
-    ball.modifiers.new("Subdivision", "SUBSURF").levels = 1
+    subsurf = ball.modifiers.new("Subdivision", "SUBSURF")
+    subsurf.levels = 1
     read = []
     real = evaluated._of
 
-    def reading(obj, *args):
-        read.append(obj.name)
-        return real(obj, *args)
+    def reading(obj, depsgraph, fn, args):
+        read.append((obj.name, fn.__qualname__))
+        return real(obj, depsgraph, fn, args)
     monkeypatch.setattr(evaluated, "_of", reading)
 
-    def bake(out):
+    def bake(out, **kw):
         for o in objects:
             if uvmod.LIGHTMAP in o.data.uv_layers:
                 o.data.uv_layers.remove(o.data.uv_layers[uvmod.LIGHTMAP])
         FIGURES.clear()                                      # a new process remembers nothing
         read.clear()
-        rep = bake_lightmaps(objects, ["ao"], str(out), BakeOptions(**OPTIONS), scene=bpy.context.scene)
-        return {n: exr.read_exr(e["ao"]["file"])[0]["Y"] for n, e in rep["objects"].items()}
+        rep = bake_lightmaps(objects, ["irradiance"], str(out), BakeOptions(**OPTIONS, **kw), scene=bpy.context.scene)
+        return {n: exr.read_exr(e["irradiance"]["file"])[0]["R"] for n, e in rep["objects"].items()}
+
+    def ball_read():
+        return {fn for name, fn in read if name == "Ball"}
 
     first = bake(tmp_path / "a")
-    assert "Ball" in read
+    assert "Triangles.of" in ball_read()                     # baked in a batch, through its triangles
     again = bake(tmp_path / "a")
-    assert "Ball" not in read and {"Floor", "Box"} <= set(read)
+    assert not ball_read() and {"Floor", "Box"} <= {name for name, _ in read}
     fresh = bake(tmp_path / "b")
-    assert "Ball" in read
+    assert ball_read()
     assert first.keys() == again.keys() == fresh.keys() == {"Floor", "Box", "Ball"}
     for name in first:
         assert np.array_equal(again[name], fresh[name]) and np.array_equal(first[name], fresh[name]), name
-    crease = ball.data.attributes.new("crease_edge", "FLOAT", "EDGE")
-    crease.data.foreach_set("value", np.ones(len(ball.data.edges), np.float32))
-    creased = bake(tmp_path / "a")
-    assert "Ball" in read and not np.array_equal(creased["Ball"], first["Ball"])
+    bake(tmp_path / "atlas", atlas=True)
+    assert ball_read()
+    bake(tmp_path / "atlas", atlas=True)
+    assert not ball_read()
+
+    def crease():
+        ball.data.attributes.new("crease_edge", "FLOAT", "EDGE").data.foreach_set(
+            "value", np.ones(len(ball.data.edges), np.float32))
+
+    def simplify():
+        bpy.context.scene.render.use_simplify = True
+        bpy.context.scene.render.simplify_subdivision = 0
+
+    def unsimplify():
+        bpy.context.scene.render.use_simplify = False
+
+    before = first["Ball"]
+    for change, new in ((crease, True), (lambda: setattr(subsurf, "levels", 2), True),
+                        (lambda: setattr(subsurf, "show_viewport", False), True),
+                        (lambda: setattr(subsurf, "show_viewport", True), False),     # back: figures stored before
+                        (simplify, True), (unsimplify, False)):
+        change()
+        changed = bake(tmp_path / "a")
+        assert bool(ball_read()) == new
+        assert np.array_equal(changed["Ball"], bake(tmp_path / "c")["Ball"])
+        assert not np.array_equal(changed["Ball"], before)
+        before = changed["Ball"]
     ball.modifiers.new("Solidify", "SOLIDIFY")
     assert evaluated.cage_key(ball, bpy.context.evaluated_depsgraph_get()) is None
 

@@ -224,3 +224,20 @@ def test_a_figure_reaches_the_store_once_also_when_made_unstored_first_or_in_an_
     with np.load(second, allow_pickle=False) as z:
         assert len(json.loads(str(z["index"]))) == 1                # the new figure only
     assert made == [1, 2]
+
+
+def test_a_pack_written_during_a_run_is_read_back_by_the_same_store(tmp_path, monkeypatch):
+    """A store writes a pack when its figures pass PENDING_BYTES (compressed on disk, its bytes kept as they are): a
+    figure dropped from memory since is read back from it, not made again."""
+    monkeypatch.setattr(memo.Store, "PENDING_BYTES", 0)
+    made = []
+    shells = _counted(made)
+    co = np.ones((300, 3), np.float32)
+    run = Memo(kept=1)
+    with run.stored(tmp_path) as store:
+        store.flush()
+        first = run.call(shells, co, 2)
+        assert len(os.listdir(tmp_path)) == 1               # written at once
+        run.call(shells, co, 3)                              # drops the first from memory
+        again = run.call(shells, co, 2)
+    assert made == [2, 3] and np.array_equal(again[0], first[0]) and again[1:] == first[1:]
