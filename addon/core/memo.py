@@ -182,9 +182,11 @@ class Store:
     or an entry that does not decode, is ignored and the figure made again. Keys are :func:`digest` s joined with
     :func:`code_digest`. The results added are written as one pack when the store closes, once a :meth:`flush` allowed
     it (a run writes its figures only after it wrote a map), or earlier when they pass PENDING_BYTES; then the packs
-    beyond MAX_PACKS are removed, the least recently written or read first, never one this store wrote or read."""
+    beyond MAX_PACKS, and beyond MAX_BYTES in all (a level's batched triangles: a few MB a run), are removed, the
+    least recently written or read first, never one this store wrote or read."""
 
     MAX_PACKS = 64
+    MAX_BYTES = 1 << 30
     PENDING_BYTES = 64 << 20
 
     def __init__(self, folder):
@@ -313,7 +315,11 @@ class Store:
             with contextlib.suppress(OSError):
                 os.utime(path)
         others = sorted((p for p in self._packs() if p not in self.used), key=_mtime)
-        for path in others[:max(0, len(others) + len(self.used) - self.MAX_PACKS)]:
+        total = sum(_size(p) for p in self._packs())
+        for k, path in enumerate(others):
+            if k >= len(others) + len(self.used) - self.MAX_PACKS and total <= self.MAX_BYTES:
+                break
+            total -= _size(path)
             with contextlib.suppress(OSError):
                 os.remove(path)
 
@@ -326,6 +332,13 @@ class Store:
         if self.allowed:
             self._write()
             self._prune()
+
+
+def _size(path):
+    try:
+        return os.path.getsize(path)
+    except OSError:
+        return 0
 
 
 def _mtime(path):

@@ -130,6 +130,13 @@ def test_a_store_ignores_packs_it_cannot_read_and_keeps_the_newest(tmp_path, mon
         for k in (5, 4):
             reader.call(shells, co, k)
     assert made == [1, 1, 2, 3, 4, 5]                             # the two newest packs are kept
+    newest = max(tmp_path.iterdir(), key=os.path.getmtime)
+    monkeypatch.setattr(memo.Store, "MAX_BYTES", newest.stat().st_size + 1)
+    m = Memo()
+    with m.stored(tmp_path) as store:
+        m.call(shells, co, 5)                                     # reads the newest pack: kept
+        store.flush()
+    assert list(tmp_path.iterdir()) == [newest]                   # the other is over the bytes allowed
 
 
 def test_a_run_writes_one_pack_once_allowed_and_keeps_the_packs_it_reads(tmp_path, monkeypatch):
