@@ -28,6 +28,40 @@ def bake_settings(scene):
     return render.settings(scene) + bounces + rna_settings(scene.render.bake) + world_settings(scene)
 
 
+RENDER_VARIANTS = {"SUBSURF": (("levels", "render_levels"),), "MULTIRES": (("levels", "render_levels"),),
+                   "SCREW": (("steps", "render_steps"),), "OCEAN": (("viewport_resolution", "resolution"),)}
+"""Modifier settings (viewport, render) whose viewport value Blender's evaluation of the scene uses and whose render
+value a render, and every Cycles bake (it evaluates the scene in its own render depsgraph), uses."""
+
+
+def render_variants(scene, objects):
+    """[(owner, viewport setting, the render value)] where the viewport's evaluation of ``objects`` differs from a
+    render's: a modifier on for one and not the other, the :data:`RENDER_VARIANTS` of a modifier, the scene's
+    Simplify cap of subdivision levels. :func:`evaluate_as_render` sets them (SavedState saves the settings first)."""
+    out = []
+    for o in objects:
+        for mod in o.modifiers:
+            if mod.show_viewport != mod.show_render:
+                out.append((mod, "show_viewport", mod.show_render))
+            for view, rendered in RENDER_VARIANTS.get(mod.type, ()):
+                if getattr(mod, view) != getattr(mod, rendered):
+                    out.append((mod, view, getattr(mod, rendered)))
+    r = scene.render
+    if r.use_simplify and r.simplify_subdivision != r.simplify_subdivision_render:
+        out.append((r, "simplify_subdivision", r.simplify_subdivision_render))
+    return out
+
+
+def evaluate_as_render(scene, variants):
+    """Give the viewport's evaluation the render's ``variants`` (:func:`render_variants`) for the bake: the checks,
+    seams and the batch's joined mesh then read the meshes Cycles bakes (a default Subdivision Surface is 1 level in
+    the viewport and 2 in renders)."""
+    for owner, attr, value in variants:
+        setattr(owner, attr, value)
+    if variants:
+        scene.view_layers[0].update()
+
+
 def setup_render(scene, options, state):
     """Cycles on the CPU (each bake call sets the rest, :func:`_bake_once`), the AO distance; a black world if none."""
     render.use_cycles_cpu(scene)

@@ -94,9 +94,12 @@ def _bake(objects, maps, out, options, scene, on_step):
     if not groups:
         report["seconds"] = time.perf_counter() - t_all
         return JobResult(report, report_path, summary(report))
-    with Progress("bake", steps) as progress, SavedState(scene, everyone, cycles.bake_settings(scene)) as state:
+    variants = cycles.render_variants(scene, everyone)
+    saved = cycles.bake_settings(scene) + [(owner, attr) for owner, attr, _ in variants]
+    with Progress("bake", steps) as progress, SavedState(scene, everyone, saved) as state:
         run = _Run(scene, maps, out, options, report, report_path, digests, stems, t_all, progress, on_step, state,
                    TemporaryMaterials(state))
+        cycles.evaluate_as_render(scene, variants)
         cycles.show(everyone, state)
         cycles.flip_inside_out(scene, everyone, flips, state)
         cycles.setup_render(scene, options, state)

@@ -277,13 +277,13 @@ def test_a_rerun_reads_no_evaluated_mesh_of_a_subdivided_mesh_and_bakes_the_same
     """bake/evaluated.py: a rerun takes the overlap, seams, batch check and batched triangles of a mesh only subdivided
     from the store (Blender does not subdivide it outside Cycles), per object and in an atlas; its maps are those of a
     run that reads the evaluated mesh (into a new folder), byte for byte. Other meshes are read every run; a crease,
-    the levels, the modifier's viewport switch or Simplify make the mesh read again, and the maps follow them."""
+    the render levels, the modifier's render switch or Simplify make the mesh read again, and the maps follow them."""
     objects = _props()
     objects[1].modifiers.clear()
     sc.light(bpy.context.scene, "Sun", "SUN", 3.0, rotation=(0.6, 0.3, 0.0))     # E = 3 cos θ: the normals show
     ball = objects[2]
     subsurf = ball.modifiers.new("Subdivision", "SUBSURF")
-    subsurf.levels = 1
+    subsurf.levels = subsurf.render_levels = 1
     read = []
     real = evaluated._of
 
@@ -324,15 +324,15 @@ def test_a_rerun_reads_no_evaluated_mesh_of_a_subdivided_mesh_and_bakes_the_same
 
     def simplify():
         bpy.context.scene.render.use_simplify = True
-        bpy.context.scene.render.simplify_subdivision = 0
+        bpy.context.scene.render.simplify_subdivision_render = 0          # what renders, and bakes, use
 
     def unsimplify():
         bpy.context.scene.render.use_simplify = False
 
     before = first["Ball"]
-    for change, new in ((crease, True), (lambda: setattr(subsurf, "levels", 2), True),
-                        (lambda: setattr(subsurf, "show_viewport", False), True),
-                        (lambda: setattr(subsurf, "show_viewport", True), False),     # back: figures stored before
+    for change, new in ((crease, True), (lambda: setattr(subsurf, "render_levels", 2), True),
+                        (lambda: setattr(subsurf, "show_render", False), True),      # not subdivided: read
+                        (lambda: setattr(subsurf, "show_render", True), False),      # back: figures stored before
                         (simplify, True), (unsimplify, False)):
         change()
         changed = bake(tmp_path / "a")
