@@ -12,8 +12,10 @@ holds each object's UVs (float32, its loop order; one array for all, read at onc
 unwrapper, each object's loop count and the window the layout was carried into (width, height and the side it was cut
 from; 0 0 0 for none); a file that cannot be read, or whose arrays do not match the meshes (shape, dtype, finite values
 inside the unit square), is ignored and rebuilt. Files are written (atomically) only after a map of the run is written,
-never outside the output folder, named by the digest only.
+never outside the output folder, named by the digest only; beyond :attr:`UVCache.MAX_BYTES` in all the least recently
+used are removed.
 """
+import contextlib
 import dataclasses
 import hashlib
 import io
@@ -81,11 +83,16 @@ def _rounded(a):
 
 
 class UVCache:
-    """Layouts by :func:`key`: ``memory`` for this run, ``folder`` (None: memory only) across runs."""
+    """Layouts by :func:`key`: ``memory`` for this run, ``folder`` (None: memory only) across runs. Entries beyond
+    MAX_BYTES in all are removed when a run writes one, the least recently written or read first, never one the
+    run wrote or read."""
+
+    MAX_BYTES = 1 << 30
 
     def __init__(self, folder=None):
         self.folder = folder
         self.memory, self.pending = {}, {}
+        self.used = set()     # entry files this run read or wrote
         self.settled = {}     # mesh pointer -> the layout (uv._Made, None: a layer reused) this run gave the mesh
 
     def path(self, digest):
@@ -96,6 +103,10 @@ class UVCache:
         entry = self.memory.get(digest)
         if entry is None and self.folder is not None:
             entry = _read(self.path(digest))
+            if entry is not None:
+                self.used.add(self.path(digest))
+                with contextlib.suppress(OSError):
+                    os.utime(self.path(digest))             # read now: the most recently used
         if entry is None or not _fits(entry, meshes):
             return None
         self.memory[digest] = entry
@@ -107,7 +118,10 @@ class UVCache:
             self.pending[digest] = entry
 
     def flush(self):
-        """Write the entries made since the last flush (a failed write is dropped: the cache is an optimisation)."""
+        """Write the entries made since the last flush (a failed write is dropped: the cache is an optimisation), then
+        remove the entries beyond MAX_BYTES."""
+        if not self.pending:
+            return
         while self.pending:
             digest, entry = self.pending.popitem()
             buf = io.BytesIO()
@@ -118,8 +132,30 @@ class UVCache:
                      uv=np.concatenate([np.asarray(uv, np.float32) for uv in entry.uvs] or [np.zeros(0, np.float32)]))
             try:
                 write_bytes(self.path(digest), buf.getvalue())
+                self.used.add(self.path(digest))
             except OSError:
                 pass
+        self._prune()
+
+    def _prune(self):
+        try:
+            names = [n for n in os.listdir(self.folder) if n.endswith(".npz") and not n.startswith(".")]
+        except OSError:
+            return
+        files = []
+        for n in names:
+            path = os.path.join(self.folder, n)
+            with contextlib.suppress(OSError):
+                st = os.stat(path)
+                files.append((st.st_mtime, st.st_size, path))
+        total = sum(size for _, size, _ in files)
+        for _, size, path in sorted(files):
+            if total <= self.MAX_BYTES:
+                break
+            if path not in self.used:
+                total -= size
+                with contextlib.suppress(OSError):
+                    os.remove(path)
 
 
 def _read(path):

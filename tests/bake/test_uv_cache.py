@@ -344,6 +344,34 @@ def test_a_rerun_reads_no_evaluated_mesh_of_a_subdivided_mesh_and_bakes_the_same
     assert evaluated.cage_key(ball, bpy.context.evaluated_depsgraph_get()) is None
 
 
+def test_entries_beyond_the_bytes_allowed_are_removed_least_recently_used_first(tmp_path, monkeypatch):
+    """uvcache.UVCache.MAX_BYTES: a run that writes an entry removes the least recently written or read entries
+    beyond it, never one it read or wrote; a rerun that reads a layout keeps it (and makes it the most recent)."""
+    old = []
+    for k in range(3):
+        path = tmp_path / f"{k:040x}.npz"
+        path.write_bytes(bytes(10000))
+        os.utime(path, (10**9 + k, 10**9 + k))
+        old.append(path)
+    (tmp_path / "figures").mkdir()
+    monkeypatch.setattr(uvcache.UVCache, "MAX_BYTES", 25000)     # the new entry is under 5,000 bytes
+    cache = uvcache.UVCache(str(tmp_path))
+    cache.used.add(str(old[0]))                                   # read by this run: kept although the oldest
+    cache.put("f" * 40, uvcache.Entry([np.zeros(6, np.float32)], 16, 1.0, "smart_project"))
+    cache.flush()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([old[0].name, old[2].name, "f" * 40 + ".npz",
+                                                                 "figures"])
+    objects = _props()
+    _bake(objects, tmp_path / "out")
+    monkeypatch.setattr(uvcache.UVCache, "MAX_BYTES", 1)
+    first = _entries(tmp_path / "out")
+    objects[2].data.vertices[0].co.z += 0.01                       # the ball's layout is made again
+    _bake(objects, tmp_path / "out")
+    after = _entries(tmp_path / "out")
+    assert len(first) == len(after) == 3                            # the ball's old entry is gone, the two read kept
+    assert len(set(first) - set(after)) == len(set(after) - set(first)) == 1
+
+
 def test_temporaries_a_killed_run_left_in_the_cache_folders_are_removed(tmp_path):
     """A run killed while it wrote a layout or a figure pack leaves '.<stem>.<host>-<pid>.<random>.tmp.npz' in
     .il-uv-cache/ or its figures/ folder: the next bake removes them (older than files.STALE_AFTER, process gone),
