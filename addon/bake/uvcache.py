@@ -27,7 +27,7 @@ import numpy as np
 
 from ..blender.digest import rna_digest
 from ..blender.scene import corner_vertices, positions, read, subdivided_only
-from ..core.io.files import write_bytes
+from ..core.io.files import prune_least_recent, write_bytes
 
 LAYOUT_VERSION = 9
 """Raised whenever the layout search (uv.py, unwrap.py) changes what it makes for the same input."""
@@ -142,21 +142,7 @@ class UVCache:
             names = [n for n in os.listdir(self.folder) if n.endswith(".npz") and not n.startswith(".")]
         except OSError:
             return
-        files = []
-        for n in names:
-            path = os.path.join(self.folder, n)
-            with contextlib.suppress(OSError):
-                st = os.stat(path)
-                files.append((st.st_mtime, st.st_size, path))
-        total = sum(size for _, size, _ in files)
-        for _, size, path in sorted(files):
-            if total <= self.MAX_BYTES:
-                break
-            if path not in self.used:
-                total -= size
-                with contextlib.suppress(OSError):
-                    os.remove(path)
-
+        prune_least_recent([os.path.join(self.folder, n) for n in names], self.used, max_bytes=self.MAX_BYTES)
 
 def _read(path):
     try:

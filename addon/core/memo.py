@@ -13,14 +13,13 @@ import functools
 import hashlib
 import io
 import json
-import math
 import os
 import re
 import zlib
 
 import numpy as np
 
-from .io.files import write_bytes
+from .io.files import prune_least_recent, write_bytes
 
 
 def digest(*parts):
@@ -314,14 +313,7 @@ class Store:
         for path in self.used:                       # read or written now: the most recently used
             with contextlib.suppress(OSError):
                 os.utime(path)
-        others = sorted((p for p in self._packs() if p not in self.used), key=_mtime)
-        total = sum(_size(p) for p in self._packs())
-        for k, path in enumerate(others):
-            if k >= len(others) + len(self.used) - self.MAX_PACKS and total <= self.MAX_BYTES:
-                break
-            total -= _size(path)
-            with contextlib.suppress(OSError):
-                os.remove(path)
+        prune_least_recent(self._packs(), self.used, self.MAX_PACKS, self.MAX_BYTES)
 
     def close(self):
         """Write the pending results when allowed, prune, and close the packs read."""
@@ -332,20 +324,6 @@ class Store:
         if self.allowed:
             self._write()
             self._prune()
-
-
-def _size(path):
-    try:
-        return os.path.getsize(path)
-    except OSError:
-        return 0
-
-
-def _mtime(path):
-    try:
-        return os.path.getmtime(path)
-    except OSError:
-        return math.inf
 
 
 FIGURES = Memo()

@@ -192,3 +192,22 @@ def write_bytes(path, data):
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
             f.write(data)
+
+
+def prune_least_recent(paths, keep=frozenset(), max_files=math.inf, max_bytes=math.inf):
+    """Remove files of ``paths``, the least recently modified first and never one in ``keep``, until at most
+    ``max_files`` of them hold at most ``max_bytes`` in all (a file that cannot be read or removed is left)."""
+    files = []
+    for path in paths:
+        with contextlib.suppress(OSError):
+            st = os.stat(path)
+            files.append((st.st_mtime, st.st_size, path))
+    count, total = len(files), sum(size for _, size, _ in files)
+    for _, size, path in sorted(files):
+        if count <= max_files and total <= max_bytes:
+            break
+        if path in keep:
+            continue
+        with contextlib.suppress(OSError):
+            os.remove(path)
+            count, total = count - 1, total - size

@@ -12,7 +12,8 @@ saved: the layouts come from the UV cache (``bake/uvcache.py``) and the figures 
 (``core/memo.py``); the time outside Cycles over the time inside is
 the figure issue 27 bounds (at most 1 on a first run, 0.1 on such a rerun). The production rerun's row also gives
 the seconds Blender takes to evaluate the level's meshes once their UV layers changed (:func:`evaluation_seconds`,
-measured last), a share of the time outside Cycles no pipeline that reads the baked meshes before the bake avoids.
+measured last): what a pipeline that reads the baked meshes before the bake pays outside Cycles (the pipeline reads
+meshes only subdivided from its figure store instead, ``bake/evaluated.py``).
 """
 import contextlib
 import dataclasses
@@ -359,7 +360,7 @@ def rerun_job():
 def evaluation_seconds(scene, objects):
     """Seconds Blender takes to evaluate the objects' meshes (their modifiers) once a UV layer is added to each, as a
     rerun adds the light-map layers: paid once by whoever reads an evaluated mesh first (a bare bake inside its
-    Cycles call; the pipeline outside it, in its checks and the batch's proxy mesh). Measured last, so that no run's
+    Cycles call; the pipeline outside it for meshes its figure store does not hold). Measured last, so that no run's
     figures follow it: it leaves the meshes tagged as edited (one full-level run with it between the reruns gave
     13.5 s outside Cycles at 64 spp against 7.5 s without, though single runs on 2 shared cores vary by nearly as
     much)."""
