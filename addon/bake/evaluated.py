@@ -1,11 +1,12 @@
 """Figures of what Cycles bakes of an object, its evaluated mesh (modifiers applied), read without making Blender
 evaluate it again when they are known.
 
-A mesh only subdivided (``blender.scene.subdivided_only``) evaluates to a function of the mesh, the modifiers'
-settings and visibility, the scene's Simplify caps and Blender's build: :func:`cage_key` digests them, and
-:func:`figure` remembers each figure under that digest, in the figure store too (``core.memo.FIGURES``), so a rerun
-reads the overlap, the seams and the triangles (:class:`Triangles`) of such a mesh from the output folder, and
-Blender does not subdivide it outside Cycles. Other meshes are read as evaluated every run.
+A mesh only subdivided (``blender.scene.subdivided_only``), or without modifiers (``blender.scene.unmodified``),
+evaluates to a function of the mesh, the modifiers' settings and visibility, the scene's Simplify caps and Blender's
+build: :func:`cage_key` digests them, and :func:`figure` remembers each figure under that digest, in the figure store
+too (``core.memo.FIGURES``), so a rerun reads the overlap, the seams and the triangles (:class:`Triangles`) of such a
+mesh from the output folder: Blender does not subdivide it outside Cycles, and the figures are not made again. Other
+meshes are read as evaluated every run.
 """
 import dataclasses
 import hashlib
@@ -13,29 +14,23 @@ import hashlib
 import bpy
 import numpy as np
 
-from ..blender.digest import rna_digest
+from ..blender.digest import mesh_digest, rna_digest
 from ..blender.scene import (attribute, corner_triangles, corner_uv, corner_vertices, evaluated_mesh, positions, read,
-                             subdivided_only, triangle_polygons)
+                             subdivided_only, triangle_polygons, unmodified)
 from ..core.memo import FIGURES, digest, storable
 from . import uv as uvmod
 
-_DTYPES = {"FLOAT": np.float32, "INT": np.int32, "BOOLEAN": bool, "INT8": np.int32, "FLOAT_VECTOR": np.float32,
-           "FLOAT2": np.float32, "INT32_2D": np.int32, "FLOAT_COLOR": np.float32, "BYTE_COLOR": np.float32}
-_UNREAD = (".select_", ".uv_select_", ".hide_", ".vs.", ".es.", ".pn.")
-"""Attributes a Subdivision Surface does not read: Edit Mode's selection, hiding and UV pins."""
-
-
 def cage_key(obj, depsgraph):
     """16-byte digest of everything ``obj``'s evaluated mesh is made from, or None when that is not known without
-    evaluating it (not only subdivided, in Edit Mode, custom normals: Blender 4.5 keeps them outside the attributes,
-    an attribute of a kind not read here). Read once per object while the layouts are fixed
+    evaluating it (neither only subdivided nor unmodified, in Edit Mode, custom normals: Blender 4.5 keeps them
+    outside the attributes, an attribute of a kind not read here). Read once per object while the layouts are fixed
     (``uv.fixed_layouts``)."""
     return uvmod.remembered(("cage", obj.as_pointer(), depsgraph.mode), lambda: _cage_key(obj, depsgraph))
 
 
 def _cage_key(obj, depsgraph):
     me = obj.data
-    if obj.mode == "EDIT" or not subdivided_only(obj) or getattr(me, "has_custom_normals", False):
+    if obj.mode == "EDIT" or not (subdivided_only(obj) or unmodified(obj)) or getattr(me, "has_custom_normals", False):
         return None
     h = hashlib.blake2b(repr((tuple(bpy.app.version), bpy.app.build_hash)).encode(), digest_size=16)
     render = depsgraph.scene.render
@@ -44,17 +39,7 @@ def _cage_key(obj, depsgraph):
     for mod in obj.modifiers:
         h.update(repr((mod.show_viewport, mod.show_render)).encode())
         rna_digest(h, mod)
-    h.update(repr((len(me.vertices), len(me.edges), len(me.loops), len(me.polygons))).encode())
-    h.update(read(me.polygons, "loop_start", np.int32).tobytes())
-    for a in sorted(me.attributes, key=lambda a: a.name):
-        if a.name.startswith(_UNREAD):
-            continue
-        dtype = _DTYPES.get(a.data_type)
-        if dtype is None:
-            return None
-        h.update(f"{a.name}:{a.domain}:{a.data_type}".encode())
-        h.update(attribute(me, a.name, dtype).tobytes())
-    return h.digest()
+    return h.digest() if mesh_digest(h, me) else None
 
 
 def figure(obj, depsgraph, fn, *args):

@@ -21,6 +21,7 @@ from mathutils import Vector
 from ..core import lightmap
 from ..core.memo import FIGURES
 from ..blender import scene as sc
+from . import uv as uvmod
 
 FIX = "Mesh > Normals > Recalculate Outside in edit mode"
 
@@ -70,14 +71,20 @@ def holds_something(scene, obj):
 def empty_inward_shells(scene, obj):
     """(fraction of the evaluated mesh's triangles in empty inward shells, number of such shells). A mesh only
     subdivided (:func:`blender.scene.subdivided_only`) is read as it is, before the subdivision: the same closed
-    parts facing the same side (a shell's box is then its cage's, which holds the subdivided one)."""
+    parts facing the same side (a shell's box is then its cage's, which holds the subdivided one); for such a mesh,
+    or one without modifiers, the shells are a figure of its shape (``uv.geometry_figure``)."""
     vl = scene.view_layers[0]
-    co, tris = sc.mesh_triangles(obj.data) if sc.subdivided_only(obj) else sc.evaluated_triangles(obj, vl.depsgraph)
-    if not len(tris):
-        return 0.0, 0
-    labels, inward, _ = FIGURES.call(lightmap.inward_shells, co, tris)
-    if not inward.any() or _emits(obj):
-        return 0.0, 0
+    me = obj.data
+    if sc.subdivided_only(obj) or sc.unmodified(obj):
+        labels, inward, _ = uvmod.geometry_figure(me, lambda: _shells(*sc.mesh_triangles(me)), "inward shells")
+        if not inward.any() or _emits(obj):
+            return 0.0, 0
+        co, tris = sc.mesh_triangles(me)
+    else:
+        co, tris = sc.evaluated_triangles(obj, vl.depsgraph)
+        labels, inward, _ = _shells(co, tris)
+        if not inward.any() or _emits(obj):
+            return 0.0, 0
     mw = np.array(obj.matrix_world, float)
     world = co @ mw[:3, :3].T + mw[:3, 3]
     others = _contents(vl, obj)
@@ -89,6 +96,13 @@ def empty_inward_shells(scene, obj):
         held = [c for j, c in enumerate(centres) if j != k]
         empty[k] = not _inside(others, lo, hi) and not _inside(held, lo, hi)
     return float(empty[labels].mean()), int(empty.sum())
+
+
+def _shells(co, tris):
+    """``lightmap.inward_shells`` of a mesh's triangles (none for a mesh without faces)."""
+    if not len(tris):
+        return np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0)
+    return FIGURES.call(lightmap.inward_shells, co, tris)
 
 
 def check(scene, objects):

@@ -68,6 +68,11 @@ def say_skipped(skipped):
 def validate(scene, objects, maps, out, options):
     """Every input check, before anything in the file is touched. Returns (objects, maps, out, skipped, flips):
     ``flips`` {object name: mesh} are meshes inside out (:mod:`.orientation`) whose normals the bake flips."""
+    with uvmod.fixed_geometry():            # each mesh's shape read once (uv.geometry_key)
+        return _validate(scene, objects, maps, out, options)
+
+
+def _validate(scene, objects, maps, out, options):
     options.validate()
     maps = validate_maps(maps)
     options.check_target(maps)

@@ -8,13 +8,16 @@ import these readers, so this module imports them inside its functions only.
 """
 import contextlib
 import dataclasses
+import hashlib
 import math
 
 import bpy
 import numpy as np
 
+from ..blender.digest import mesh_digest
 from ..blender.scene import corner_triangles, corner_uv, corner_vertices, positions, read
 from ..core import errors, lightmap
+from ..core.memo import FIGURES, digest
 from ..core.errors import InputError
 from . import uvcache
 from .options import article
@@ -84,9 +87,27 @@ def mesh_triangles_uv(me, layer):
     return corner_uv(me, layer)[corner_triangles(me)]
 
 
+def geometry_key(me):
+    """16-byte digest of mesh ``me`` but its UV coordinates (:func:`blender.digest.mesh_digest`), or None (an
+    attribute of a kind not read): the figures of its shape (area, validity, closed parts) are kept under it in the
+    figure store, so a rerun does not read the mesh for them. Read once per mesh while the geometry is fixed."""
+    def make():
+        h = hashlib.blake2b(digest_size=16)
+        return h.digest() if mesh_digest(h, me, uv=False) else None
+    return remembered(("geometry", me.as_pointer()), make, geometry=True)
+
+
+def geometry_figure(me, make, *args):
+    """``make()``, a figure of mesh ``me``'s shape and ``args`` (numbers, arrays), kept under :func:`geometry_key`."""
+    key = geometry_key(me)
+    return make() if key is None else FIGURES.get(digest("geometry", key, *args), make)
+
+
 def world_area(obj):
     """Surface area in m² of the mesh in world space (object scale included)."""
-    return remembered(("area", obj.as_pointer(), obj.data.as_pointer()), lambda: _world_area(obj), geometry=True)
+    return remembered(("area", obj.as_pointer(), obj.data.as_pointer()),
+                      lambda: geometry_figure(obj.data, lambda: _world_area(obj), "area",
+                                              np.array(obj.matrix_world, float)), geometry=True)
 
 
 def _world_area(obj):
@@ -115,14 +136,17 @@ def _world_triangles(obj):
 def check_valid(obj):
     """Refuse a mesh Blender itself reports invalid (``Mesh.validate`` on a throw-away copy would change it: a
     face repeating a vertex, an edge out of range, ...): Blender's edit mode hangs or crashes on such data."""
-    tmp = obj.data.copy()
-    try:
-        broken = tmp.validate(verbose=False)
-    finally:
-        bpy.data.meshes.remove(tmp)
-    if broken:
+    if geometry_figure(obj.data, lambda: _broken(obj.data), "broken"):
         raise InputError(f"mesh '{obj.data.name}' of '{obj.name}' is invalid (e.g. a face that repeats a vertex): "
                          f"repair it first (Mesh > Clean Up, or mesh.validate() in Python)")
+
+
+def _broken(me):
+    tmp = me.copy()
+    try:
+        return bool(tmp.validate(verbose=False))
+    finally:
+        bpy.data.meshes.remove(tmp)
 
 
 def check_layer(obj, name):

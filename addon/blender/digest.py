@@ -1,5 +1,32 @@
-"""Digests of Blender data a bake depends on: a struct's settings (a modifier's), a node tree's shading."""
+"""Digests of Blender data a bake depends on: a struct's settings (a modifier's), a node tree's shading, a mesh."""
 import bpy
+import numpy as np
+
+from .scene import attribute, read
+
+_DTYPES = {"FLOAT": np.float32, "INT": np.int32, "BOOLEAN": bool, "INT8": np.int32, "FLOAT_VECTOR": np.float32,
+           "FLOAT2": np.float32, "INT32_2D": np.int32, "FLOAT_COLOR": np.float32, "BYTE_COLOR": np.float32}
+_UNREAD = (".select_", ".uv_select_", ".hide_", ".vs.", ".es.", ".pn.")
+"""Attributes no evaluation or check reads: Edit Mode's selection, hiding and UV pins."""
+
+
+def mesh_digest(h, me, uv=True):
+    """Feed mesh ``me`` to hash ``h``: its counts, faces' loop starts and every attribute but :data:`_UNREAD` (``uv``
+    False: its UV layers by name only, not their coordinates). False when an attribute is of a kind not read here
+    (``h`` then holds part of the mesh)."""
+    h.update(repr((len(me.vertices), len(me.edges), len(me.loops), len(me.polygons))).encode())
+    h.update(read(me.polygons, "loop_start", np.int32).tobytes())
+    uv_layers = set() if uv else {layer.name for layer in me.uv_layers}
+    for a in sorted(me.attributes, key=lambda a: a.name):
+        if a.name.startswith(_UNREAD):
+            continue
+        dtype = _DTYPES.get(a.data_type)
+        if dtype is None:
+            return False
+        h.update(f"{a.name}:{a.domain}:{a.data_type}".encode())
+        if a.name not in uv_layers:
+            h.update(attribute(me, a.name, dtype).tobytes())
+    return True
 
 
 def rna_digest(h, struct):

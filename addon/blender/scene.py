@@ -235,9 +235,19 @@ def subdivided_only(obj):
     so checks of those need not read it: Blender computes it when an evaluated mesh is first read (0.05-0.08 s a
     subdivided prop of the level benchmark) and again after any change to the mesh, a new UV layer too."""
     mods = [m for m in obj.modifiers if m.show_viewport or m.show_render]
+    return bool(mods) and all(m.type == "SUBSURF" for m in mods) and not _driven(obj)
+
+
+def unmodified(obj):
+    """``obj``'s evaluated mesh is its mesh: no modifier on in the viewport or for render, neither a shape key nor an
+    animation drives it."""
+    return not any(m.show_viewport or m.show_render for m in obj.modifiers) and not _driven(obj)
+
+
+def _driven(obj):
     me = obj.data
-    return (bool(mods) and all(m.type == "SUBSURF" for m in mods) and getattr(me, "shape_keys", None) is None
-            and obj.animation_data is None and me.animation_data is None)
+    return (getattr(me, "shape_keys", None) is not None or obj.animation_data is not None
+            or me.animation_data is not None)
 
 
 def rendered_objects(scene):

@@ -16,7 +16,7 @@ from addon.bake import (BakeOptions, bake_lightmaps, cycles, evaluated, pipeline
 from addon.blender import progress, scene as sc
 from addon.core import lightmap, memo
 from addon.core.memo import FIGURES
-from addon.core.errors import ILError
+from addon.core.errors import ILError, ILWarning
 from addon.core.io import exr
 
 OPTIONS = dict(resolution=16, samples=1, bounces=0, overwrite=True, force=True)
@@ -242,7 +242,7 @@ def test_a_rerun_in_a_new_process_reads_the_figures_instead_of_measuring_them_ag
         monkeypatch.setattr(module, name, wrapper)
 
     for module, name in ((lightmap, "overlap_fraction"), (lightmap, "inward_shells"), (seams, "_seam_edges"),
-                         (lightmap, "coverage_mask")):
+                         (lightmap, "coverage_mask"), (uvmod, "_world_area"), (uvmod, "_broken")):
         counted(module, name)
 
     def bake():
@@ -258,7 +258,7 @@ def test_a_rerun_in_a_new_process_reads_the_figures_instead_of_measuring_them_ag
                 for n, e in rep["objects"].items()}
 
     first = bake()
-    assert {"overlap_fraction", "inward_shells", "_seam_edges", "coverage_mask"} <= set(calls)
+    assert {"overlap_fraction", "inward_shells", "_seam_edges", "coverage_mask", "_world_area", "_broken"} <= set(calls)
     packs = os.listdir(pipeline.figures_folder(tmp_path))
     assert packs and all(re.fullmatch(r"[0-9a-f]{32}\.npz", p) for p in packs)
     again = bake()
@@ -273,13 +273,48 @@ def test_a_rerun_in_a_new_process_reads_the_figures_instead_of_measuring_them_ag
 
 
 @pytest.mark.both_versions
+def test_the_shape_figures_of_a_changed_mesh_are_measured_again(tmp_path):
+    """uv.geometry_figure: a mesh's area, validity and inward shells are kept under a digest of its shape; scaling its
+    vertices, turning it inside out or breaking a face gives the new figures (area × 4, flipped for the bake, refused)
+    on a rerun in a new process, where the unchanged meshes' figures are read."""
+    objects = _props()
+    box = objects[1]
+    box.modifiers.clear()
+
+    def bake():
+        FIGURES.clear()
+        return bake_lightmaps(objects, ["ao"], str(tmp_path), BakeOptions(**OPTIONS), scene=bpy.context.scene)
+
+    def area():
+        FIGURES.clear()
+        with FIGURES.stored(pipeline.figures_folder(tmp_path)) as store:
+            return uvmod.world_area(box), len(store.used)
+
+    bake()
+    assert area() == (pytest.approx(6 * 0.8 ** 2, rel=1e-6), 1)   # read from the pack the bake wrote
+    box.data.transform(np.diag([2.0, 2.0, 2.0, 1.0]))
+    assert area()[0] == pytest.approx(4 * 6 * 0.8 ** 2, rel=1e-6)
+    box.data.transform(np.diag([-0.5, 0.5, 0.5, 1.0]))          # mirrored in place: every normal points inward
+    box.data.update()
+    with pytest.warns(ILWarning, match="'Box': normals point into a closed, empty surface"):
+        rep = bake()
+    ao = exr.read_exr(rep["objects"]["Box"]["ao"]["file"])[0]["Y"]
+    assert ao.max() > 0.5                                         # the outside, not the inside of an empty box
+    cv = sc.attribute(box.data, ".corner_vert", np.int32)
+    cv[1] = cv[0]                                                 # a face that repeats a vertex
+    sc.set_attribute(box.data, ".corner_vert", "INT", "CORNER", cv)
+    rep = bake()
+    assert "is invalid" in rep["failed"]["Box"] and set(rep["objects"]) == {"Floor", "Ball"}
+
+
+@pytest.mark.both_versions
 def test_a_rerun_reads_no_evaluated_mesh_of_a_subdivided_mesh_and_bakes_the_same_pixels(tmp_path, monkeypatch):
     """bake/evaluated.py: a rerun takes the overlap, seams, batch check and batched triangles of a mesh only subdivided
-    from the store (Blender does not subdivide it outside Cycles), per object and in an atlas; its maps are those of a
-    run that reads the evaluated mesh (into a new folder), byte for byte. Other meshes are read every run; a crease,
-    the render levels, the modifier's render switch or Simplify make the mesh read again, and the maps follow them."""
+    (Blender does not subdivide it outside Cycles) or without modifiers from the store, per object and in an atlas;
+    its maps are those of a run that reads the evaluated mesh (into a new folder), byte for byte. A mesh with another
+    modifier (the bevelled box) is read every run; a crease, the render levels, the modifier's render switch or
+    Simplify make the mesh read again, and the maps follow them."""
     objects = _props()
-    objects[1].modifiers.clear()
     sc.light(bpy.context.scene, "Sun", "SUN", 3.0, rotation=(0.6, 0.3, 0.0))     # E = 3 cos θ: the normals show
     ball = objects[2]
     subsurf = ball.modifiers.new("Subdivision", "SUBSURF")
@@ -305,9 +340,9 @@ def test_a_rerun_reads_no_evaluated_mesh_of_a_subdivided_mesh_and_bakes_the_same
         return {fn for name, fn in read if name == "Ball"}
 
     first = bake(tmp_path / "a")
-    assert "Triangles.of" in ball_read()                     # baked in a batch, through its triangles
+    assert "Triangles.of" in ball_read() and {"Floor", "Box"} <= {name for name, _ in read}   # batched: triangles
     again = bake(tmp_path / "a")
-    assert not ball_read() and {"Floor", "Box"} <= {name for name, _ in read}
+    assert not ball_read() and {name for name, _ in read} == {"Box"}
     fresh = bake(tmp_path / "b")
     assert ball_read()
     assert first.keys() == again.keys() == fresh.keys() == {"Floor", "Box", "Ball"}
