@@ -33,8 +33,9 @@ def _batch_refusal(obj, layers, state, depsgraph, instanced):
     A batch stands a joined copy of the objects' evaluated meshes in for them, so an object is batched only
     when that copy is the same surface to Cycles: positive scale (a mirrored object's winding would flip),
     visible to every ray kind, no holdout or shadow catcher, no custom normals (they do not survive the join),
-    its light-map layer in the evaluated mesh, not hidden for render, and not part of a collection another
-    object instances (hiding it would hide the instances too)."""
+    its light-map layer in the evaluated mesh, not hidden for render, not part of a collection another
+    object instances (hiding it would hide the instances too), and no Geometry Nodes that branch on Is Viewport (the
+    joined copy is the viewport's evaluation, with the render's settings: ``cycles.render_variants``)."""
     if obj in state.render_hidden:
         return "hidden for render"
     if obj.matrix_world.determinant() <= 0:
@@ -43,12 +44,23 @@ def _batch_refusal(obj, layers, state, depsgraph, instanced):
         return "ray visibility"
     if obj.name in instanced:
         return "instanced"
+    if any(m.type == "NODES" and m.show_render and _is_viewport_in(m.node_group) for m in obj.modifiers):
+        return "geometry nodes that branch on Is Viewport"
     custom, carried = evaluated.figure(obj, depsgraph, _batchable, layers.get(obj.name)) or (False, False)
     if custom:
         return "custom normals"
     if not carried:
         return "light-map layer not in the evaluated mesh"
     return None
+
+
+def _is_viewport_in(tree, seen=()):
+    """Node tree ``tree``, or a group it uses, has an Is Viewport node."""
+    if tree is None or tree.name in seen:
+        return False
+    return any(n.bl_idname == "GeometryNodeIsViewport"
+               or (getattr(n, "node_tree", None) is not None and _is_viewport_in(n.node_tree, (*seen, tree.name)))
+               for n in tree.nodes)
 
 
 def _batchable(me, layer):

@@ -469,3 +469,52 @@ def test_a_real_sigkill_at_each_stage_resumes_to_a_complete_report(tmp_path, sta
     unchanged = {f"{o}_{m}.exr" for o, ms in report.get("unchanged", {}).items() for m in ms}
     assert finished <= unchanged, (finished, unchanged)
     assert not list(out.glob(".*.tmp*"))                   # what the killed run was writing is removed
+
+
+def _viewport_switch(offset):
+    """A Geometry Nodes group that moves its geometry by ``offset`` in renders only (Is Viewport, inside a nested group)."""
+    inner = bpy.data.node_groups.new("Is viewport inside", "GeometryNodeTree")
+    inner.interface.new_socket("Viewport", in_out="OUTPUT", socket_type="NodeSocketBool")
+    inner.links.new(inner.nodes.new("GeometryNodeIsViewport").outputs[0],
+                    inner.nodes.new("NodeGroupOutput").inputs["Viewport"])
+    tree = bpy.data.node_groups.new("Render offset", "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    nodes, links = tree.nodes, tree.links
+    inp, out = nodes.new("NodeGroupInput"), nodes.new("NodeGroupOutput")
+    group = nodes.new("GeometryNodeGroup")
+    group.node_tree = inner
+    move = nodes.new("GeometryNodeTransform")
+    move.inputs["Translation"].default_value = offset
+    switch = nodes.new("GeometryNodeSwitch")
+    switch.input_type = "GEOMETRY"
+    links.new(inp.outputs["Geometry"], move.inputs["Geometry"])
+    links.new(group.outputs["Viewport"], switch.inputs["Switch"])
+    links.new(move.outputs["Geometry"], switch.inputs["False"])
+    links.new(inp.outputs["Geometry"], switch.inputs["True"])
+    links.new(switch.outputs[0], out.inputs["Geometry"])
+    return tree
+
+
+@pytest.mark.both_versions
+def test_geometry_nodes_that_branch_on_is_viewport_bake_as_rendered(tmp_path):
+    """An object whose Geometry Nodes give renders another surface than the viewport (Is Viewport, here in a nested
+    group: a cube resting on the floor in the viewport, lifted 1.5 m in renders) is baked by its own call, which
+    evaluates it as rendered: the batch and the per-object calls give the same AO, bit for bit, and the floor under
+    the lifted cube is lit as in a render."""
+    bpy.ops.mesh.primitive_plane_add(size=4)
+    floor = bpy.context.object
+    bpy.ops.mesh.primitive_cube_add(size=1, location=(0, 0, 0.5))
+    lifted = bpy.context.object
+    lifted.modifiers.new("Render offset", "NODES").node_group = _viewport_switch((0.0, 0.0, 1.5))
+    bpy.ops.mesh.primitive_cube_add(size=1, location=(1.5, 0, 0.5))
+    objects = [floor, lifted, bpy.context.object]
+    opts = dict(resolution=32, samples=8, keep_products=False)
+    bake_lightmaps(objects, ["ao"], str(tmp_path / "one"), BakeOptions(batch=False, **opts))
+    bake_lightmaps(objects, ["ao"], str(tmp_path / "batch"), BakeOptions(**opts))
+    one, batch = maps(tmp_path / "one", objects, ["ao"]), maps(tmp_path / "batch", objects, ["ao"])
+    for key, a in one.items():
+        assert (a["A"] > 0.5).sum() > 100 and np.array_equal(a["Y"], batch[key]["Y"]), key
+    ao = one[(floor.name, "ao")]["Y"]
+    h, w = ao.shape
+    assert ao[h // 2 - 2:h // 2 + 2, w // 2 - 2:w // 2 + 2].mean() > 0.3      # not under a cube resting on it
