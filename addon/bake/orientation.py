@@ -76,7 +76,8 @@ def empty_inward_shells(scene, obj):
     vl = scene.view_layers[0]
     me = obj.data
     if sc.subdivided_only(obj) or sc.unmodified(obj):
-        labels, inward, _ = uvmod.geometry_figure(me, lambda: _shells(*sc.mesh_triangles(me)), "inward shells")
+        labels, inward, _ = uvmod.geometry_figure(me, lambda: _shells(*sc.mesh_triangles(me), remember=False),
+                                                  "inward shells")
         if not inward.any() or _emits(obj):
             return 0.0, 0
         co, tris = sc.mesh_triangles(me)
@@ -98,11 +99,12 @@ def empty_inward_shells(scene, obj):
     return float(empty[labels].mean()), int(empty.sum())
 
 
-def _shells(co, tris):
-    """``lightmap.inward_shells`` of a mesh's triangles (none for a mesh without faces)."""
+def _shells(co, tris, remember=True):
+    """``lightmap.inward_shells`` of a mesh's triangles (none for a mesh without faces), remembered by their digest
+    unless ``remember`` is False (the caller keeps the result under a key of its own)."""
     if not len(tris):
         return np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0)
-    return FIGURES.call(lightmap.inward_shells, co, tris)
+    return FIGURES.call(lightmap.inward_shells, co, tris) if remember else lightmap.inward_shells(co, tris)
 
 
 def check(scene, objects):
