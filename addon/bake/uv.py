@@ -75,11 +75,21 @@ def remembered(key, make, geometry=False):
 def triangles_uv(obj, layer):
     """(T, 3, 2) UV coordinates of the mesh's loop triangles in ``layer`` (read-only inside :func:`fixed_layouts`)."""
     def make():
-        tri = mesh_triangles_uv(obj.data, layer)
+        tri = corner_uv(obj.data, layer)[_corners(obj.data)]
         if _FIXED is not None:
             tri.flags.writeable = False
         return tri
     return remembered(("uv", obj.data.as_pointer(), layer), make)
+
+
+def _corners(me):
+    """``corner_triangles`` of mesh ``me``, read once while the geometry is fixed (the UV step reads a mesh's UVs
+    after each unwrap it tries; its triangles stay)."""
+    def make():
+        tris = corner_triangles(me)
+        tris.flags.writeable = False
+        return tris
+    return remembered(("corners", me.as_pointer()), make, geometry=True)
 
 
 def mesh_triangles_uv(me, layer):
@@ -130,7 +140,7 @@ def _world_triangles(obj):
     co = positions(me).astype(float)
     mw = np.array(obj.matrix_world, float)
     co = co @ mw[:3, :3].T + mw[:3, 3]
-    return co[corner_vertices(me)[corner_triangles(me)]]
+    return co[corner_vertices(me)[_corners(me)]]
 
 
 def check_valid(obj):
