@@ -30,7 +30,7 @@ def cage_key(obj, depsgraph):
 
 def _cage_key(obj, depsgraph):
     me = obj.data
-    if obj.mode == "EDIT" or not (subdivided_only(obj) or unmodified(obj)) or getattr(me, "has_custom_normals", False):
+    if me.is_editmode or not (subdivided_only(obj) or unmodified(obj)) or getattr(me, "has_custom_normals", False):
         return None
     h = hashlib.blake2b(repr((tuple(bpy.app.version), bpy.app.build_hash)).encode(), digest_size=16)
     render = depsgraph.scene.render

@@ -230,24 +230,31 @@ def mesh_triangles(me):
 
 def subdivided_only(obj):
     """``obj``'s evaluated mesh is its mesh subdivided and nothing else: every modifier on in the viewport or for
-    render is a Subdivision Surface (at least one), and neither a shape key nor an animation drives it. That mesh
-    is then a function of the mesh and the modifiers' settings, with the mesh's closed parts and the side they face,
-    so checks of those need not read it: Blender computes it when an evaluated mesh is first read (0.05-0.08 s a
-    subdivided prop of the level benchmark) and again after any change to the mesh, a new UV layer too."""
+    render is a Subdivision Surface (at least one), and neither a shape key, an animation nor a deforming parent
+    drives it. That mesh is then a function of the mesh and the modifiers' settings, with the mesh's closed parts and
+    the side they face, so checks of those need not read it: Blender computes it when an evaluated mesh is first read
+    (0.05-0.08 s a subdivided prop of the level benchmark) and again after any change to the mesh, a new UV layer
+    too."""
     mods = [m for m in obj.modifiers if m.show_viewport or m.show_render]
     return bool(mods) and all(m.type == "SUBSURF" for m in mods) and not _driven(obj)
 
 
 def unmodified(obj):
-    """``obj``'s evaluated mesh is its mesh: no modifier on in the viewport or for render, neither a shape key nor an
-    animation drives it."""
+    """``obj``'s evaluated mesh is its mesh: no modifier on in the viewport or for render, neither a shape key, an
+    animation nor a deforming parent drives it."""
     return not any(m.show_viewport or m.show_render for m in obj.modifiers) and not _driven(obj)
+
+
+_PLACING_PARENTS = ("OBJECT", "BONE", "VERTEX", "VERTEX_3")
+"""Parent types that only place an object; an armature's or lattice's deforming parent type adds a modifier of its
+own, which ``Object.modifiers`` does not list."""
 
 
 def _driven(obj):
     me = obj.data
     return (getattr(me, "shape_keys", None) is not None or obj.animation_data is not None
-            or me.animation_data is not None)
+            or me.animation_data is not None
+            or (obj.parent is not None and obj.parent_type not in _PLACING_PARENTS))
 
 
 def rendered_objects(scene):
