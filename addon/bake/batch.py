@@ -54,12 +54,14 @@ def _batch_refusal(obj, layers, state, depsgraph, instanced):
     return None
 
 
-def _is_viewport_in(tree, seen=()):
-    """Node tree ``tree``, or a group it uses, has an Is Viewport node."""
+def _is_viewport_in(tree, seen=None):
+    """Node tree ``tree``, or a group it uses, has an Is Viewport node (each tree read once: ``seen``)."""
+    seen = set() if seen is None else seen
     if tree is None or tree.name in seen:
         return False
+    seen.add(tree.name)
     return any(n.bl_idname == "GeometryNodeIsViewport"
-               or (getattr(n, "node_tree", None) is not None and _is_viewport_in(n.node_tree, (*seen, tree.name)))
+               or (getattr(n, "node_tree", None) is not None and _is_viewport_in(n.node_tree, seen))
                for n in tree.nodes)
 
 

@@ -14,7 +14,6 @@ lights or objects and keeps its orientation. When every face of the evaluated me
 shells the mesh's normals are flipped for the bake (``Mesh.flip_normals``, which moves each corner's
 UVs with it) and flipped back afterwards; when only some do, the object is skipped with one line.
 """
-import bpy
 import numpy as np
 from mathutils import Vector
 

@@ -14,8 +14,8 @@ import math
 import bpy
 import numpy as np
 
-from ..blender.digest import mesh_digest
-from ..blender.scene import corner_triangles, corner_uv, corner_vertices, positions, read
+from ..blender.digest import shape_digest
+from ..blender.scene import corner_triangles, corner_uv, corner_vertices, positions
 from ..core import errors, lightmap
 from ..core.memo import FIGURES, digest
 from ..core.errors import InputError
@@ -48,8 +48,9 @@ _GEOMETRY = None   # {(what, pointer): value} while only UV layers change (:func
 
 @contextlib.contextmanager
 def fixed_geometry():
-    """A scope in which the objects' meshes and transforms do not change, only their UV layers (the UV step):
-    :func:`world_area` and :func:`world_triangles` are read once per object in it."""
+    """A scope in which the objects' meshes and transforms do not change, only their UV layers (the input checks, the
+    UV step): :func:`geometry_key`, :func:`world_area`, :func:`world_triangles` and the loop triangles are read once
+    per mesh or object in it."""
     global _GEOMETRY
     if _GEOMETRY is not None:
         yield
@@ -98,19 +99,20 @@ def mesh_triangles_uv(me, layer):
 
 
 def geometry_key(me):
-    """16-byte digest of mesh ``me`` but its UV coordinates (:func:`blender.digest.mesh_digest`), or None (an
-    attribute of a kind not read): the figures of its shape (area, validity, closed parts) are kept under it in the
-    figure store, so a rerun does not read the mesh for them. Read once per mesh while the geometry is fixed."""
+    """16-byte digest of mesh ``me``'s shape (:func:`blender.digest.shape_digest`: positions, edges, faces, corners)
+    and Blender's build: the figures of its shape (area, closed parts) are kept under it in the figure store, so a
+    rerun does not read the mesh for them; what a bake writes (UV layers, colour attributes) leaves it unchanged.
+    Read once per mesh while the geometry is fixed."""
     def make():
-        h = hashlib.blake2b(digest_size=16)
-        return h.digest() if mesh_digest(h, me, uv=False) else None
+        h = hashlib.blake2b(repr((tuple(bpy.app.version), bpy.app.build_hash)).encode(), digest_size=16)
+        shape_digest(h, me)
+        return h.digest()
     return remembered(("geometry", me.as_pointer()), make, geometry=True)
 
 
 def geometry_figure(me, make, *args):
     """``make()``, a figure of mesh ``me``'s shape and ``args`` (numbers, arrays), kept under :func:`geometry_key`."""
-    key = geometry_key(me)
-    return make() if key is None else FIGURES.get(digest("geometry", key, *args), make)
+    return FIGURES.get(digest("geometry", geometry_key(me), *args), make)
 
 
 def world_area(obj):
@@ -146,17 +148,14 @@ def _world_triangles(obj):
 def check_valid(obj):
     """Refuse a mesh Blender itself reports invalid (``Mesh.validate`` on a throw-away copy would change it: a
     face repeating a vertex, an edge out of range, ...): Blender's edit mode hangs or crashes on such data."""
-    if geometry_figure(obj.data, lambda: _broken(obj.data), "broken"):
-        raise InputError(f"mesh '{obj.data.name}' of '{obj.name}' is invalid (e.g. a face that repeats a vertex): "
-                         f"repair it first (Mesh > Clean Up, or mesh.validate() in Python)")
-
-
-def _broken(me):
-    tmp = me.copy()
+    tmp = obj.data.copy()
     try:
-        return bool(tmp.validate(verbose=False))
+        broken = tmp.validate(verbose=False)
     finally:
         bpy.data.meshes.remove(tmp)
+    if broken:
+        raise InputError(f"mesh '{obj.data.name}' of '{obj.name}' is invalid (e.g. a face that repeats a vertex): "
+                         f"repair it first (Mesh > Clean Up, or mesh.validate() in Python)")
 
 
 def check_layer(obj, name):

@@ -10,13 +10,15 @@ _UNREAD = (".select_", ".uv_select_", ".hide_", ".vs.", ".es.", ".pn.")
 """Attributes no evaluation or check reads: Edit Mode's selection, hiding and UV pins."""
 
 
-def mesh_digest(h, me, uv=True):
-    """Feed mesh ``me`` to hash ``h``: its counts, faces' loop starts and every attribute but :data:`_UNREAD` (``uv``
-    False: its UV layers by name only, not their coordinates). False when an attribute is of a kind not read here
-    (``h`` then holds part of the mesh)."""
+def _topology(h, me):
     h.update(repr((len(me.vertices), len(me.edges), len(me.loops), len(me.polygons))).encode())
     h.update(read(me.polygons, "loop_start", np.int32).tobytes())
-    uv_layers = set() if uv else {layer.name for layer in me.uv_layers}
+
+
+def mesh_digest(h, me):
+    """Feed mesh ``me`` to hash ``h``: its counts, faces' loop starts and every attribute but :data:`_UNREAD`. False
+    when an attribute is of a kind not read here (``h`` then holds part of the mesh)."""
+    _topology(h, me)
     for a in sorted(me.attributes, key=lambda a: a.name):
         if a.name.startswith(_UNREAD):
             continue
@@ -24,9 +26,20 @@ def mesh_digest(h, me, uv=True):
         if dtype is None:
             return False
         h.update(f"{a.name}:{a.domain}:{a.data_type}".encode())
-        if a.name not in uv_layers:
-            h.update(attribute(me, a.name, dtype).tobytes())
+        h.update(attribute(me, a.name, dtype).tobytes())
     return True
+
+
+_SHAPE = (("position", np.float32), (".edge_verts", np.int32), (".corner_vert", np.int32), (".corner_edge", np.int32))
+
+
+def shape_digest(h, me):
+    """Feed mesh ``me``'s shape to hash ``h``: its counts, faces' loop starts, positions, edges and corners (what its
+    loop triangles, area and closed parts are made of; not its UVs, creases or colours)."""
+    _topology(h, me)
+    for name, dtype in _SHAPE:
+        values = attribute(me, name, dtype)
+        h.update(name.encode() + (b"-" if values is None else values.tobytes()))
 
 
 def rna_digest(h, struct):

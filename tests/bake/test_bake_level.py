@@ -90,12 +90,20 @@ def test_batched_bake_gives_the_per_object_images(tmp_path, monkeypatch):
     assert all(not o.hide_render for o in objects)
 
 
-def _batch_bakes_as_single_calls(objects, tmp_path):
-    """AO of ``objects`` at 32², 8 spp, by one call per object and batched: equal bit for bit, each map with more than
-    100 covered texels; returns the per-object maps by (object name, "ao")."""
+def _batch_bakes_as_single_calls(objects, batched, tmp_path, monkeypatch):
+    """AO of ``objects`` at 32², 8 spp, by one call per object and with the names ``batched`` in one batch (the others
+    alone): equal bit for bit, each map with more than 100 covered texels; returns the per-object maps by (object
+    name, "ao")."""
     opts = dict(resolution=32, samples=8, keep_products=False)
     bake_lightmaps(objects, ["ao"], str(tmp_path / "one"), BakeOptions(batch=False, **opts))
+    seen, real = [], batching.bake_batch
+
+    def counting(scene, batch, *args):
+        seen.append({t.name for t in batch})
+        return real(scene, batch, *args)
+    monkeypatch.setattr(batching, "bake_batch", counting)
     bake_lightmaps(objects, ["ao"], str(tmp_path / "batch"), BakeOptions(**opts))
+    assert seen == [set(batched)]
     one, batch = maps(tmp_path / "one", objects, ["ao"]), maps(tmp_path / "batch", objects, ["ao"])
     for key, a in one.items():
         assert (a["A"] > 0.5).sum() > 100 and np.array_equal(a["Y"], batch[key]["Y"]), key
@@ -103,7 +111,7 @@ def _batch_bakes_as_single_calls(objects, tmp_path):
 
 
 @pytest.mark.both_versions
-def test_a_batch_bakes_the_meshes_a_render_evaluates(tmp_path):
+def test_a_batch_bakes_the_meshes_a_render_evaluates(tmp_path, monkeypatch):
     """Cycles bakes through its own render evaluation of the scene, the batch's joined mesh and the checks read the
     viewport's: for the bake the viewport takes the render's settings (cycles.render_variants). A Subdivision of 0
     levels in the viewport and 3 in renders, and a Bevel on only for renders, give the images of one call per object
@@ -119,7 +127,7 @@ def test_a_batch_bakes_the_meshes_a_render_evaluates(tmp_path):
     box = bpy.context.object
     bevel = box.modifiers.new("Bevel", "BEVEL")
     bevel.width, bevel.segments, bevel.show_viewport = 0.2, 3, False
-    _batch_bakes_as_single_calls([floor, blob, box], tmp_path)
+    _batch_bakes_as_single_calls([floor, blob, box], [floor.name, blob.name, box.name], tmp_path, monkeypatch)
     assert (sub.levels, sub.render_levels, bevel.show_viewport, bevel.show_render) == (0, 3, False, True)
 
 
@@ -478,7 +486,7 @@ def test_a_real_sigkill_at_each_stage_resumes_to_a_complete_report(tmp_path, sta
 
 
 def _viewport_switch(offset):
-    """A Geometry Nodes group that moves its geometry by ``offset`` in renders only (Is Viewport, inside a nested group)."""
+    """A Geometry Nodes group that moves its geometry by ``offset`` in renders only (Is Viewport, in a nested group)."""
     inner = bpy.data.node_groups.new("Is viewport inside", "GeometryNodeTree")
     inner.interface.new_socket("Viewport", in_out="OUTPUT", socket_type="NodeSocketBool")
     inner.links.new(inner.nodes.new("GeometryNodeIsViewport").outputs[0],
@@ -503,7 +511,7 @@ def _viewport_switch(offset):
 
 
 @pytest.mark.both_versions
-def test_geometry_nodes_that_branch_on_is_viewport_bake_as_rendered(tmp_path):
+def test_geometry_nodes_that_branch_on_is_viewport_bake_as_rendered(tmp_path, monkeypatch):
     """An object whose Geometry Nodes give renders another surface than the viewport (Is Viewport, here in a nested
     group: a cube resting on the floor in the viewport, lifted 1.5 m in renders) is baked by its own call, which
     evaluates it as rendered: the batch and the per-object calls give the same AO, bit for bit, and the floor under
@@ -514,7 +522,8 @@ def test_geometry_nodes_that_branch_on_is_viewport_bake_as_rendered(tmp_path):
     lifted = bpy.context.object
     lifted.modifiers.new("Render offset", "NODES").node_group = _viewport_switch((0.0, 0.0, 1.5))
     bpy.ops.mesh.primitive_cube_add(size=1, location=(1.5, 0, 0.5))
-    one = _batch_bakes_as_single_calls([floor, lifted, bpy.context.object], tmp_path)
+    other = bpy.context.object
+    one = _batch_bakes_as_single_calls([floor, lifted, other], [floor.name, other.name], tmp_path, monkeypatch)
     ao = one[(floor.name, "ao")]["Y"]
     h, w = ao.shape
     assert ao[h // 2 - 2:h // 2 + 2, w // 2 - 2:w // 2 + 2].mean() > 0.3      # not under a cube resting on it

@@ -242,7 +242,7 @@ def test_a_rerun_in_a_new_process_reads_the_figures_instead_of_measuring_them_ag
         monkeypatch.setattr(module, name, wrapper)
 
     for module, name in ((lightmap, "overlap_fraction"), (lightmap, "inward_shells"), (seams, "_seam_edges"),
-                         (lightmap, "coverage_mask"), (uvmod, "_world_area"), (uvmod, "_broken")):
+                         (lightmap, "coverage_mask"), (uvmod, "_world_area")):
         counted(module, name)
 
     def bake():
@@ -258,7 +258,7 @@ def test_a_rerun_in_a_new_process_reads_the_figures_instead_of_measuring_them_ag
                 for n, e in rep["objects"].items()}
 
     first = bake()
-    assert {"overlap_fraction", "inward_shells", "_seam_edges", "coverage_mask", "_world_area", "_broken"} <= set(calls)
+    assert {"overlap_fraction", "inward_shells", "_seam_edges", "coverage_mask", "_world_area"} <= set(calls)
     packs = os.listdir(pipeline.figures_folder(tmp_path))
     assert packs and all(re.fullmatch(r"[0-9a-f]{32}\.npz", p) for p in packs)
     again = bake()
@@ -273,16 +273,23 @@ def test_a_rerun_in_a_new_process_reads_the_figures_instead_of_measuring_them_ag
 
 
 @pytest.mark.both_versions
-def test_the_shape_figures_of_a_changed_mesh_are_measured_again(tmp_path):
-    """uv.geometry_figure: a mesh's area, validity and inward shells are kept under a digest of its shape; scaling its
-    vertices, turning it inside out or breaking a face gives the new figures (area × 4, flipped for the bake, refused)
-    on a rerun in a new process, where the unchanged meshes' figures are read."""
+def test_the_shape_figures_of_a_changed_mesh_are_measured_again(tmp_path, monkeypatch):
+    """uv.geometry_figure: a mesh's area and inward shells are kept under a digest of its shape, which the layers a bake
+    keeps (the "Lightmap" UVs) leave unchanged: a rerun in a new process reads them. Scaling the vertices or turning
+    the mesh inside out gives the new figures (area × 4, flipped for the bake); a face broken after a first run is
+    refused (Mesh.validate runs every time: it also reads the UVs)."""
     objects = _props()
     box = objects[1]
     box.modifiers.clear()
+    calls = []
+    for module, name in ((uvmod, "_world_area"), (lightmap, "inward_shells")):
+        real = getattr(module, name)
+        monkeypatch.setattr(module, name, functools.partial(lambda real, name, *a: calls.append(name) or real(*a),
+                                                            real, name))
 
     def bake():
         FIGURES.clear()
+        calls.clear()
         return bake_lightmaps(objects, ["ao"], str(tmp_path), BakeOptions(**OPTIONS), scene=bpy.context.scene)
 
     def area():
@@ -291,6 +298,9 @@ def test_the_shape_figures_of_a_changed_mesh_are_measured_again(tmp_path):
             return uvmod.world_area(box), len(store.used)
 
     bake()
+    assert {"_world_area", "inward_shells"} <= set(calls) and uvmod.LIGHTMAP in box.data.uv_layers
+    bake()                                                        # the kept "Lightmap" layers in place
+    assert calls == []
     assert area() == (pytest.approx(6 * 0.8 ** 2, rel=1e-6), 1)   # read from the pack the bake wrote
     box.data.transform(np.diag([2.0, 2.0, 2.0, 1.0]))
     assert area()[0] == pytest.approx(4 * 6 * 0.8 ** 2, rel=1e-6)
@@ -305,6 +315,36 @@ def test_the_shape_figures_of_a_changed_mesh_are_measured_again(tmp_path):
     sc.set_attribute(box.data, ".corner_vert", "INT", "CORNER", cv)
     rep = bake()
     assert "is invalid" in rep["failed"]["Box"] and set(rep["objects"]) == {"Floor", "Ball"}
+
+
+@pytest.mark.both_versions
+def test_a_mesh_its_parent_deforms_is_read_every_run(tmp_path, monkeypatch):
+    """A lattice parent of type Lattice deforms the mesh through a modifier ``Object.modifiers`` does not list: the
+    mesh is not unmodified, so its evaluated figures are not kept under its cage, and moving the lattice's points
+    bakes the moved surface (the batch's triangles are read again)."""
+    objects = _props()
+    objects[1].modifiers.clear()
+    box = objects[1]
+    bpy.ops.object.add(type="LATTICE", location=box.location)
+    lattice = bpy.context.object
+    box.parent, box.parent_type = lattice, "LATTICE"
+    box.matrix_parent_inverse = lattice.matrix_world.inverted()
+    assert not sc.unmodified(box) and sc.unmodified(objects[0])
+    read, real = [], evaluated._of
+    monkeypatch.setattr(evaluated, "_of", lambda obj, *a: read.append(obj.name) or real(obj, *a))
+
+    def bake():
+        FIGURES.clear()
+        read.clear()
+        rep = bake_lightmaps(objects, ["ao"], str(tmp_path), BakeOptions(**OPTIONS), scene=bpy.context.scene)
+        return exr.read_exr(rep["objects"]["Box"]["ao"]["file"])[0]["Y"]
+
+    first = bake()
+    for p in lattice.data.points:
+        p.co_deform.z *= 3.0                                      # the box stretched upward through the lattice
+    moved = bake()
+    assert "Box" in read and "Floor" not in read
+    assert not np.array_equal(first, moved)
 
 
 @pytest.mark.both_versions
