@@ -144,6 +144,7 @@ class UVCache:
             return
         prune_least_recent([os.path.join(self.folder, n) for n in names], self.used, max_bytes=self.MAX_BYTES)
 
+
 def _read(path):
     try:
         with np.load(path, allow_pickle=False) as z:

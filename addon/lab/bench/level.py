@@ -13,7 +13,7 @@ saved: the layouts come from the UV cache (``bake/uvcache.py``) and the figures 
 the figure issue 27 bounds (at most 1 on a first run, 0.1 on such a rerun). The production rerun's row also gives
 the seconds Blender takes to evaluate the level's meshes once their UV layers changed (:func:`evaluation_seconds`,
 measured last): what a pipeline that reads the baked meshes before the bake pays outside Cycles (the pipeline reads
-meshes only subdivided from its figure store instead, ``bake/evaluated.py``).
+meshes only subdivided or without modifiers from its figure store instead, ``bake/evaluated.py``).
 """
 import contextlib
 import dataclasses
