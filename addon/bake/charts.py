@@ -3,7 +3,7 @@ import math
 
 import numpy as np
 
-from ..blender.scene import corner_uv, corner_vertices, positions, read
+from ..blender.scene import corner_uv, corner_vertices, face_starts, positions
 from ..core.memo import FIGURES
 from ..core.pack import chart_labels
 from ..core.seams import welded
@@ -24,7 +24,7 @@ def chart_count(me, layer):
     if not n:
         return 0
     vert = corner_vertices(me).astype(np.int64)
-    poly = read(me.polygons, "loop_start", np.int32).astype(np.int64)
+    poly = face_starts(me).astype(np.int64)
     return FIGURES.call(_charts, positions(me).ravel(), vert, poly, corner_uv(me, layer).ravel())
 
 

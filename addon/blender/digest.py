@@ -2,7 +2,7 @@
 import bpy
 import numpy as np
 
-from .scene import attribute, read
+from .scene import attribute, face_starts
 
 _DTYPES = {"FLOAT": np.float32, "INT": np.int32, "BOOLEAN": bool, "INT8": np.int32, "FLOAT_VECTOR": np.float32,
            "FLOAT2": np.float32, "INT32_2D": np.int32, "FLOAT_COLOR": np.float32, "BYTE_COLOR": np.float32}
@@ -12,7 +12,7 @@ _UNREAD = (".select_", ".uv_select_", ".hide_", ".vs.", ".es.", ".pn.")
 
 def _topology(h, me):
     h.update(repr((len(me.vertices), len(me.edges), len(me.loops), len(me.polygons))).encode())
-    h.update(read(me.polygons, "loop_start", np.int32).tobytes())
+    h.update(face_starts(me).tobytes())
 
 
 def mesh_digest(h, me):
