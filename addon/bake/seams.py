@@ -55,21 +55,22 @@ def _joined(parts):
     return core.Seams(*(np.concatenate([getattr(s, k) for s in parts]) for k in ("a", "b", "a_in", "b_in")))
 
 
-def seam_step(scene, group, layers, raw, mask, values, grow, sigma, value_range, fix=True):
+def seam_step(scene, group, layers, raw, mask, values, grow, sigma, value_range, fix=True, source=None):
     """Measure the seams of the map of ``group`` and stitch them when needed; return (values, {object: report
     "seams" entry}, EXR header attributes). ``raw`` the baked (and denoised) values, 0 off ``mask``; ``values`` the
     map after dilation by ``grow`` texels; ``sigma`` its estimated error per texel (NaN: not estimated, the interior
     figure is then the reference); stitched values are clipped to the kind's ``value_range``; ``fix`` False only
-    measures."""
+    measures; ``source`` the dilation's :func:`lightmap.dilation_source` (found here when None)."""
     h, w = mask.shape
     depsgraph = scene.view_layers[0].depsgraph
     found = {o.name: mesh_seams(o, layers[o.name], depsgraph, w, h) for o in group}
     found = {k: s for k, s in found.items() if s is not None}
     if not found:
         return values, {}, {}
-    source = lightmap.nearest_covered(mask, grow + 1e-6).ravel()
-    before = {k: core.measure(raw, s, mask) for k, s in found.items()}
-    dilated = {k: core.measure(values, s, mask, source) for k, s in found.items()}
+    source = (lightmap.dilation_source(mask, grow) if source is None else source).ravel()
+    at = {k: core.sampling(s, mask) for k, s in found.items()}
+    before = {k: core.measure(raw, s, mask, at=at[k]) for k, s in found.items()}
+    dilated = {k: core.measure(values, s, mask, source, at=at[k]) for k, s in found.items()}
     noise = {k: sigma * f.noise_factor if math.isfinite(sigma) else float("nan") for k, f in dilated.items()}
     fixed = fix and any(f.samples and not f.rms <= min((x for x in (noise[k], f.interior_rms) if math.isfinite(x)),
                                                 default=0.0) for k, f in dilated.items())
@@ -80,7 +81,7 @@ def seam_step(scene, group, layers, raw, mask, values, grow, sigma, value_range,
         if lo is not None or hi is not None:
             stitched = np.clip(stitched, lo, hi)
         values = stitched.astype(values.dtype)
-        after = {k: core.measure(values, s, mask, source) for k, s in found.items()}
+        after = {k: core.measure(values, s, mask, source, at=at[k]) for k, s in found.items()}
     entries = {}
     for k, f in after.items():
         entries[k] = {"edges": f.edges, "samples": f.samples, "rms": _number(f.rms), "max": _number(f.max),

@@ -103,13 +103,14 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
     margin = uvmod.margin_value(options.margin if margin is None else margin)
     grow = uvmod.dilation(options.margin, margin)
     _finite(name, kind, result.values[result.mask])
-    values, grown = lightmap.dilate(result.values, result.mask, grow)
+    source = lightmap.dilation_source(result.mask, grow)
+    values, grown = lightmap.dilate(result.values, result.mask, grow, source)
     values = np.where(grown[..., None] if values.ndim == 3 else grown, values, 0.0)
     seam_entries, seam_attrs = {}, {}
     if scene is not None:
         values, seam_entries, seam_attrs = seam_step(scene, group, layers, result.values, result.mask, values, grow,
                                                      result.estimated_error, KINDS[kind].value_range,
-                                                     fix=options.seam_fix)
+                                                     fix=options.seam_fix, source=source)
     alpha = result.mask.astype(np.float32)
     uv_name = layers.get(group[0].name)
     h, w = result.mask.shape

@@ -288,29 +288,36 @@ def nearest_covered(mask, max_distance=None):
     return np.where(src >= 0, src - 2 * (src // W) - (w + 1), -1)
 
 
-def nearest_fill(values, mask, max_distance=None):
+def nearest_fill(values, mask, max_distance=None, source=None):
     """Copy each uncovered texel from its nearest covered texel (chessboard distance, in texels).
 
-    Texels farther than ``max_distance`` keep their value. Returns ``(values, filled_mask)``.
+    Texels farther than ``max_distance`` keep their value. ``source``: :func:`nearest_covered` of ``mask`` and
+    ``max_distance`` when the caller has it. Returns ``(values, filled_mask)``.
     """
     m = np.asarray(mask, bool)
     v = np.array(values, dtype=np.float32, copy=True)
     if not m.any() or m.all():
         return v, m.copy()
-    src = nearest_covered(m, max_distance).ravel()
+    src = (nearest_covered(m, max_distance) if source is None else source).ravel()
     grow = (src >= 0) & ~m.ravel()
     flat = v.reshape(m.size, -1)                  # a view of the fresh copy
     flat[grow] = flat[src[grow]]
     return v, (src >= 0).reshape(m.shape)
 
 
-def dilate(values, mask, pixels):
-    """Dilation by ``pixels`` texels beyond the covered ones (nearest covered value).
+def dilate(values, mask, pixels, source=None):
+    """Dilation by ``pixels`` texels beyond the covered ones (nearest covered value; ``source``: :func:`dilation_source`
+    when the caller has it).
 
     A bilinear lookup across a UV seam then reads the chart's own border instead of
     black. Returns ``(values, grown_mask)``; covered texels keep their values.
     """
-    return nearest_fill(values, mask, float(pixels) + 1e-6)
+    return nearest_fill(values, mask, float(pixels) + 1e-6, source)
+
+
+def dilation_source(mask, pixels):
+    """:func:`nearest_covered` as :func:`dilate` by ``pixels`` texels reads it."""
+    return nearest_covered(mask, float(pixels) + 1e-6)
 
 
 def bilinear(image, uv):

@@ -165,20 +165,31 @@ class Figure:
     creases: int = 0
 
 
-def measure(values, seams, mask, source=None, spacing=SPACING, inset=INSET):
-    """The :class:`Figure` of map ``values`` (H, W[, C]) with covered texels ``mask`` (H, W). ``source`` (H, W): flat
-    index of the covered texel each texel holds (dilation), −1 where it holds no baked value; default the covered
-    texels themselves."""
-    v = np.asarray(values, float)
-    h, w = v.shape[:2]
-    flat = v.reshape(h * w, -1)
+@dataclasses.dataclass
+class Sampling:
+    """Where :func:`measure` reads the maps of one layout: the bilinear footprints (index, weights) of the matched
+    seam points on side a and side b, and of the interior pairs q, q + spacing t̂ whose footprints lie on covered
+    texels (side a's, then side b's)."""
+    edges: int
+    creases: int
+    a: tuple
+    b: tuple
+    q: tuple
+    q2: tuple
+    _noise: tuple = (None, None)
+
+    def noise_factor(self, source):
+        """:func:`_noise_factor` of these seam points for ``source`` (remembered for the last one)."""
+        if self._noise[0] is not source:
+            self._noise = (source, _noise_factor(*self.a, *self.b, source))
+        return self._noise[1]
+
+
+def sampling(seams, mask, spacing=SPACING, inset=INSET):
+    """The :class:`Sampling` of ``seams`` on a map with covered texels ``mask`` (H, W)."""
     m = np.asarray(mask, bool)
-    if source is None:
-        source = np.where(m.ravel(), np.arange(h * w), -1)
+    h, w = m.shape
     pa, pb, edge = seam_points(seams, spacing)
-    ia, wa = footprint(pa, h, w)
-    ib, wb = footprint(pb, h, w)
-    jump = np.abs(_read(flat, ia, wa) - _read(flat, ib, wb))
     inner = []
     for ends, inside, p in ((seams.a, seams.a_in, pa), (seams.b, seams.b_in, pb)):
         if not len(p):
@@ -191,11 +202,30 @@ def measure(values, seams, mask, source=None, spacing=SPACING, inset=INSET):
         iq, wq = footprint(q, h, w)
         iq2, wq2 = footprint(q + spacing * t, h, w)
         ok = m.ravel()[iq].all(axis=1) & m.ravel()[iq2].all(axis=1)
-        inner.append(_read(flat, iq[ok], wq[ok]) - _read(flat, iq2[ok], wq2[ok]))
-    inner = np.concatenate(inner) if inner else np.zeros((0, flat.shape[1]))
-    return Figure(edges=len(seams), samples=len(pa), rms=_rms(jump), max=float(jump.max()) if jump.size else 0.0,
+        inner.append((iq[ok], wq[ok], iq2[ok], wq2[ok]))
+    if inner:
+        iq, wq, iq2, wq2 = (np.concatenate(x) for x in zip(*inner))
+    else:
+        iq, iq2 = np.zeros((0, 4), np.int64), np.zeros((0, 4), np.int64)
+        wq, wq2 = np.zeros((0, 4)), np.zeros((0, 4))
+    return Sampling(len(seams), seams.creases, footprint(pa, h, w), footprint(pb, h, w), (iq, wq), (iq2, wq2))
+
+
+def measure(values, seams, mask, source=None, spacing=SPACING, inset=INSET, at=None):
+    """The :class:`Figure` of map ``values`` (H, W[, C]) with covered texels ``mask`` (H, W). ``source`` (H, W): flat
+    index of the covered texel each texel holds (dilation), −1 where it holds no baked value; default the covered
+    texels themselves. ``at``: the :func:`sampling` of ``seams`` and ``mask`` (made here when None)."""
+    v = np.asarray(values, float)
+    h, w = v.shape[:2]
+    flat = v.reshape(h * w, -1)
+    if source is None:
+        source = np.where(np.asarray(mask, bool).ravel(), np.arange(h * w), -1)
+    at = at or sampling(seams, mask, spacing, inset)
+    jump = np.abs(_read(flat, *at.a) - _read(flat, *at.b))
+    inner = _read(flat, *at.q) - _read(flat, *at.q2)
+    return Figure(edges=at.edges, samples=len(at.a[0]), rms=_rms(jump), max=float(jump.max()) if jump.size else 0.0,
                   interior_rms=_rms(inner), interior_samples=len(inner),
-                  noise_factor=_noise_factor(ia, wa, ib, wb, source), creases=seams.creases)
+                  noise_factor=at.noise_factor(source), creases=at.creases)
 
 
 def stitch(values, seams, weight=STITCH_WEIGHT, spacing=STITCH_SPACING, iterations=200, tolerance=1e-6):
