@@ -56,6 +56,11 @@ def _bake(objects, out):
     return {n: exr.read_exr(e["ao"]["file"])[0]["Y"] for n, e in rep["objects"].items()}
 
 
+def _entry_bytes(head, uv, raw=None):
+    """A UV cache entry's bytes as uvcache writes them (``raw``: the head line's text instead of ``head``'s JSON)."""
+    return uvcache.MAGIC + (raw if raw is not None else json.dumps(head)).encode() + b"\n" + uv.tobytes()
+
+
 def _entries(out):
     folder = out / uvcache.DIR
     return sorted(p for p in folder.iterdir() if p.is_file()) if folder.exists() else []
@@ -81,7 +86,7 @@ def test_a_corrupt_or_mismatched_entry_is_ignored_and_rebuilt(tmp_path, unwraps)
     entries[0].write_bytes(b"PK\x03\x04 not a zip")
     head = {"side": 16, "margin": 1.0, "unwrap": "smart_project", "enlarged_from": 0, "window": [0, 0, 0],
             "loops": [3]}
-    np.savez(entries[1].open("wb"), head=np.array(json.dumps(head)), uv=np.zeros(6, np.float32))  # too few loops
+    entries[1].write_bytes(_entry_bytes(head, np.zeros(6, np.float32)))                          # too few loops
     entries[2].write_bytes(b"")
     unwraps.clear()
     again = _bake(objects, tmp_path)
@@ -89,8 +94,8 @@ def test_a_corrupt_or_mismatched_entry_is_ignored_and_rebuilt(tmp_path, unwraps)
     for name in fresh:
         assert np.array_equal(again[name], fresh[name]), name
     for path in _entries(tmp_path):                                            # rewritten, readable
-        with np.load(path, allow_pickle=False) as z:
-            assert z["uv"].dtype == np.float32 and z["uv"].size > 6
+        entry = uvcache._read(str(path))
+        assert entry is not None and sum(uv.size for uv in entry.uvs) > 6
 
 
 def test_meshes_of_equal_geometry_unwrap_once_and_files_stay_in_the_output_folder(tmp_path, unwraps):
@@ -108,7 +113,7 @@ def test_meshes_of_equal_geometry_unwrap_once_and_files_stay_in_the_output_folde
     files = [os.path.relpath(os.path.join(d, f), tmp_path) for d, _, fs in os.walk(tmp_path) for f in fs]
     assert all(f.startswith("maps" + os.sep) for f in files), files
     names = [p.name for p in _entries(out)]
-    assert len(names) == 1 and re.fullmatch(r"[0-9a-f]{40}\.npz", names[0])
+    assert len(names) == 1 and re.fullmatch(r"[0-9a-f]{40}\.uv", names[0])
 
 
 def test_a_bake_that_writes_no_map_writes_no_cache(tmp_path, monkeypatch):
@@ -424,7 +429,7 @@ def test_entries_beyond_the_bytes_allowed_are_removed_least_recently_used_first(
     beyond it, never one it read or wrote; a rerun that reads a layout keeps it (and makes it the most recent)."""
     old = []
     for k in range(3):
-        path = tmp_path / f"{k:040x}.npz"
+        path = tmp_path / f"{k:040x}{'.npz' if k % 2 else '.uv'}"      # .npz: the entries of the format before
         path.write_bytes(bytes(10000))
         os.utime(path, (10**9 + k, 10**9 + k))
         old.append(path)
@@ -434,7 +439,7 @@ def test_entries_beyond_the_bytes_allowed_are_removed_least_recently_used_first(
     cache.used.add(str(old[0]))                                   # read by this run: kept although the oldest
     cache.put("f" * 40, uvcache.Entry([np.zeros(6, np.float32)], 16, 1.0, "smart_project"))
     cache.flush()
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([old[0].name, old[2].name, "f" * 40 + ".npz",
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([old[0].name, old[2].name, "f" * 40 + ".uv",
                                                                  "figures"])
     objects = _props()
     _bake(objects, tmp_path / "out")
@@ -448,7 +453,7 @@ def test_entries_beyond_the_bytes_allowed_are_removed_least_recently_used_first(
 
 
 def test_temporaries_a_killed_run_left_in_the_cache_folders_are_removed(tmp_path):
-    """A run killed while it wrote a layout or a figure pack leaves '.<stem>.<host>-<pid>.<random>.tmp.npz' in
+    """A run killed while it wrote a layout or a figure pack leaves '.<stem>.<host>-<pid>.<random>.tmp.uv' in
     .il-uv-cache/ or its figures/ folder: the next bake removes them (older than files.STALE_AFTER, process gone),
     as it does in the output folder."""
     import subprocess
@@ -457,7 +462,7 @@ def test_temporaries_a_killed_run_left_in_the_cache_folders_are_removed(tmp_path
     from addon.core.io import files
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True,
                           text=True).stdout.strip()
-    left = [tmp_path / uvcache.DIR / f".{'a' * 40}.{files._HOST}-{dead}.k2j4x9_a.tmp.npz",
+    left = [tmp_path / uvcache.DIR / f".{'a' * 40}.{files._HOST}-{dead}.k2j4x9_a.tmp.uv",
             pathlib.Path(pipeline.figures_folder(tmp_path)) / f".{'b' * 32}.{files._HOST}-{dead}.q1w2e3r4.tmp.npz"]
     for path in left:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -475,8 +480,8 @@ def test_an_entry_whose_head_does_not_match_its_uvs_reads_as_none(tmp_path):
     uv = np.linspace(0, 1, 10, dtype=np.float32)
 
     def entry(head, uvs=uv, raw=None):
-        path = tmp_path / f"{len(list(tmp_path.iterdir()))}.npz"
-        np.savez(path, head=np.array(raw if raw is not None else json.dumps(head)), uv=uvs)
+        path = tmp_path / f"{len(list(tmp_path.iterdir()))}.uv"
+        path.write_bytes(_entry_bytes(head, uvs, raw))
         return uvcache._read(str(path))
 
     read = entry(good)
@@ -485,3 +490,4 @@ def test_an_entry_whose_head_does_not_match_its_uvs_reads_as_none(tmp_path):
     assert entry({k: v for k, v in good.items() if k != "margin"}) is None
     assert entry(good, raw="{not json") is None
     assert entry(good, uvs=uv.astype(np.float64)) is None
+
