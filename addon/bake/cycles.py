@@ -107,6 +107,7 @@ def flip_inside_out(scene, objects, flips, state):
         return
     for mesh in dict.fromkeys(flips.values()):
         state.flip_normals(mesh)
+    uvmod.geometry_changed(flips.values())
     scene.view_layers[0].update()
     for o in objects:
         if o.name in flips and orientation.empty_inward_shells(scene, o)[0] > 0:

@@ -7,8 +7,9 @@ import numpy as np
 
 from ..blender import compat
 from ..blender.digest import node_tree_digest, rna_digest
-from ..blender.scene import corner_triangles, corner_uv, corner_vertices, positions, subdivided_only
+from ..blender.scene import corner_uv, corner_vertices, positions, subdivided_only
 from ..core.io import exr
+from . import uv as uvmod
 from .kinds import KINDS
 from .plan import map_file
 
@@ -39,7 +40,7 @@ def lighting_digest(scene):
     return h.hexdigest()
 
 
-def input_hash(scene, group, kind, options, lighting):
+def input_hash(scene, group, kind, options, lighting, parts=None):
     """Hash of what determines map ``kind`` of ``group``: each object's evaluated mesh, as its base mesh (positions
     and triangles, exact), its modifiers' settings and the evaluated counts (none for a mesh only subdivided,
     ``blender.scene.subdivided_only``, whose evaluated mesh is not read; the evaluated positions themselves
@@ -47,7 +48,8 @@ def input_hash(scene, group, kind, options, lighting):
     given), its transform and its materials' node trees, the
     lights and world (``lighting``, :func:`lighting_digest`; a ``lit`` kind only: irradiance) and the options that
     change the map.
-    Other objects are not in it: moving an occluder leaves its neighbours' maps as they are (``force`` bakes them)."""
+    Other objects are not in it: moving an occluder leaves its neighbours' maps as they are (``force`` bakes them).
+    ``parts``: a dict keeping each object's part before its materials for the next kind's hash."""
     h = hashlib.blake2b(digest_size=16)
     h.update(f"{kind}:{bpy.app.version_string}".encode())
     for name in _HASHED_OPTIONS:
@@ -56,25 +58,13 @@ def input_hash(scene, group, kind, options, lighting):
         h.update(f"bounces={options.bounces};{lighting}".encode())
     depsgraph = scene.view_layers[0].depsgraph
     for o in group:
-        h.update(o.name.encode())
-        if options.sizes and o.name in options.sizes:
-            h.update(repr(tuple(options.sizes[o.name])).encode())
-        h.update(np.array(o.matrix_world, np.float64).tobytes())
-        me = o.data
-        co = positions(me)
-        tris = corner_vertices(me)[corner_triangles(me)]
-        h.update(co.tobytes())
-        h.update(tris.tobytes())
-        subdivided = subdivided_only(o)             # the mesh and the settings hashed give the evaluated mesh
-        for mod in o.modifiers:
-            if mod.show_render or (subdivided and mod.show_viewport):
-                h.update(repr((mod.show_viewport, mod.show_render)).encode())
-                rna_digest(h, mod)
-        if not subdivided:
-            ev = o.evaluated_get(depsgraph).data
-            h.update(f"{len(ev.vertices)}:{len(ev.polygons)}".encode())
-        if options.uv_layer and options.uv_layer in me.uv_layers:
-            h.update(corner_uv(me, options.uv_layer).tobytes())
+        part = None if parts is None else parts.get(o.as_pointer())
+        if part is None:
+            part = _object_part(o, options, depsgraph)
+            if parts is not None:
+                parts[o.as_pointer()] = part
+        for data in part:
+            h.update(data)
         for slot in o.material_slots:
             mat = slot.material
             h.update((mat.name if mat else "-").encode())
@@ -82,6 +72,43 @@ def input_hash(scene, group, kind, options, lighting):
                 h.update(repr(tuple(mat.diffuse_color)).encode())
                 node_tree_digest(h, mat.node_tree)
     return h.hexdigest()
+
+
+def _object_part(o, options, depsgraph):
+    """What :func:`input_hash` digests of object ``o`` before its materials, in order (the same for every map
+    kind)."""
+    out = [o.name.encode()]
+    if options.sizes and o.name in options.sizes:
+        out.append(repr(tuple(options.sizes[o.name])).encode())
+    out.append(np.array(o.matrix_world, np.float64).tobytes())
+    me = o.data
+    out += [positions(me).tobytes(), corner_vertices(me)[uvmod.corners(me)].tobytes()]
+    subdivided = subdivided_only(o)             # the mesh and the settings hashed give the evaluated mesh
+    for mod in o.modifiers:
+        if mod.show_render or (subdivided and mod.show_viewport):
+            out.append(repr((mod.show_viewport, mod.show_render)).encode())
+            h = _Bytes()
+            rna_digest(h, mod)
+            out.append(h.data())
+    if not subdivided:
+        ev = o.evaluated_get(depsgraph).data
+        out.append(f"{len(ev.vertices)}:{len(ev.polygons)}".encode())
+    if options.uv_layer and options.uv_layer in me.uv_layers:
+        out.append(corner_uv(me, options.uv_layer).tobytes())
+    return out
+
+
+class _Bytes:
+    """A hash stand-in that keeps what it is fed (a digest fed the same bytes later is the same)."""
+
+    def __init__(self):
+        self.parts = []
+
+    def update(self, data):
+        self.parts.append(bytes(data))
+
+    def data(self):
+        return b"".join(self.parts)
 
 
 def stored_hash(path):

@@ -63,6 +63,11 @@ def figures_folder(out):
 def _bake(objects, maps, out, options, scene, on_step):
     options = options or BakeOptions()
     scene = scene or bpy.context.scene
+    with uvmod.fixed_geometry():        # only UV layers change from the checks to the last map: meshes are read once
+        return _bake_fixed(objects, maps, out, options, scene, on_step)
+
+
+def _bake_fixed(objects, maps, out, options, scene, on_step):
     objects, maps, out, skipped, flips, failed = validate(scene, objects, maps, out, options)
     for folder in (out, os.path.join(out, uvcache.DIR), figures_folder(out)):
         remove_stale_temporaries(folder)       # what a killed earlier run was writing
@@ -76,7 +81,9 @@ def _bake(objects, maps, out, options, scene, on_step):
         objects, report_name = shard(objects, options)
     groups = [(ATLAS, objects)] if (options.atlas and options.target == "image") else [(o.name, [o]) for o in objects]
     lighting = lighting_digest(scene)
-    digests = {(name, m): input_hash(scene, group, m, options, lighting) for name, group in groups for m in maps}
+    parts = {}
+    digests = {(name, m): input_hash(scene, group, m, options, lighting, parts) for name, group in groups for m in maps}
+    del parts
     stems = file_stems()
     report_path = os.path.join(out, report_name)
     unchanged, kept = {}, {}

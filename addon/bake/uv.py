@@ -48,9 +48,9 @@ _GEOMETRY = None   # {(what, pointer): value} while only UV layers change (:func
 
 @contextlib.contextmanager
 def fixed_geometry():
-    """A scope in which the objects' meshes and transforms do not change, only their UV layers (the input checks, the
-    UV step): :func:`geometry_key`, :func:`world_area`, :func:`world_triangles` and the loop triangles are read once
-    per mesh or object in it."""
+    """A scope in which the objects' meshes and transforms do not change, only their UV layers (a bake, from its input
+    checks to its last map; :func:`geometry_changed` when they do): :func:`geometry_key`, :func:`world_area` and the
+    loop triangles are read once per mesh or object in it."""
     global _GEOMETRY
     if _GEOMETRY is not None:
         yield
@@ -62,10 +62,18 @@ def fixed_geometry():
         _GEOMETRY = None
 
 
+def geometry_changed(meshes):
+    """Inside :func:`fixed_geometry`: ``meshes`` changed (their normals flipped for the bake), read them again."""
+    changed = {me.as_pointer() for me in meshes}
+    if _GEOMETRY is not None:
+        for key in [k for k in _GEOMETRY if changed.intersection(k[1:])]:
+            del _GEOMETRY[key]
+
+
 def remembered(key, make, geometry=False):
     """``make()``, once per ``key`` inside :func:`fixed_layouts` (and, for ``geometry``, inside
     :func:`fixed_geometry`); every call outside them."""
-    store = _FIXED if _FIXED is not None else (_GEOMETRY if geometry else None)
+    store = _GEOMETRY if geometry and _GEOMETRY is not None else _FIXED
     if store is None:
         return make()
     if key not in store:
@@ -76,14 +84,14 @@ def remembered(key, make, geometry=False):
 def triangles_uv(obj, layer):
     """(T, 3, 2) UV coordinates of the mesh's loop triangles in ``layer`` (read-only inside :func:`fixed_layouts`)."""
     def make():
-        tri = corner_uv(obj.data, layer)[_corners(obj.data)]
+        tri = corner_uv(obj.data, layer)[corners(obj.data)]
         if _FIXED is not None:
             tri.flags.writeable = False
         return tri
     return remembered(("uv", obj.data.as_pointer(), layer), make)
 
 
-def _corners(me):
+def corners(me):
     """``corner_triangles`` of mesh ``me``, read once while the geometry is fixed (the UV step reads a mesh's UVs
     after each unwrap it tries; its triangles stay)."""
     def make():
@@ -129,12 +137,12 @@ def _world_area(obj):
 
 def world_triangles(obj):
     """(T, 3, 3) world positions of the corners of the mesh's loop triangles (the order of :func:`triangles_uv`),
-    read-only."""
+    read-only; remembered inside :func:`fixed_layouts` only (72 bytes a triangle: a bake keeps no more than it must)."""
     def make():
         t = _world_triangles(obj)
         t.flags.writeable = False
         return t
-    return remembered(("world", obj.as_pointer(), obj.data.as_pointer()), make, geometry=True)
+    return remembered(("world", obj.as_pointer(), obj.data.as_pointer()), make)
 
 
 def _world_triangles(obj):
@@ -142,7 +150,7 @@ def _world_triangles(obj):
     co = positions(me).astype(float)
     mw = np.array(obj.matrix_world, float)
     co = co @ mw[:3, :3].T + mw[:3, 3]
-    return co[corner_vertices(me)[_corners(me)]]
+    return co[corner_vertices(me)[corners(me)]]
 
 
 def check_valid(obj):

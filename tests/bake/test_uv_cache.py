@@ -491,3 +491,30 @@ def test_an_entry_whose_head_does_not_match_its_uvs_reads_as_none(tmp_path):
     assert entry(good, raw="{not json") is None
     assert entry(good, uvs=uv.astype(np.float64)) is None
 
+
+@pytest.mark.both_versions
+def test_a_bake_reads_each_mesh_triangles_once_and_again_after_flipping_it(tmp_path, monkeypatch):
+    """uv.fixed_geometry spans a bake from its input checks to its last map: each mesh's loop triangles are read from
+    Blender once (input hash, UV step, plan, files), also on a first run whose UV step tries several layouts; a mesh
+    the bake turns outward (its normals flipped: cycles.flip_inside_out) is read again after the flip, and its
+    map shows the outside (lit: AO above 0.9 on the cube's top)."""
+    reads = []
+    real = uvmod.corner_triangles
+
+    def counted(me):
+        reads.append(me.as_pointer())                # the meshes themselves and their evaluated copies
+        return real(me)
+
+    monkeypatch.setattr(uvmod, "corner_triangles", counted)
+    objects = _props()
+    objects[1].modifiers.clear()
+    bpy.ops.mesh.primitive_cube_add(size=0.6, location=(0, 1.2, 0.3))
+    inside_out = bpy.context.object
+    inside_out.name = "Inside out"
+    inside_out.data.flip_normals()
+    rep = bake_lightmaps(objects + [inside_out], ["ao"], str(tmp_path), BakeOptions(**OPTIONS),
+                         scene=bpy.context.scene)
+    assert {o.name: reads.count(o.data.as_pointer()) for o in objects} == {o.name: 1 for o in objects}
+    assert reads.count(inside_out.data.as_pointer()) == 2
+    ao = exr.read_exr(rep["objects"]["Inside out"]["ao"]["file"])[0]["Y"]
+    assert ao.max() > 0.9
