@@ -33,7 +33,7 @@ class TemporaryMaterials:
     def __init__(self, state):
         self.state = state
         self.made = {}            # (kind, original material or None, group key) -> (material, image node)
-        self.first = {}           # (kind, original material or None) -> the first material made for them
+        self.first = {}           # (kind, original material or None) -> (first material made, its image node's name)
 
     def assign(self, group, kind):
         """Put the ``kind`` materials on every slot of ``group``; return their image nodes."""
@@ -72,11 +72,11 @@ class TemporaryMaterials:
             if first is None:
                 mat = globals()[record.material](self, orig)
                 tex = mat.node_tree.nodes.new("ShaderNodeTexImage")
-                tex.name = IMAGE
-                self.first[cache[:2]] = mat
+                tex.name = IMAGE                # renamed ".001" when the user's material has a node of that name
+                self.first[cache[:2]] = (mat, tex.name)
             else:                           # a copy of the first: a tenth of the time of building it again
-                mat = self.state.track(bpy.data.materials, first.copy())
-                tex = mat.node_tree.nodes[IMAGE]
+                mat = self.state.track(bpy.data.materials, first[0].copy())
+                tex = mat.node_tree.nodes[first[1]]
             mat.node_tree.nodes.active = tex
             self.made[cache] = (mat, tex)
         return self.made[cache]

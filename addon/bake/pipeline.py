@@ -63,7 +63,7 @@ def figures_folder(out):
 def _bake(objects, maps, out, options, scene, on_step):
     options = options or BakeOptions()
     scene = scene or bpy.context.scene
-    with uvmod.fixed_geometry():        # only UV layers change from the checks to the last map: meshes are read once
+    with uvmod.fixed_geometry():        # meshes are read once: only UV layers change (and flipped normals, read again)
         return _bake_fixed(objects, maps, out, options, scene, on_step)
 
 

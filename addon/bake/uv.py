@@ -34,8 +34,12 @@ _FIXED = None      # {(what, pointer, layer): value} while the layouts are fixed
 @contextlib.contextmanager
 def fixed_layouts():
     """A scope in which no mesh, UV layer or transform of the baked objects changes (after the UV step, through
-    the bakes and files): :func:`triangles_uv` and :func:`world_area` are read once per object in it."""
+    the bakes and files): :func:`triangles_uv` and :func:`world_area` are read once per object in it. The UV step's
+    :func:`world_triangles` are let go (72 bytes a triangle)."""
     global _FIXED
+    if _GEOMETRY is not None:
+        for key in [k for k in _GEOMETRY if k[0] == "world"]:
+            del _GEOMETRY[key]
     _FIXED = {}
     try:
         yield
@@ -49,8 +53,9 @@ _GEOMETRY = None   # {(what, pointer): value} while only UV layers change (:func
 @contextlib.contextmanager
 def fixed_geometry():
     """A scope in which the objects' meshes and transforms do not change, only their UV layers (a bake, from its input
-    checks to its last map; :func:`geometry_changed` when they do): :func:`geometry_key`, :func:`world_area` and the
-    loop triangles are read once per mesh or object in it."""
+    checks to its last map; :func:`geometry_changed` when they do): :func:`geometry_key`, :func:`world_area`,
+    :func:`world_triangles` (until the layouts are fixed) and the loop triangles are read once per mesh or object in
+    it."""
     global _GEOMETRY
     if _GEOMETRY is not None:
         yield
@@ -137,12 +142,12 @@ def _world_area(obj):
 
 def world_triangles(obj):
     """(T, 3, 3) world positions of the corners of the mesh's loop triangles (the order of :func:`triangles_uv`),
-    read-only; remembered inside :func:`fixed_layouts` only (72 bytes a triangle: a bake keeps no more than it must)."""
+    read-only; remembered while the geometry is fixed, until the layouts are (:func:`fixed_layouts`)."""
     def make():
         t = _world_triangles(obj)
         t.flags.writeable = False
         return t
-    return remembered(("world", obj.as_pointer(), obj.data.as_pointer()), make)
+    return remembered(("world", obj.as_pointer(), obj.data.as_pointer()), make, geometry=_FIXED is None)
 
 
 def _world_triangles(obj):

@@ -37,8 +37,9 @@ DIR = ".il-uv-cache"
 MAGIC = b"IL light-map UVs 1\n"
 SUFFIX = ".uv"
 _SLACK = 1e-4
-_ENTRY = re.compile(r"^[0-9a-f]{40}\.(uv|npz)$")
-"""An entry's name (``.npz``: the format before MAGIC, pruned with the others)."""
+_ENTRY = re.compile(r"^[0-9a-f]{40}\.uv$")
+_BEFORE = re.compile(r"^[0-9a-f]{40}\.npz$")
+"""An entry of the format before MAGIC: never read, removed when a run writes an entry."""
 
 
 @dataclasses.dataclass
@@ -143,10 +144,14 @@ class UVCache:
 
     def _prune(self):
         try:
-            names = [n for n in os.listdir(self.folder) if _ENTRY.match(n)]
+            names = os.listdir(self.folder)
         except OSError:
             return
-        prune_least_recent([os.path.join(self.folder, n) for n in names], self.used, max_bytes=self.MAX_BYTES)
+        for name in filter(_BEFORE.match, names):
+            with contextlib.suppress(OSError):
+                os.remove(os.path.join(self.folder, name))
+        prune_least_recent([os.path.join(self.folder, n) for n in names if _ENTRY.match(n)], self.used,
+                           max_bytes=self.MAX_BYTES)
 
 
 def _read(path):

@@ -429,10 +429,11 @@ def test_entries_beyond_the_bytes_allowed_are_removed_least_recently_used_first(
     beyond it, never one it read or wrote; a rerun that reads a layout keeps it (and makes it the most recent)."""
     old = []
     for k in range(3):
-        path = tmp_path / f"{k:040x}{'.npz' if k % 2 else '.uv'}"      # .npz: the entries of the format before
+        path = tmp_path / f"{k:040x}.uv"
         path.write_bytes(bytes(10000))
         os.utime(path, (10**9 + k, 10**9 + k))
         old.append(path)
+    (tmp_path / ("e" * 40 + ".npz")).write_bytes(bytes(100))           # an entry of the format before: removed
     (tmp_path / "figures").mkdir()
     monkeypatch.setattr(uvcache.UVCache, "MAX_BYTES", 25000)     # the new entry is under 5,000 bytes
     cache = uvcache.UVCache(str(tmp_path))
@@ -489,7 +490,14 @@ def test_an_entry_whose_head_does_not_match_its_uvs_reads_as_none(tmp_path):
     assert entry({**good, "loops": [3, 3]}) is None                        # 12 UVs said, 10 stored
     assert entry({k: v for k, v in good.items() if k != "margin"}) is None
     assert entry(good, raw="{not json") is None
-    assert entry(good, uvs=uv.astype(np.float64)) is None
+    assert entry(good, raw="[1]") is None                                  # a head that is not a mapping
+    assert entry(good, uvs=uv.astype(np.float64)) is None                  # 20 float32 read, 10 said
+    assert entry(good, uvs=uv[:9]) is None                                 # a truncated block
+    path = tmp_path / "odd.uv"
+    path.write_bytes(_entry_bytes(good, uv)[:-1])                          # a block that is not whole float32s
+    assert uvcache._read(str(path)) is None
+    path.write_bytes(_entry_bytes(good, uv)[len(uvcache.MAGIC):])          # no magic line
+    assert uvcache._read(str(path)) is None
 
 
 @pytest.mark.both_versions

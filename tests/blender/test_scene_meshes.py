@@ -59,9 +59,9 @@ def test_triangles_and_quads_are_tessellated_as_blender_does():
             co[:, 2] = 0.0
         q = co.reshape(-1, 4, 3)
         a, b, c = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0], q[:, 3] - q[:, 0]
-        sines = np.linalg.norm(np.cross(a, b), axis=1) * np.linalg.norm(np.cross(c, b), axis=1) / (
-            np.linalg.norm(a, axis=1) * np.linalg.norm(c, axis=1) * np.sum(b * b, axis=1))
-        q = q[sines > 1e-2]                    # no quad near the split test's boundary (those are read)
+        test = np.sum(np.cross(a, b) * np.cross(c, b), axis=1)
+        scale = np.linalg.norm(a, axis=1) * np.linalg.norm(c, axis=1) * np.sum(b * b, axis=1)
+        q = q[np.abs(test) > 1e-2 * scale]     # no quad near the split test's boundary (those are read)
         meshes.append(_mesh("quads", q.reshape(-1, 3), [tuple(range(4 * i, 4 * i + 4)) if i % 3
                                                         else tuple(range(4 * i, 4 * i + 3)) for i in range(len(q))]))
     bpy.ops.mesh.primitive_monkey_add()
@@ -80,11 +80,17 @@ def test_triangles_and_quads_are_tessellated_as_blender_does():
         start = sc.read(me.polygons, "loop_start", np.int32)
         flipped += int(np.sum(mine[:, 0] != start[sc.read(me.loop_triangle_polygons, "value", np.int32)]))
     assert flipped > n / 4                    # quads split at corners 1-3 (their second triangle starts there)
-    ngon = _mesh("ngon", [(np.cos(a), np.sin(a), 0.0) for a in np.linspace(0, 6, 6)] + [(0, 0, 1), (1, 0, 1), (1, 1, 1)],
-                 [tuple(range(6)), (6, 7, 8)])
+    hexagon = [(np.cos(a), np.sin(a), 0.0) for a in np.linspace(0, 6, 6)]
+    ngon = _mesh("ngon", hexagon + [(0, 0, 1), (1, 0, 1), (1, 1, 1)], [tuple(range(6)), (6, 7, 8)])
     zero = _mesh("zero area", [(0, 0, 0), (1, 0, 0), (2, 0, 0), (3, 0, 0)], [(0, 1, 2, 3)])
-    for me in (ngon, zero):
+    many = _mesh("ngons", [(x + np.cos(a), np.sin(a), 0.0) for x in range(300) for a in np.linspace(0, 6, 6)],
+                 [tuple(range(6 * k, 6 * k + 6)) for k in range(300)])          # above TESSELLATED: read too
+    for me in (ngon, zero, many):
         me.calc_loop_triangles()
         assert sc._tessellated(me, sc.read(me.loop_triangle_polygons, "value", np.int32)) is None
         np.testing.assert_array_equal(sc.corner_triangles(me), _blender_triangles(me))
         np.testing.assert_array_equal(sc.face_starts(me), sc.read(me.polygons, "loop_start", np.int32))
+    assert len(many.loop_triangles) > sc.TESSELLATED
+    loose = _mesh("loose", [(0, 0, 0), (1, 0, 0)], [])
+    for me in (loose, bpy.data.meshes.new("empty")):
+        assert sc.corner_triangles(me).shape == (0, 3) and sc.face_starts(me).shape == sc.face_sizes(me).shape == (0,)

@@ -175,7 +175,7 @@ def test_a_figure_whose_arrays_lie_past_the_end_of_its_pack_is_made_again(tmp_pa
     first, pack, index, blob = _one_pack(tmp_path, shells, co, 7)
     assert blob.dtype == np.uint8 and len(blob) >= co.shape[0] * 8       # the arrays' bytes
     for cut in (blob[:len(blob) // 2],                                      # arrays past the end
-                blob.view(np.float32)):                                     # a blob that is not bytes
+                blob.view(np.int8)):                                        # a blob that is not bytes (the same ones)
         np.savez(pack, index=np.array(json.dumps(index)), blob=cut)
         reader = Memo()
         with reader.stored(tmp_path):
