@@ -9,7 +9,8 @@ median fill of the maps and how many warned of a low fill, peak RSS, texels per 
 also run at production samples (:data:`PRODUCTION_SAMPLES`), and each is redone with its meshes unchanged but a
 light changed (irradiance rebaked, AO resumed) and the "Lightmap" layers gone, in a new process that opens the level
 saved: the layouts come from the UV cache (``bake/uvcache.py``) and the figures from its store
-(``core/memo.py``); the time outside Cycles over the time inside is
+(``core/memo.py``). The production run starts with no figure remembered, as a first run in a new process does (the
+4-spp run before it measured the same layouts). The time outside Cycles over the time inside is
 the figure issue 27 bounds (at most 1 on a first run, 0.1 on such a rerun). The production rerun's row also gives
 the seconds Blender takes to evaluate the level's meshes once their UV layers changed (:func:`evaluation_seconds`,
 measured last): what a pipeline that reads the baked meshes before the bake pays outside Cycles (the pipeline reads
@@ -34,6 +35,7 @@ from ...bake.pipeline import bake_lightmaps
 from ...blender import compat, render
 from ...blender.scene import remove_scene
 from ...core import lightmap
+from ...core.memo import FIGURES
 from .result import BenchResult
 
 KEY = "level"
@@ -438,6 +440,7 @@ def run(output_dir, quick=False, props=None, texel_density=None, samples=None):
             if uvmod.LIGHTMAP in me.uv_layers:
                 me.uv_layers.remove(me.uv_layers[uvmod.LIGHTMAP])
         full = options.replace(samples=PRODUCTION_SAMPLES)
+        FIGURES.clear()
         wall_p, cycles_p, report_p = _timed(scene, objects, production, full)
         print(f"level: pipeline at {PRODUCTION_SAMPLES} spp {wall_p:.1f} s ({cycles_p:.1f} s in Cycles)", flush=True)
         rows.append({"run": f"per object, {PRODUCTION_SAMPLES} spp", "objects": len(report_p["objects"]),
