@@ -15,8 +15,8 @@ import bpy
 import numpy as np
 
 from ..blender.digest import mesh_digest, rna_digest
-from ..blender.scene import (attribute, corner_triangles, corner_uv, corner_vertices, evaluated_mesh, positions, read,
-                             subdivided_only, triangle_polygons, unmodified)
+from ..blender.scene import (attribute, corner_triangles, corner_uv, corner_vertices, evaluated_mesh, from_its_mesh,
+                             positions, read, triangle_polygons)
 from ..core.memo import FIGURES, digest, storable
 from . import uv as uvmod
 
@@ -30,7 +30,7 @@ def cage_key(obj, depsgraph):
 
 def _cage_key(obj, depsgraph):
     me = obj.data
-    if me.is_editmode or not (subdivided_only(obj) or unmodified(obj)) or getattr(me, "has_custom_normals", False):
+    if me.is_editmode or not from_its_mesh(obj) or getattr(me, "has_custom_normals", False):
         return None
     h = hashlib.blake2b(repr((tuple(bpy.app.version), bpy.app.build_hash)).encode(), digest_size=16)
     render = depsgraph.scene.render

@@ -74,7 +74,7 @@ def empty_inward_shells(scene, obj):
     or one without modifiers, the shells are a figure of its shape (``uv.geometry_figure``)."""
     vl = scene.view_layers[0]
     me = obj.data
-    if sc.subdivided_only(obj) or sc.unmodified(obj):
+    if sc.from_its_mesh(obj):
         labels, inward, _ = uvmod.geometry_figure(me, lambda: _shells(*sc.mesh_triangles(me), remember=False),
                                                   "inward shells")
         if not inward.any() or _emits(obj):

@@ -28,7 +28,7 @@ import bpy
 import numpy as np
 
 from ..blender.digest import rna_digest
-from ..blender.scene import corner_vertices, face_sizes, face_starts, positions, subdivided_only, unmodified
+from ..blender.scene import corner_vertices, face_sizes, face_starts, from_its_mesh, positions
 from ..core.io.files import prune_least_recent, write_bytes
 
 LAYOUT_VERSION = 9
@@ -69,7 +69,7 @@ def key(objects, depsgraph, options, together=False):
         sizes = options.sizes.get(o.name) if options.sizes else None
         m = np.array(o.matrix_world, float)[:3, :3]
         h.update(repr((tuple(sizes) if sizes else None, _rounded(m if together else m.T @ m))).encode())
-        if subdivided_only(o) or unmodified(o):     # the mesh and the settings give the evaluated mesh: not read
+        if from_its_mesh(o):            # the mesh and the settings give the evaluated mesh: it is not read
             meshes = (o.data,)
             for mod in o.modifiers:
                 if mod.show_viewport or mod.show_render:

@@ -195,15 +195,21 @@ TESSELLATED = 1000
 
 def face_starts(me):
     """(F,) int32 first corner of each face of mesh ``me`` (``MeshPolygon.loop_start``), from the faces of its loop
-    triangles (a face of n corners has n − 2, its corners follow its first: Blender 4+), 6 times faster than reading
-    it element by element, which is done when they do not add up to the mesh's corners."""
+    triangles (a face of n corners has n − 2, its corners follow its first: Blender 4+), 1.7 times faster than
+    reading it element by element on the level benchmark's meshes, which is done when they do not add up to the
+    mesh's corners."""
     me.calc_loop_triangles()
     per_face = np.bincount(read(me.loop_triangle_polygons, "value", np.int32), minlength=len(me.polygons))
     if len(per_face) == len(me.polygons) and int(per_face.sum()) + 2 * len(per_face) == len(me.loops):
-        start = np.zeros(len(per_face), np.int32)
-        np.cumsum(per_face[:-1] + 2, out=start[1:])
-        return start
+        return _offsets(per_face + 2)
     return read(me.polygons, "loop_start", np.int32)
+
+
+def _offsets(counts):
+    """(N,) int32 running totals of ``counts`` before each item (an exclusive cumulative sum)."""
+    out = np.zeros(len(counts), np.int32)
+    np.cumsum(counts[:-1], out=out[1:])
+    return out
 
 
 def face_sizes(me, starts=None):
@@ -227,10 +233,7 @@ def _tessellated(me, face):
     per_face = np.bincount(face, minlength=n_faces).astype(np.int32)
     if not len(face) or per_face.min() < 1 or per_face.max() > 2 or int(per_face.sum()) + 2 * n_faces != len(me.loops):
         return None if len(face) or n_faces else np.zeros((0, 3), np.int32)
-    start = np.zeros(n_faces, np.int32)
-    np.cumsum(per_face[:-1] + 2, out=start[1:])
-    first = np.zeros(n_faces, np.int32)
-    np.cumsum(per_face[:-1], out=first[1:])
+    start, first = _offsets(per_face + 2), _offsets(per_face)
     k = np.arange(len(face), dtype=np.int32) - first[face]
     tris = np.empty((len(face), 3), np.int32)
     tris[:, 0] = start[face]
@@ -308,6 +311,12 @@ def subdivided_only(obj):
     too."""
     mods = [m for m in obj.modifiers if m.show_viewport or m.show_render]
     return bool(mods) and all(m.type == "SUBSURF" for m in mods) and not _driven(obj)
+
+
+def from_its_mesh(obj):
+    """``obj``'s evaluated mesh is known from its mesh and its modifiers' settings without evaluating it:
+    :func:`subdivided_only` or :func:`unmodified`."""
+    return subdivided_only(obj) or unmodified(obj)
 
 
 def unmodified(obj):
