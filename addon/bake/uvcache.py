@@ -11,7 +11,7 @@ the matrix itself for an atlas; both to 6 digits), and the layout options (margi
 resolution, fixed sizes, atlas), :data:`LAYOUT_VERSION` and Blender's version (the unwrappers may change). An entry
 is :data:`MAGIC`, a JSON head on one line (the side, margin and unwrapper, each object's loop count and the window the
 layout was carried into: width, height and the side it was cut from; 0 0 0 for none), a newline, then each object's
-UVs (little-endian float32, its loop order; one block for all, read at once: a tenth of the time of an npz's two
+UVs (little-endian float32, its loop order; one block for all, read at once: an eighth of the time of an npz's two
 members); a file that cannot be read, or whose UVs do not match the meshes (count, finite values inside the unit
 square), is ignored and rebuilt. Files are written (atomically) only after a map of the run is written,
 never outside the output folder, named by the digest only; beyond :attr:`UVCache.MAX_BYTES` in all the least recently
