@@ -782,3 +782,43 @@ def test_an_atlas_is_packed_by_its_texels_and_fills_more_than_pack_islands(tmp_p
     assert packed_fill == pytest.approx(uvchecks.fill(group, 128), abs=1e-6 if compat.BAKE_TOUCHED_TEXELS else 0.01)
     masks = [lightmap.coverage_mask(uvchecks.triangles_uv(o, "Lightmap"), 128, 128) for o in group]
     assert not (np.sum(masks, axis=0) > 1).any()
+
+
+def test_a_remembered_smart_uv_project_layout_is_the_one_it_makes_again(monkeypatch):
+    """A single copy's Smart UV Project layout asked again (``unwrap._Copies.unwrap``: same positions, angle and
+    margin) is written without unwrapping, and it is the layout Smart UV Project makes afresh, in the copy and in the
+    user's "Lightmap" layer; another margin, another angle or the smoothed positions in place unwrap again."""
+    from addon.bake import unwrap, uv as uvmod
+    from addon.blender.state import SavedState
+    edits = []
+    real = unwrap._edit
+    monkeypatch.setattr(unwrap, "_edit", lambda ctx, lead: edits.append(1) or real(ctx, lead))
+    scene = bpy.context.scene
+    monkey = added(bpy.ops.mesh.primitive_monkey_add)
+    bm = bmesh.new()
+    bm.from_mesh(monkey.data)
+    bmesh.ops.subdivide_edges(bm, edges=bm.edges[:], cuts=1, use_grid_fill=True)
+    bm.to_mesh(monkey.data)
+    bm.free()
+    user = lambda: sc.corner_uv(monkey.data, uvmod.LIGHTMAP).copy()
+    with SavedState(scene, [monkey]) as state, unwrap._Copies([monkey], state, texel=0.1) as copies:
+        assert copies.smooth[0] is not None                      # dense: its smoothed positions differ
+        layout = lambda: copies._uvs([copies.copies[0][1]])[0][0].copy()
+        copies.unwrap(1 / 32, 64)
+        first, first_user = layout(), user()
+        copies.unwrap(2 / 32, 64)
+        assert len(edits) == 2 and not np.array_equal(layout(), first)
+        copies.unwrap(2 / 64, 128)                               # 2 texels at 128² are the margin of 1 at 64²
+        assert len(edits) == 2
+        assert np.array_equal(layout(), first) and np.array_equal(user(), first_user)
+        copies.layouts.clear()
+        copies.unwrap(1 / 32, 64)
+        assert len(edits) == 3 and np.array_equal(layout(), first) and np.array_equal(user(), first_user)
+        copies.unwrap(1 / 32, 64, unwrap.WIDE_ANGLE)
+        assert len(edits) == 4
+        copies.use_smoothed(True)
+        copies.unwrap(1 / 32, 64)
+        assert len(edits) == 5
+        copies.use_smoothed(False)
+        copies.unwrap(1 / 32, 64)
+        assert len(edits) == 5 and np.array_equal(layout(), first) and np.array_equal(user(), first_user)
