@@ -30,7 +30,7 @@ def build_parser():
     p = _cli.bench_parser("bench_level.py", "Benchmark light maps of a generated level.", "out/bench_level",
                           "24 props, small maps (about a minute)")
     p.add_argument("--props", type=_cli.number(int, 1, 5000), help="props in the level (default 200, quick 24)")
-    p.add_argument("--texel-density", type=_cli.number(float, above=0), help="texels per metre (default 6, quick 4)")
+    p.add_argument("--texel-density", type=_cli.number(float, above=0), help="texels per metre (default 10)")
     p.add_argument("--samples", type=_cli.number(int, 1, 4096), help="Cycles samples (default 8, quick 4)")
     return p
 
