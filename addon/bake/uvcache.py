@@ -120,9 +120,20 @@ class UVCache:
         return entry
 
     def put(self, digest, entry):
+        """Keep ``entry`` under ``digest``, written by :meth:`flush` unless the folder holds it already (a linked
+        duplicate's layout is put again each run)."""
+        old = self.memory.get(digest)
+        if old is None and self.folder is not None and digest not in self.pending:
+            old = _read(self.path(digest))
         self.memory[digest] = entry
-        if self.folder is not None:
-            self.pending[digest] = entry
+        if self.folder is None or digest in self.pending:
+            return
+        if old is not None and _same(old, entry):
+            self.used.add(self.path(digest))
+            with contextlib.suppress(OSError):
+                os.utime(self.path(digest))             # used now: the most recently used
+            return
+        self.pending[digest] = entry
 
     def flush(self):
         """Write the entries made since the last flush (a failed write is dropped: the cache is an optimisation), then
@@ -171,6 +182,14 @@ def _read(path):
                      str(head["unwrap"]), int(head["enlarged_from"]), window if all(window) else None)
     except Exception:      # missing, truncated, not an entry, a field missing or of another kind: rebuilt
         return None
+
+
+def _same(a, b):
+    """Entries ``a`` and ``b`` hold the same layout (fields and UVs)."""
+    return ((a.side, a.margin, a.unwrap, a.enlarged_from, tuple(a.window or ()))
+            == (b.side, b.margin, b.unwrap, b.enlarged_from, tuple(b.window or ()))
+            and len(a.uvs) == len(b.uvs)
+            and all(np.array_equal(np.asarray(x, np.float32), np.asarray(y, np.float32)) for x, y in zip(a.uvs, b.uvs)))
 
 
 def _fits(entry, meshes):

@@ -526,3 +526,35 @@ def test_a_bake_reads_each_mesh_triangles_once_and_again_after_flipping_it(tmp_p
     assert reads.count(inside_out.data.as_pointer()) == 2
     ao = exr.read_exr(rep["objects"]["Inside out"]["ao"]["file"])[0]["Y"]
     assert ao.max() > 0.9
+
+
+def test_a_linked_duplicates_layout_is_written_once_and_a_rerun_rewrites_no_entry(tmp_path, monkeypatch, unwraps):
+    """A linked duplicate (twice the size: a key of its own) takes the layout its mesh got in the run and puts it
+    under its own key (a rerun that bakes only the duplicate finds it); written by the first bake, it is not written
+    again by a rerun, which writes no entry at all, and both objects' maps come out as before."""
+    from addon.core.io import files
+    bpy.ops.mesh.primitive_cube_add(size=1, location=(0, 0, 0.5))
+    first = bpy.context.object
+    first.name = "Crate"
+    dup = first.copy()                                  # the same mesh
+    dup.name = "Crate copy"
+    dup.location, dup.scale = (2, 0, 1), (2, 2, 2)
+    bpy.context.scene.collection.objects.link(dup)
+    out = tmp_path / "maps"
+    writes = []
+    real = files.write_bytes
+    monkeypatch.setattr(uvcache, "write_bytes", lambda path, data: writes.append(os.path.basename(path))
+                        or real(path, data))
+    fresh = _bake([first, dup], out)
+    assert len(unwraps) >= 1 and all(call == ["Crate"] for call in unwraps)
+    assert len(writes) == len(set(writes)) == len(_entries(out)) == 2     # the mesh's layout and the duplicate's key
+    writes.clear()
+    unwraps.clear()
+    again = _bake([first, dup], out)
+    assert writes == [] and unwraps == [] and len(_entries(out)) == 2
+    for name in fresh:
+        assert np.array_equal(again[name], fresh[name])
+    dup.data.uv_layers.remove(dup.data.uv_layers[uvmod.LIGHTMAP])
+    alone = bake_lightmaps([dup], ["ao"], str(out), BakeOptions(**OPTIONS), scene=bpy.context.scene)
+    assert unwraps == [] and np.array_equal(exr.read_exr(alone["objects"]["Crate copy"]["ao"]["file"])[0]["Y"],
+                                            fresh["Crate copy"])
