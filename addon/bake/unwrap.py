@@ -260,7 +260,7 @@ class _Copies:
         self.smooth = []         # per copy: its Smoothing when it is dense, else None
         self.smoothed = None     # the copies' unwraps use the smoothed positions, once :meth:`try_smoothed` decided
         self.placed = ()         # per copy: its smoothed positions are in place
-        self.layouts = {}        # a single copy's Smart UV Project layouts by (placed, angle, margin): see :meth:`unwrap`
+        self.layouts = {}        # a single copy's Smart UV Project layouts (:meth:`unwrap`), the oldest dropped
 
     def __enter__(self):
         for o in self.group:
@@ -298,7 +298,7 @@ class _Copies:
         return False
 
     def use_smoothed(self, smoothed):
-        """Put the dense copies' smoothed (or own) positions in place."""
+        """Put the dense copies' smoothed (or own) positions in place (``placed``: per copy, smoothed ones)."""
         for (_, obj), dense in zip(self.copies, self.smooth):
             if dense is not None:
                 obj.data.vertices.foreach_set("co", dense.positions(smoothed))
@@ -370,6 +370,8 @@ class _Copies:
         self.loops = []
 
     REPACKS = 3
+    LAYOUT_BYTES = 64 << 20
+    """Most bytes of layouts :meth:`unwrap` remembers (a scan of a million corners: 8 MB a layout)."""
     """Most re-packs of an atlas layout by ``uv.pack_islands`` (each kept only when it covers more texels)."""
 
     def unwrap(self, margin_uv, side, angle=None):
@@ -393,7 +395,7 @@ class _Copies:
             return
         ctx = self._context()
         with _edit(ctx, lead):
-            bpy.ops.uv.smart_project(angle_limit=angle or self.angle or ANGLE, island_margin=float(margin_uv),
+            bpy.ops.uv.smart_project(angle_limit=key[1], island_margin=key[2],
                                      margin_method="FRACTION", area_weight=0.0, correct_aspect=True,
                                      scale_to_bounds=False)
         best = self._uvs(temps)
@@ -413,6 +415,8 @@ class _Copies:
         else:
             best[0][0].flags.writeable = False
             self.layouts[key] = best
+            while sum(layout[0][0].nbytes for layout in self.layouts.values()) > self.LAYOUT_BYTES:
+                del self.layouts[next(iter(self.layouts))]
         self._write(best)
 
     def _context(self):

@@ -237,10 +237,11 @@ def _prepare_groups(scene, objects, state, options, together, cache, made):
             layout = settled[first.data.as_pointer()]
             if layout is not None:
                 layout = _shared(first, layout, options)
-                if cache is not None:           # a rerun that bakes only the other object finds this one's layout
-                    cache.put(uvcache.key(group, scene.view_layers[0].depsgraph, options, together),
-                              uvcache.Entry([corner_uv(first.data, LIGHTMAP).ravel()],
-                                            layout.side, layout.margin, layout.unwrap, 0, layout.window))
+                if cache is not None:           # a rerun that bakes only this object finds the layout
+                    digest = uvcache.key(group, scene.view_layers[0].depsgraph, options, together)
+                    if digest not in cache.memory:  # else its mesh's own key (moved, turned): that entry stays
+                        cache.put(digest, uvcache.Entry([corner_uv(first.data, LIGHTMAP).ravel()],
+                                                        layout.side, layout.margin, layout.unwrap, 0, layout.window))
         else:
             layout = _layout(scene, group, state, options, made.layers, together, cache)
             if not together:

@@ -120,20 +120,22 @@ class UVCache:
         return entry
 
     def put(self, digest, entry):
-        """Keep ``entry`` under ``digest``, written by :meth:`flush` unless the folder holds it already (a linked
-        duplicate's layout is put again each run)."""
-        old = self.memory.get(digest)
-        if old is None and self.folder is not None and digest not in self.pending:
-            old = _read(self.path(digest))
+        """Keep ``entry`` under ``digest``, written by :meth:`flush` unless the folder holds it already."""
+        held = self.folder is not None and digest not in self.pending and _same(self._held(digest), entry)
         self.memory[digest] = entry
-        if self.folder is None or digest in self.pending:
+        if self.folder is None:
             return
-        if old is not None and _same(old, entry):
+        if held:
             self.used.add(self.path(digest))
             with contextlib.suppress(OSError):
                 os.utime(self.path(digest))             # used now: the most recently used
             return
         self.pending[digest] = entry
+
+    def _held(self, digest):
+        """The entry the folder holds under ``digest`` (as this run read or wrote it, else as on disk), or None."""
+        path = self.path(digest)
+        return self.memory.get(digest) if path in self.used else _read(path)
 
     def flush(self):
         """Write the entries made since the last flush (a failed write is dropped: the cache is an optimisation), then
@@ -185,8 +187,8 @@ def _read(path):
 
 
 def _same(a, b):
-    """Entries ``a`` and ``b`` hold the same layout (fields and UVs)."""
-    return ((a.side, a.margin, a.unwrap, a.enlarged_from, tuple(a.window or ()))
+    """Entries ``a`` and ``b`` hold the same layout (fields and UVs); False for None."""
+    return a is not None and b is not None and ((a.side, a.margin, a.unwrap, a.enlarged_from, tuple(a.window or ()))
             == (b.side, b.margin, b.unwrap, b.enlarged_from, tuple(b.window or ()))
             and len(a.uvs) == len(b.uvs)
             and all(np.array_equal(np.asarray(x, np.float32), np.asarray(y, np.float32)) for x, y in zip(a.uvs, b.uvs)))

@@ -784,10 +784,12 @@ def test_an_atlas_is_packed_by_its_texels_and_fills_more_than_pack_islands(tmp_p
     assert not (np.sum(masks, axis=0) > 1).any()
 
 
+@pytest.mark.both_versions
 def test_a_remembered_smart_uv_project_layout_is_the_one_it_makes_again(monkeypatch):
     """A single copy's Smart UV Project layout asked again (``unwrap._Copies.unwrap``: same positions, angle and
     margin) is written without unwrapping, and it is the layout Smart UV Project makes afresh, in the copy and in the
-    user's "Lightmap" layer; another margin, another angle or the smoothed positions in place unwrap again."""
+    user's "Lightmap" layer, named Smart UV Project's; another margin, another angle or the smoothed positions in place
+    unwrap again; an atlas's layouts are not kept."""
     from addon.bake import unwrap, uv as uvmod
     from addon.blender.state import SavedState
     edits = []
@@ -820,5 +822,12 @@ def test_a_remembered_smart_uv_project_layout_is_the_one_it_makes_again(monkeypa
         copies.unwrap(1 / 32, 64)
         assert len(edits) == 5
         copies.use_smoothed(False)
+        copies.unwrapper = unwrap.LIGHTMAP_PACK                  # as a kept Lightmap Pack layout leaves it
         copies.unwrap(1 / 32, 64)
         assert len(edits) == 5 and np.array_equal(layout(), first) and np.array_equal(user(), first_user)
+        assert copies.unwrapper == unwrap.SMART
+    cube = added(bpy.ops.mesh.primitive_cube_add, location=(3, 0, 0))
+    with SavedState(scene, [monkey, cube]) as state, unwrap._Copies([monkey, cube], state) as atlas:
+        atlas.unwrap(1 / 32, 64)
+        atlas.unwrap(1 / 32, 64)                                 # an atlas's re-packs depend on the side: not kept
+        assert len(edits) >= 7 and atlas.layouts == {}

@@ -528,33 +528,84 @@ def test_a_bake_reads_each_mesh_triangles_once_and_again_after_flipping_it(tmp_p
     assert ao.max() > 0.9
 
 
-def test_a_linked_duplicates_layout_is_written_once_and_a_rerun_rewrites_no_entry(tmp_path, monkeypatch, unwraps):
-    """A linked duplicate (twice the size: a key of its own) takes the layout its mesh got in the run and puts it
-    under its own key (a rerun that bakes only the duplicate finds it); written by the first bake, it is not written
-    again by a rerun, which writes no entry at all, and both objects' maps come out as before."""
-    from addon.core.io import files
-    bpy.ops.mesh.primitive_cube_add(size=1, location=(0, 0, 0.5))
+@pytest.mark.parametrize("scale", [1, 2], ids=["moved", "larger"])
+def test_a_linked_duplicates_layout_is_written_once_and_a_rerun_rewrites_no_entry(tmp_path, monkeypatch, unwraps,
+                                                                                   scale):
+    """A linked duplicate takes the layout its mesh got in the run and puts it under its own key (a rerun that bakes
+    only the duplicate finds it). Moved and turned, the key is its mesh's, whose entry stays as the unwrap made it
+    (Suzanne at 2 texels/m: enlarged from 8 to 16 texels, which the duplicate's own entry would not say); twice the
+    size, a key of its own. Written by the first bake, no entry is written again by a rerun, and both objects' maps
+    come out as before."""
+    bpy.ops.mesh.primitive_monkey_add()
     first = bpy.context.object
-    first.name = "Crate"
     dup = first.copy()                                  # the same mesh
-    dup.name = "Crate copy"
-    dup.location, dup.scale = (2, 0, 1), (2, 2, 2)
+    dup.name = "Suzanne copy"
+    dup.location, dup.rotation_euler, dup.scale = (3, 0, 0), (0, 0, 0.7), (scale,) * 3
     bpy.context.scene.collection.objects.link(dup)
     out = tmp_path / "maps"
     writes = []
-    real = files.write_bytes
+    real = uvcache.write_bytes
     monkeypatch.setattr(uvcache, "write_bytes", lambda path, data: writes.append(os.path.basename(path))
                         or real(path, data))
-    fresh = _bake([first, dup], out)
-    assert len(unwraps) >= 1 and all(call == ["Crate"] for call in unwraps)
-    assert len(writes) == len(set(writes)) == len(_entries(out)) == 2     # the mesh's layout and the duplicate's key
+    opts = BakeOptions(texel_density=2, samples=1, bounces=0, overwrite=True, force=True)
+
+    def bake(objects):
+        first.data.uv_layers.remove(first.data.uv_layers[uvmod.LIGHTMAP]) if uvmod.LIGHTMAP in first.data.uv_layers \
+            else None
+        with pytest.warns(ILWarning):
+            rep = bake_lightmaps(objects, ["ao"], str(out), opts, scene=bpy.context.scene)
+        return {n: exr.read_exr(e["ao"]["file"])[0]["Y"] for n, e in rep["objects"].items()}
+
+    fresh = bake([first, dup])
+    assert len(unwraps) >= 1 and all(call == ["Suzanne"] for call in unwraps)
+    assert len(writes) == len(set(writes)) == len(_entries(out)) == (1 if scale == 1 else 2)
+    assert any(uvcache._read(p).enlarged_from == 8 for p in _entries(out))
+    made = {p.name: p.read_bytes() for p in _entries(out)}
     writes.clear()
     unwraps.clear()
-    again = _bake([first, dup], out)
-    assert writes == [] and unwraps == [] and len(_entries(out)) == 2
+    again = bake([first, dup])
+    assert writes == [] and unwraps == [] and {p.name: p.read_bytes() for p in _entries(out)} == made
     for name in fresh:
         assert np.array_equal(again[name], fresh[name])
-    dup.data.uv_layers.remove(dup.data.uv_layers[uvmod.LIGHTMAP])
-    alone = bake_lightmaps([dup], ["ao"], str(out), BakeOptions(**OPTIONS), scene=bpy.context.scene)
-    assert unwraps == [] and np.array_equal(exr.read_exr(alone["objects"]["Crate copy"]["ao"]["file"])[0]["Y"],
-                                            fresh["Crate copy"])
+    alone = bake([dup])
+    assert unwraps == [] and np.array_equal(alone["Suzanne copy"], fresh["Suzanne copy"])
+
+
+def test_an_entry_is_written_only_when_the_folder_does_not_hold_it(tmp_path, monkeypatch):
+    """``UVCache.put`` then ``flush``: a new entry is written; put again by a later run (a new cache on the folder)
+    with the same UVs, side, margin, unwrapper and window (None, stored as 0 0 0) it is not written again, but counts
+    as used (kept by the pruning, its time touched); a changed entry is written; of two puts before a flush the
+    last is written and read back."""
+    written = []
+    real = uvcache.write_bytes
+    monkeypatch.setattr(uvcache, "write_bytes", lambda path, data: written.append(path) or real(path, data))
+    folder = str(tmp_path / uvcache.DIR)
+    uv = np.linspace(0.1, 0.9, 8, dtype=np.float32)
+    entry = lambda **kw: uvcache.Entry(**({"uvs": [uv.copy()], "side": 16, "margin": 1.5, "unwrap": unwrap.SMART}
+                                          | kw))
+    first = uvcache.UVCache(folder)
+    first.put("a" * 40, entry())
+    first.flush()
+    assert written == [first.path("a" * 40)]
+    os.utime(first.path("a" * 40), (1, 1))
+    again = uvcache.UVCache(folder)
+    again.put("a" * 40, entry())
+    again.flush()
+    assert written == [first.path("a" * 40)] and again.path("a" * 40) in again.used
+    assert os.path.getmtime(first.path("a" * 40)) > 1
+    for changed in (dict(side=17), dict(margin=1.0), dict(window=(16, 8, 16)), dict(enlarged_from=8),
+                    dict(uvs=[uv + np.float32(0.01)])):
+        written.clear()
+        later = uvcache.UVCache(folder)
+        later.put("a" * 40, entry(**changed))
+        later.flush()
+        assert written == [later.path("a" * 40)], changed
+        later = uvcache.UVCache(folder)
+        later.put("a" * 40, entry())                         # back to the first, for the next change
+        later.flush()
+    written.clear()
+    twice = uvcache.UVCache(folder)
+    twice.put("b" * 40, entry(side=20))
+    twice.put("b" * 40, entry(side=24))
+    twice.flush()
+    assert written == [twice.path("b" * 40)] and uvcache._read(twice.path("b" * 40)).side == 24
