@@ -370,9 +370,9 @@ class _Copies:
         self.loops = []
 
     REPACKS = 3
+    """Most re-packs of an atlas layout by ``uv.pack_islands`` (each kept only when it covers more texels)."""
     LAYOUT_BYTES = 64 << 20
     """Most bytes of layouts :meth:`unwrap` remembers (a scan of a million corners: 8 MB a layout)."""
-    """Most re-packs of an atlas layout by ``uv.pack_islands`` (each kept only when it covers more texels)."""
 
     def unwrap(self, margin_uv, side, angle=None):
         """Smart UV Project of every copy in one edit session (one UV square) into "Lightmap"; for several copies

@@ -188,10 +188,11 @@ def _read(path):
 
 def _same(a, b):
     """Entries ``a`` and ``b`` hold the same layout (fields and UVs); False for None."""
-    return a is not None and b is not None and ((a.side, a.margin, a.unwrap, a.enlarged_from, tuple(a.window or ()))
-            == (b.side, b.margin, b.unwrap, b.enlarged_from, tuple(b.window or ()))
-            and len(a.uvs) == len(b.uvs)
-            and all(np.array_equal(np.asarray(x, np.float32), np.asarray(y, np.float32)) for x, y in zip(a.uvs, b.uvs)))
+    if a is None or b is None:
+        return False
+    fields = lambda e: (e.side, e.margin, e.unwrap, e.enlarged_from, tuple(e.window or ()))
+    return (fields(a) == fields(b) and len(a.uvs) == len(b.uvs)
+            and all(np.array_equal(x, y) for x, y in zip(a.uvs, b.uvs)))
 
 
 def _fits(entry, meshes):
