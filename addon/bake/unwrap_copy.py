@@ -9,6 +9,7 @@ import numpy as np
 
 from ..blender.scene import corner_triangles, corner_vertices, positions
 from ..core import smoothing
+from ..core.rows import unique_rows
 from .charts import first_at_position
 
 
@@ -169,8 +170,7 @@ def welded_vertices(co, lv, start, total):
     key[:, width] = total
     key[:, width + 1] = np.bincount(face_of, welded, nf).astype(np.int64)
     key[repeat, width] = -2 - np.flatnonzero(repeat)            # never a duplicate of another face
-    _, group = np.unique(key, axis=0, return_inverse=True)
-    group = group.ravel()
+    group = unique_rows(key)
     by_group = np.argsort(group, kind="stable")
     g = group[by_group]
     run_start = np.r_[0, np.flatnonzero(g[1:] != g[:-1]) + 1]
@@ -178,8 +178,8 @@ def welded_vertices(co, lv, start, total):
     seen[by_group] = np.arange(nf) - np.repeat(run_start, np.diff(np.r_[run_start, nf]))
     corner_copy = np.where(repeat, -1, seen)[face_of]
     vertex = np.where(corner_copy < 0, lv, welded)
-    _, first, ids = np.unique(np.stack([vertex, corner_copy], 1), axis=0, return_index=True, return_inverse=True)
-    return co.reshape(-1, 3)[vertex[first]].ravel(), ids.ravel()
+    first, ids = unique_rows(np.stack([vertex, corner_copy], 1), return_index=True)
+    return co.reshape(-1, 3)[vertex[first]].ravel(), ids
 
 
 _FACE_KEY = 16

@@ -24,6 +24,7 @@ import math
 import numpy as np
 
 from .lightmap import coverage_mask, nearest_covered
+from .rows import unique_rows
 
 FINE = 3
 """A footprint holds the texels in which a FINE × finer raster of the chart finds a texel centre (odd: the middle
@@ -39,7 +40,7 @@ def chart_labels(owner, vertex, uv):
         return np.zeros(0, np.int64)
     bits = np.ascontiguousarray(uv, np.float32).reshape(-1, 2).view(np.uint32).astype(np.int64)
     key = np.stack([np.asarray(vertex, np.int64), (bits[:, 0] << 32) | bits[:, 1]], axis=1)
-    corner = np.unique(key, axis=0, return_inverse=True)[1].ravel()    # one id for equal corners
+    corner = unique_rows(key)                                         # one id for equal corners
     faces = int(owner.max()) + 1
     label = np.arange(faces)
     while True:

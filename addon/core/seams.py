@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from .memo import storable
+from .rows import unique_rows
 
 
 UV_TOLERANCE = 1e-3       # texels: corners this close in UV are one corner (no seam)
@@ -47,8 +48,7 @@ def welded(positions, tolerance=1e-6):
     if not len(p):
         return np.zeros(0, np.int64)
     step = tolerance * max(float(np.ptp(p, axis=0).max()), 1e-12)
-    _, ids = np.unique(np.round((p - p.min(axis=0)) / step).astype(np.int64), axis=0, return_inverse=True)
-    return ids.reshape(-1)
+    return unique_rows(np.round((p - p.min(axis=0)) / step).astype(np.int64))
 
 
 def seam_edges(tri_vertices, tri_uv, tri_normals=None, uv_tolerance=UV_TOLERANCE, normal_tolerance=NORMAL_TOLERANCE):
