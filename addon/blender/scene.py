@@ -199,10 +199,16 @@ def face_starts(me):
     reading it element by element on the level benchmark's meshes, which is done when they do not add up to the
     mesh's corners."""
     me.calc_loop_triangles()
-    per_face = np.bincount(read(me.loop_triangle_polygons, "value", np.int32), minlength=len(me.polygons))
-    if len(per_face) == len(me.polygons) and int(per_face.sum()) + 2 * len(per_face) == len(me.loops):
-        return _offsets(per_face + 2)
-    return read(me.polygons, "loop_start", np.int32)
+    per_face = _per_face(me, read(me.loop_triangle_polygons, "value", np.int32))
+    return _offsets(per_face + 2) if per_face is not None else read(me.polygons, "loop_start", np.int32)
+
+
+def _per_face(me, face):
+    """(F,) int32 loop triangles of each face of mesh ``me`` from ``face`` (each triangle's face) when they add up to
+    its corners as faces of n corners in n − 2 triangles do, else None."""
+    per_face = np.bincount(face, minlength=len(me.polygons)).astype(np.int32)
+    ok = len(per_face) == len(me.polygons) and int(per_face.sum()) + 2 * len(per_face) == len(me.loops)
+    return per_face if ok else None
 
 
 def _offsets(counts):
@@ -230,8 +236,8 @@ def _tessellated(me, face):
     5.3), computed as a·c |b|² − (a·b)(b·c) (Binet-Cauchy; a, b, c = v1, v2, v3 − v0): None too when a quad's value is
     within QUAD_MARGIN × |a| |c| |b|² of 0 (float32 round-off could decide it)."""
     n_faces = len(me.polygons)
-    per_face = np.bincount(face, minlength=n_faces).astype(np.int32)
-    if not len(face) or per_face.min() < 1 or per_face.max() > 2 or int(per_face.sum()) + 2 * n_faces != len(me.loops):
+    per_face = _per_face(me, face)
+    if not len(face) or per_face is None or per_face.min() < 1 or per_face.max() > 2:
         return None if len(face) or n_faces else np.zeros((0, 3), np.int32)
     start, first = _offsets(per_face + 2), _offsets(per_face)
     k = np.arange(len(face), dtype=np.int32) - first[face]
