@@ -208,10 +208,12 @@ def test_inverse_variance_combination_reaches_the_predicted_error():
     assert lm.inverse_variance_weights([0.1, 0.0]) == ([0.0, 1.0], 0.0)
 
 
-def _loop_coverage_mask(tri_uv, width, height):
-    """The former per-triangle loop of ``coverage_mask`` (the reference the vectorised rasteriser must match)."""
-    mask = np.zeros((height, width), bool)
+def _loop_counts(tri_uv, width, height, strict=False):
+    """The former per-triangle loop of ``coverage_mask`` counting, per texel, the triangles whose barycentric test
+    holds (the reference the vectorised rasteriser must match)."""
+    counts = np.zeros((height, width), np.int32)
     t = np.asarray(tri_uv, float) * (width, height)
+    eps = 1e-6 if strict else -1e-6
     for a, b, c in t:
         lo = np.floor(np.minimum(np.minimum(a, b), c) - 0.5).astype(int)
         hi = np.ceil(np.maximum(np.maximum(a, b), c) - 0.5).astype(int)
@@ -225,9 +227,12 @@ def _loop_coverage_mask(tri_uv, width, height):
             continue
         w1 = ((xs - a[0]) * (c[1] - a[1]) - (ys - a[1]) * (c[0] - a[0])) / d
         w2 = ((b[0] - a[0]) * (ys - a[1]) - (b[1] - a[1]) * (xs - a[0])) / d
-        inside = (w1 >= -1e-6) & (w2 >= -1e-6) & (w1 + w2 <= 1 + 1e-6)
-        mask[y0:y1 + 1, x0:x1 + 1] |= inside
-    return mask
+        counts[y0:y1 + 1, x0:x1 + 1] += (w1 >= eps) & (w2 >= eps) & (w1 + w2 <= 1 - eps)
+    return counts
+
+
+def _loop_coverage_mask(tri_uv, width, height):
+    return _loop_counts(tri_uv, width, height) > 0
 
 
 def _grid_mesh_uv(n, jitter, rng):
@@ -250,6 +255,29 @@ def test_one_rasteriser_matches_the_former_loop_on_meshes_and_random_triangles()
     for tri in cases:
         for w, h in ((32, 32), (40, 8), (16, 64)):
             assert np.array_equal(lm.coverage_mask(tri, w, h), _loop_coverage_mask(tri, w, h))
+
+
+def test_the_rasteriser_matches_the_loop_at_its_tolerance_on_tiny_triangles_and_slivers():
+    """The candidate box is cut to 1e-5 of a triangle's extent beyond it (a texel for slivers): a centre just
+    inside the 1e-6 tolerance, one just outside it, a soup of triangles far below a texel, and slivers on both
+    sides of the sliver bound count as the loop counts them, interiors (strict) too."""
+    rng = np.random.default_rng(11)
+    side = 16
+    centre = (np.array([5, 9]) + 0.5) / side
+    cases = []
+    for size in (1e-3, 0.05, 0.7):                          # in texels: far below a texel, under one, near one
+        for beyond in (0.5e-6, 2e-6, 1e-9, 0.0, -1e-9):    # a vertex past a texel centre, in units of the extent
+            e = size / side
+            base = np.array([[0.0, 0.0], [e, 0.0], [0.0, e]]) - beyond * e
+            cases.append(centre + base)                        # the centre just outside the corner, or on it
+            cases.append(centre - base * [-1, 1])
+    soup = rng.random((20480, 1, 2)) + rng.normal(0, 0.004, (20480, 3, 2))
+    thin = rng.random((400, 1, 2)) + np.array([0, 1, 0.5])[None, :, None] * rng.normal(0, 0.3, (400, 1, 2))
+    thin[:, 2] += rng.normal(0, 1, (400, 2)) * 10.0 ** rng.uniform(-13, -2, (400, 1))   # slivers of every width
+    for tri in [np.array(cases)] + [soup, thin]:
+        for w, h in ((side, side), (40, 8)):
+            for strict in (False, True):
+                assert np.array_equal(lm.triangle_counts(tri, w, h, strict), _loop_counts(tri, w, h, strict))
 
 
 def test_overlap_counts_shared_texels_not_shared_edges():
