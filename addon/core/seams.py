@@ -51,42 +51,42 @@ def welded(positions, tolerance=1e-6):
     return unique_rows(np.round((p - p.min(axis=0)) / step).astype(np.int64))
 
 
+def _unit(v):
+    """Rows of ``v`` (N, 3) scaled to unit length (zero rows stay zero)."""
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-30)
+
+
 def seam_edges(tri_vertices, tri_uv, tri_normals=None, uv_tolerance=UV_TOLERANCE, normal_tolerance=NORMAL_TOLERANCE):
     """The seams of a triangle mesh: edges (vertex pairs) shared by exactly two triangles whose UVs differ at either
     vertex by more than ``uv_tolerance`` texels, and (with ``tri_normals`` (T, 3, 3) corner normals) whose corner
     normals agree at both vertices (1 − n_a·n_b ≤ ``normal_tolerance``). ``tri_vertices`` (T, 3) vertex indices,
     ``tri_uv`` (T, 3, 2) in texels. Edges inside an n-gon's triangulation share their UVs and are no seams."""
     tv = np.asarray(tri_vertices, np.int64)
-    uv = np.asarray(tri_uv, float)
-    t = len(tv)
-    k0, k1, k2 = np.array([0, 1, 2]), np.array([1, 2, 0]), np.array([2, 0, 1])
-    v0, v1 = tv[:, k0].ravel(), tv[:, k1].ravel()
-    tri = np.repeat(np.arange(t), 3)
-    c0, c1, c2 = np.tile(k0, t), np.tile(k1, t), np.tile(k2, t)
+    uv = np.asarray(tri_uv, float).reshape(-1, 2)     # by corner 3 t + c
+    nxt = np.array([1, 2, 0])
+    v0, v1 = tv.ravel(), tv[:, nxt].ravel()           # each corner's edge, to the next corner
     lo, hi = np.minimum(v0, v1), np.maximum(v0, v1)
-    order = np.lexsort((hi, lo))
+    order = np.argsort(lo * (int(hi.max(initial=0)) + 1) + hi, kind="stable")     # by lo, then hi
     lo, hi = lo[order], hi[order]
-    new = np.r_[True, (lo[1:] != lo[:-1]) | (hi[1:] != hi[:-1])]
-    starts = np.flatnonzero(new)
-    counts = np.diff(np.r_[starts, len(lo)])
-    first = starts[counts == 2]
-    i, j = order[first], order[first + 1]
-    ti, tj = tri[i], tri[j]
+    starts = np.flatnonzero(np.r_[True, (lo[1:] != lo[:-1]) | (hi[1:] != hi[:-1])])
+    first = starts[np.diff(np.r_[starts, len(lo)]) == 2]
+    i, j = order[first], order[first + 1]            # the corners starting the edge on either side
+    i1, i2 = i - i % 3 + nxt[i % 3], i - i % 3 + nxt[nxt[i % 3]]
+    j1, j2 = j - j % 3 + nxt[j % 3], j - j % 3 + nxt[nxt[j % 3]]
     same = v0[i] == v0[j]                       # side b runs the edge the same way round (else reversed)
-    b0 = np.where(same, c0[j], c1[j])
-    b1 = np.where(same, c1[j], c0[j])
-    a = np.stack([uv[ti, c0[i]], uv[ti, c1[i]]], axis=1)
-    b = np.stack([uv[tj, b0], uv[tj, b1]], axis=1)
-    split = np.abs(a - b).max(axis=(1, 2)) > uv_tolerance
+    b0, b1 = np.where(same, j, j1), np.where(same, j1, j)
+    a = np.stack([uv[i], uv[i1]], axis=1)
+    b = np.stack([uv[b0], uv[b1]], axis=1)
+    d = np.abs(a - b)
+    split = np.maximum(np.maximum(d[:, 0, 0], d[:, 0, 1]), np.maximum(d[:, 1, 0], d[:, 1, 1])) > uv_tolerance
     smooth = np.ones(len(i), bool)
     if tri_normals is not None:
-        n = np.asarray(tri_normals, float)
-        n = n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-30)
-        dot0 = np.sum(n[ti, c0[i]] * n[tj, b0], axis=-1)
-        dot1 = np.sum(n[ti, c1[i]] * n[tj, b1], axis=-1)
+        n = np.asarray(tri_normals, float).reshape(-1, 3)
+        dot0 = np.sum(_unit(n[i]) * _unit(n[b0]), axis=-1)
+        dot1 = np.sum(_unit(n[i1]) * _unit(n[b1]), axis=-1)
         smooth = (1.0 - np.minimum(dot0, dot1)) <= normal_tolerance
     keep = split & smooth
-    return Seams(a[keep], b[keep], uv[ti, c2[i]][keep], uv[tj, c2[j]][keep], int((split & ~smooth).sum()))
+    return Seams(a[keep], b[keep], uv[i2][keep], uv[j2][keep], int((split & ~smooth).sum()))
 
 
 def seam_points(seams, spacing=SPACING):

@@ -63,6 +63,53 @@ def test_the_seam_edge_is_found_with_its_two_sides_matched_by_vertex():
     assert len(seams.seam_edges(tris, uv, normals)) == 1
 
 
+def _seams_by_edge(tri_vertices, tri_uv, tri_normals, uv_tolerance, normal_tolerance):
+    """``seams.seam_edges`` written edge by edge (the reference): {(lo, hi): (a, b, a_in, b_in)} and the creases."""
+    corners = {}
+    for t, tri in enumerate(tri_vertices):
+        for c in range(3):
+            corners.setdefault(tuple(sorted((tri[c], tri[(c + 1) % 3]))), []).append((t, c))
+    unit = lambda v: v / max(np.linalg.norm(v), 1e-30)                       # noqa: E731
+    out, creases = {}, 0
+    for edge, ends in corners.items():
+        if len(ends) != 2:
+            continue
+        (ti, ci), (tj, cj) = ends
+        ai, aj = (ci, (ci + 1) % 3), (cj, (cj + 1) % 3)
+        if tri_vertices[tj][cj] != tri_vertices[ti][ci]:
+            aj = aj[::-1]
+        a, b = tri_uv[ti][list(ai)], tri_uv[tj][list(aj)]
+        split = np.abs(a - b).max() > uv_tolerance
+        dots = [unit(tri_normals[ti][x]) @ unit(tri_normals[tj][y]) for x, y in zip(ai, aj)]
+        smooth = 1.0 - min(dots) <= normal_tolerance
+        creases += split and not smooth
+        if split and smooth:
+            out[edge] = (a, b, tri_uv[ti][(ci + 2) % 3], tri_uv[tj][(cj + 2) % 3])
+    return out, creases
+
+
+def test_seam_edges_are_those_found_edge_by_edge_on_a_mesh_with_flipped_and_shared_edges():
+    """Every edge of two triangles, whichever way round each runs it, is a seam or not as the edge-by-edge
+    reference says, with its sides matched vertex by vertex; edges of one or three triangles are none."""
+    rng = np.random.default_rng(3)
+    n = 12
+    grid = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    quads = np.stack([grid[:-1, :-1], grid[:-1, 1:], grid[1:, 1:], grid[1:, :-1]], -1).reshape(-1, 4)
+    tris = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]], quads[:3, [0, 1, 2]]])    # 3 edges of 3
+    flip = rng.random(len(tris)) < 0.5
+    tris[flip] = tris[flip][:, ::-1]
+    pos = np.stack([grid % (n + 1), grid // (n + 1)], -1).reshape(-1, 2) * 4.0
+    uv = pos[tris] + (rng.random(len(tris)) < 0.3)[:, None, None] * rng.normal(0, 2, (len(tris), 1, 2))
+    normals = np.tile([0.0, 0.0, 2.0], (len(tris), 3, 1)) + rng.normal(0, 0.05, (len(tris), 3, 3))
+    got = seams.seam_edges(tris, uv, normals, 0.1, 1e-3)
+    want, creases = _seams_by_edge(tris, uv, normals, 0.1, 1e-3)
+    assert len(want) > 20 and creases > 0
+    assert len(got.a) == len(want) and got.creases == creases
+    for k, edge in enumerate(sorted(want)):
+        for mine, theirs in zip((got.a[k], got.b[k], got.a_in[k], got.b_in[k]), want[edge]):
+            assert np.array_equal(mine, theirs)
+
+
 def test_footprint_reads_what_lightmap_bilinear_reads():
     rng = np.random.default_rng(1)
     img = rng.random((9, 7, 3))
