@@ -1,4 +1,5 @@
 """PNG previews without any imaging dependency (zlib and numpy), and tone mapping."""
+import math
 import struct
 import zlib
 
@@ -60,6 +61,21 @@ def srgb_encode(linear):
     return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
 
 
+def percentile_99(values):
+    """``np.percentile(values, 99)`` of a 1-D float64 array (its "linear" rule, bit for bit: the order statistics
+    at ⌊v⌋ and ⌊v⌋ + 1 for v = 0.99 (n − 1), blended as numpy's ``_lerp`` does) without its first call importing
+    numpy.ma (11 ms of a new process)."""
+    n = len(values)
+    if n == 1:
+        return float(values[0])
+    virtual = (n - 1) * (99 / 100)
+    k = math.floor(virtual)
+    part = np.partition(values, [k, k + 1])
+    a, b = np.float64(part[k]), np.float64(part[k + 1])
+    gamma = np.float64(virtual - k)
+    return float(b - (b - a) * (1 - gamma) if gamma >= 0.5 else a + (b - a) * gamma)
+
+
 def tonemap(linear, exposure=None):
     """Linear radiometric values -> display [0, 1]: scale so the 99th percentile is white, then sRGB.
 
@@ -67,7 +83,7 @@ def tonemap(linear, exposure=None):
     """
     x = np.nan_to_num(np.asarray(linear, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
     if exposure is None:
-        p = np.percentile(x[x > 0], 99) if np.any(x > 0) else 1.0
+        p = percentile_99(x[x > 0]) if np.any(x > 0) else 1.0
         scale = 1.0 / p if p > 0 else 1.0
     else:
         scale = 2.0 ** exposure

@@ -68,6 +68,16 @@ def test_tonemap_is_finite_on_bad_values():
     assert np.all(np.isfinite(out)) and out.min() >= 0 and out.max() <= 1
 
 
+@pytest.mark.parametrize("n", [1, 2, 3, 7, 100, 101, 4097])
+def test_the_white_point_is_numpys_99th_percentile_bit_for_bit(n):
+    """png.percentile_99 (the previews' white point) against np.percentile's linear rule: ties, spreads over six
+    decades and both sides of its blend's 0.5 switch."""
+    rng = np.random.default_rng(n)
+    draws = [rng.lognormal(0.0, 3.0, n) for _ in range(40)] + [np.round(rng.random(n) * 4) + 0.25, np.full(n, 0.7)]
+    for v in draws:
+        assert png.percentile_99(v.copy()) == float(np.percentile(v, 99))
+
+
 def test_failed_write_leaves_nothing(tmp_path):
     target = tmp_path / "r.json"
     with pytest.raises(ILError, match=r"r.json: non-finite number at x \(nan\)"):
