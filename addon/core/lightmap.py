@@ -128,6 +128,7 @@ def _texels_inside(tri_uv, width, height, strict=False, chunk=1 << 20):
     lo = np.maximum(np.where(sure, np.ceil(low - 0.5 - tol), np.floor(low - 0.5)), 0).astype(np.int64)
     hi = np.minimum(np.where(sure, np.floor(high - 0.5 + tol), np.ceil(high - 0.5)),
                     (width - 1, height - 1)).astype(np.int64)
+    del low, high, extent, sure, tol                   # 40 MB for 600k triangles, no longer needed
     span = hi - lo + 1
     ok = (np.minimum(span[:, 0], span[:, 1]) > 0) & (np.abs(d) >= 1e-12)
     k = np.where(ok, 2 ** np.ceil(np.log2(np.maximum(np.maximum(span[:, 0], span[:, 1]), 1))).astype(np.int64), 0)
@@ -136,7 +137,7 @@ def _texels_inside(tri_uv, width, height, strict=False, chunk=1 << 20):
         size = int(size)
         idx = np.flatnonzero(k == size)
         rows = min(size, max(1, chunk // size))          # a box larger than chunk is tested in bands of rows
-        step = max(1, chunk // (rows * size))
+        step = max(1, chunk // max(rows * size, 4))     # at most chunk / 4 triangles at once
         r = np.arange(size)
         for s in range(0, len(idx), step):
             i = idx[s:s + step]
