@@ -140,3 +140,16 @@ def test_the_band_search_finds_the_first_free_place_in_row_major_order():
             top = want[0] + h
             assert pack._first_free(occupied, runs, foot, low, top) == want
             assert pack._first_free(occupied, runs, foot, low, top - 1) in (None, want)   # a bound only prunes
+
+
+def test_a_footprint_grows_by_chessboard_distance_and_pools_its_fine_texels():
+    """pack._grown is the texels within chessboard distance r of the mask (lightmap.nearest_covered's rings), and
+    pack._pooled whether a FINE x FINE block holds a fine texel, on random masks."""
+    rng = np.random.default_rng(4)
+    for _ in range(200):
+        h, w, r = int(rng.integers(1, 14)), int(rng.integers(1, 14)), int(rng.integers(0, 4))
+        mask = rng.random((h, w)) < rng.uniform(0.02, 0.5)
+        want = lightmap.nearest_covered(np.pad(mask, r), r) >= 0 if r else mask
+        assert np.array_equal(pack._grown(mask, r), want)
+        fine = rng.random((pack.FINE * h, pack.FINE * w)) < 0.05
+        assert np.array_equal(pack._pooled(fine), fine.reshape(h, pack.FINE, w, pack.FINE).any(axis=(1, 3)))
