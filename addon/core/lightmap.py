@@ -111,11 +111,10 @@ def _texels_inside(tri_uv, width, height, strict=False, chunk=1 << 20):
     texels at once (work about 4 × Σ bounding-box areas, memory bounded by ``chunk`` candidates).
 
     The box holds the centres within 1e-5 of the triangle's extent E (texels) of its bounding box: the 1e-6
-    tolerance moves a vertex by at most 3e-6 E, and rounding moves the barycentric coordinates by at most
-    4.4e-16 E (E + 1) / |2 · area|, below 1e-11 unless the triangle is a sliver (|2 · area| < 1e-4 E (E + 1)),
-    whose box holds the centres within a texel. A scan's triangles, far smaller than a texel, mostly have no
-    candidate. Minima and maxima are taken vertex by vertex (numpy's reduction over an axis of 3 is 10 times
-    slower)."""
+    tolerance moves a vertex by at most 3e-6 E, and the test's rounding stays far below the rest (2.5e-9 at worst,
+    on needles just above the sliver bound); a sliver (|2 · area| < 1e-4 E (E + 1)), whose rounding may be larger,
+    keeps the centres within a texel. A scan's triangles, far smaller than a texel, mostly have no candidate.
+    Minima and maxima are taken vertex by vertex (numpy's reduction over an axis of 3 is 10 times slower)."""
     t = np.asarray(tri_uv, float).reshape(-1, 3, 2) * (width, height)
     if not len(t):
         return
@@ -128,7 +127,7 @@ def _texels_inside(tri_uv, width, height, strict=False, chunk=1 << 20):
     lo = np.maximum(np.where(sure, np.ceil(low - 0.5 - tol), np.floor(low - 0.5)), 0).astype(np.int64)
     hi = np.minimum(np.where(sure, np.floor(high - 0.5 + tol), np.ceil(high - 0.5)),
                     (width - 1, height - 1)).astype(np.int64)
-    del low, high, extent, sure, tol                   # 40 MB for 600k triangles, no longer needed
+    del low, high, extent, sure, tol                   # about 30 MB for 600k triangles
     span = hi - lo + 1
     ok = (np.minimum(span[:, 0], span[:, 1]) > 0) & (np.abs(d) >= 1e-12)
     k = np.where(ok, 2 ** np.ceil(np.log2(np.maximum(np.maximum(span[:, 0], span[:, 1]), 1))).astype(np.int64), 0)

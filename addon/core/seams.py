@@ -59,14 +59,15 @@ def _unit(v):
 def seam_edges(tri_vertices, tri_uv, tri_normals=None, uv_tolerance=UV_TOLERANCE, normal_tolerance=NORMAL_TOLERANCE):
     """The seams of a triangle mesh: edges (vertex pairs) shared by exactly two triangles whose UVs differ at either
     vertex by more than ``uv_tolerance`` texels, and (with ``tri_normals`` (T, 3, 3) corner normals) whose corner
-    normals agree at both vertices (1 − n_a·n_b ≤ ``normal_tolerance``). ``tri_vertices`` (T, 3) vertex indices,
-    ``tri_uv`` (T, 3, 2) in texels. Edges inside an n-gon's triangulation share their UVs and are no seams."""
+    normals agree at both vertices (1 − n_a·n_b ≤ ``normal_tolerance``). ``tri_vertices`` (T, 3) vertex indices
+    (0 ≤ i < 2³¹, as Blender's), ``tri_uv`` (T, 3, 2) in texels. Edges inside an n-gon's triangulation share their UVs
+    and are no seams."""
     tv = np.asarray(tri_vertices, np.int64)
     uv = np.asarray(tri_uv, float).reshape(-1, 2)     # by corner 3 t + c
     nxt = np.array([1, 2, 0])
     v0, v1 = tv.ravel(), tv[:, nxt].ravel()           # each corner's edge, to the next corner
     lo, hi = np.minimum(v0, v1), np.maximum(v0, v1)
-    order = np.argsort(lo * (int(hi.max(initial=0)) + 1) + hi, kind="stable")     # by lo, then hi
+    order = np.argsort(lo * (int(hi.max(initial=0)) + 1) + hi, kind="stable")     # by lo, then hi (i < 2³¹)
     lo, hi = lo[order], hi[order]
     starts = np.flatnonzero(np.r_[True, (lo[1:] != lo[:-1]) | (hi[1:] != hi[:-1])])
     first = starts[np.diff(np.r_[starts, len(lo)]) == 2]

@@ -259,14 +259,14 @@ def test_one_rasteriser_matches_the_former_loop_on_meshes_and_random_triangles()
 
 def test_the_rasteriser_matches_the_loop_at_its_tolerance_on_tiny_triangles_and_slivers():
     """The candidate box is cut to 1e-5 of a triangle's extent beyond it (a texel for slivers): a centre just
-    inside the 1e-6 tolerance, one just outside it, a soup of triangles far below a texel, and slivers on both
-    sides of the sliver bound count as the loop counts them, interiors (strict) too."""
+    inside the 1e-6 tolerance, one just outside it, ones just outside the box, a soup of triangles far below a
+    texel, and slivers on both sides of the sliver bound count as the loop counts them, interiors (strict) too."""
     rng = np.random.default_rng(11)
     side = 16
     centre = (np.array([5, 9]) + 0.5) / side
     cases = []
     for size in (1e-3, 0.05, 0.7):                          # in texels: far below a texel, under one, near one
-        for beyond in (0.5e-6, 2e-6, 1e-9, 0.0, -1e-9):    # a vertex past a texel centre, in units of the extent
+        for beyond in (0.5e-6, 2e-6, 2e-5, 1e-4, 1e-9, 0.0, -1e-9):     # a vertex past a centre, in extents
             e = size / side
             base = np.array([[0.0, 0.0], [e, 0.0], [0.0, e]]) - beyond * e
             cases.append(centre + base)                        # the centre just outside the corner, or on it
