@@ -7,6 +7,7 @@ import bpy
 import numpy as np
 
 from ..blender.scene import attribute, set_attribute
+from ..blender.state import remove_ids
 from . import cost, cycles, evaluated
 from .passes import BakeResult, PassSum, denoised, estimated, fixed_calls, sample_passes
 from .plan import speed
@@ -244,8 +245,7 @@ def bake_batch(scene, batch, kind, options, layers, temporary, state):
                 for name in images:
                     parts[name].append(sums[name].result())
     finally:
-        for image in images.values():
-            bpy.data.images.remove(image)
+        remove_ids((bpy.data.images, image) for image in images.values())
     texels = {t.name: t.texels for t in batch}
     total = sum(texels.values())
     elapsed = time.perf_counter() - t0

@@ -83,13 +83,15 @@ def _validate(scene, objects, maps, out, options):
     if not objects:
         raise InputError("nothing to bake: " + "; ".join(f"'{n}' is {why}" for n, why in skipped.items()))
     failed, first = {}, None
+    invalid = uvmod.invalid_meshes(objects)
     for o in objects:
         if o.mode != "OBJECT":
             raise InputError(f"'{o.name}' is in {o.mode.lower()} mode: switch to object mode first")
         if options.uv_layer and options.target == "image":
             uvmod.check_layer(o, options.uv_layer)
         try:
-            uvmod.check_valid(o)
+            if o.name in invalid:
+                raise InputError(invalid[o.name])
             if uvmod.world_area(o) <= 0:
                 raise InputError(f"mesh '{o.name}' has no surface area: all its faces are degenerate")
             if options.target == "vertex":

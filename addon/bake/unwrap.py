@@ -19,6 +19,7 @@ import bpy
 import numpy as np
 
 from ..blender.scene import corner_triangles, corner_uv, corner_vertices
+from ..blender.state import remove_ids
 from ..core import lightmap, pack
 from ..core.errors import InputError
 from . import uvchecks
@@ -359,12 +360,8 @@ class _Copies:
         self._write(before)
 
     def _remove(self):
-        for _, obj in self.copies:
-            me = obj.data
-            bpy.data.objects.remove(obj)
-            bpy.data.meshes.remove(me)
-        if self.scratch is not None:
-            bpy.data.scenes.remove(self.scratch)
+        tracked = [pair for _, obj in self.copies for pair in ((bpy.data.objects, obj), (bpy.data.meshes, obj.data))]
+        remove_ids(tracked + ([(bpy.data.scenes, self.scratch)] if self.scratch is not None else []))
         self.scratch = None
         self.copies = []
         self.loops = []

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..blender.digest import shape_digest
 from ..blender.scene import corner_triangles, corner_uv, corner_vertices, positions
+from ..blender.state import remove_ids
 from ..core import errors, lightmap
 from ..core.memo import FIGURES, digest
 from ..core.errors import InputError
@@ -158,17 +159,23 @@ def _world_triangles(obj):
     return co[corner_vertices(me)[corners(me)]]
 
 
-def check_valid(obj):
-    """Refuse a mesh Blender itself reports invalid (``Mesh.validate`` on a throw-away copy would change it: a
-    face repeating a vertex, an edge out of range, ...): Blender's edit mode hangs or crashes on such data."""
-    tmp = obj.data.copy()
+def invalid_meshes(objects):
+    """{object name: why} of ``objects`` whose mesh Blender itself reports invalid (``Mesh.validate`` on a
+    throw-away copy, as it would change the mesh: a face repeating a vertex, an edge out of range, ...): Blender's
+    edit mode hangs or crashes on such data. Each mesh is checked once; the copies are removed together."""
+    copies, broken = {}, set()
     try:
-        broken = tmp.validate(verbose=False)
+        for o in objects:
+            key = o.data.as_pointer()
+            if key not in copies:
+                copies[key] = o.data.copy()
+                if copies[key].validate(verbose=False):
+                    broken.add(key)
     finally:
-        bpy.data.meshes.remove(tmp)
-    if broken:
-        raise InputError(f"mesh '{obj.data.name}' of '{obj.name}' is invalid (e.g. a face that repeats a vertex): "
-                         f"repair it first (Mesh > Clean Up, or mesh.validate() in Python)")
+        remove_ids((bpy.data.meshes, me) for me in copies.values())
+    return {o.name: f"mesh '{o.data.name}' of '{o.name}' is invalid (e.g. a face that repeats a vertex): repair it "
+                    f"first (Mesh > Clean Up, or mesh.validate() in Python)"
+            for o in objects if o.data.as_pointer() in broken}
 
 
 def check_layer(obj, name):

@@ -27,6 +27,32 @@ import numpy as np
 _ERRORS = (AttributeError, TypeError, ValueError, ReferenceError)
 
 
+def remove_ids(tracked):
+    """Remove the data-blocks of ``tracked`` [(collection, data-block)] still in the file: all but scenes in one
+    ``BlendData.batch_remove`` (one pass over the file's users, where each ``remove`` makes its own: O(N²) for a
+    level's N temporaries), scenes, and all when the batch is refused, one by one; one that cannot be removed is
+    left."""
+    alive = []
+    for collection, idblock in tracked:
+        try:
+            idblock.name
+        except ReferenceError:                 # removed already (a bake's proxy, an unwrap's scratch scene)
+            continue
+        alive.append((collection, idblock))
+    rest = [(c, i) for c, i in alive if isinstance(i, bpy.types.Scene)]
+    batch = [i for c, i in alive if not isinstance(i, bpy.types.Scene)]
+    try:
+        if batch:
+            bpy.data.batch_remove(batch)
+    except RuntimeError:
+        rest = alive
+    for collection, idblock in rest:
+        try:
+            collection.remove(idblock)
+        except (ReferenceError, RuntimeError):
+            pass
+
+
 def rna_settings(struct):
     """(struct, identifier) of every plain writable RNA property of ``struct`` (no pointers, collections)."""
     out = []
@@ -199,11 +225,7 @@ class SavedState:
             if m["attr_active"] is not None and m["attr_active"] in me.attributes:
                 me.attributes.active = me.attributes[m["attr_active"]]
         self._restore_settings()
-        for collection, idblock in reversed(self.temp):
-            try:
-                collection.remove(idblock)
-            except (ReferenceError, RuntimeError):
-                pass
+        remove_ids(reversed(self.temp))
         for obj, hidden, viewport, render in self.visibility.values():
             try:
                 if obj.hide_render != render:

@@ -62,6 +62,34 @@ def test_settings_world_and_selection_come_back_after_an_error():
     sc.remove_scene(scene)
 
 
+def test_every_tracked_temporary_goes_in_one_pass_and_the_users_data_and_links_stay():
+    """Materials, images, a mesh and its object, a scene, and one removed already (a proxy): all gone; the user's
+    material that a temporary image was shown in keeps its node (emptied), the user's objects and scene stay."""
+    scene, a, b = _user_scene()
+    mine = bpy.data.materials.new("Mine")
+    a.data.materials.append(mine)
+    compat.ensure_use_nodes(mine)
+    node = mine.node_tree.nodes.new("ShaderNodeTexImage")
+    before = {c: set(getattr(bpy.data, c)) for c in ("materials", "images", "meshes", "objects", "scenes")}
+    with SavedState(scene, [a, b]) as state:
+        mats = [state.track(bpy.data.materials, bpy.data.materials.new(f"IL t {i}")) for i in range(40)]
+        imgs = [state.track(bpy.data.images, bpy.data.images.new(f"IL t {i}", 4, 4)) for i in range(40)]
+        node.image = imgs[0]
+        a.material_slots[0].material = mats[0]
+        me = state.track(bpy.data.meshes, bpy.data.meshes.new("IL t"))
+        ob = state.track(bpy.data.objects, bpy.data.objects.new("IL t", me))
+        scene.collection.objects.link(ob)
+        gone = state.track(bpy.data.meshes, bpy.data.meshes.new("IL gone"))
+        bpy.data.meshes.remove(gone)
+        scratch = state.track(bpy.data.scenes, bpy.data.scenes.new("IL scratch"))
+        scratch.collection.objects.link(ob)
+    assert {c: set(getattr(bpy.data, c)) for c in before} == before
+    assert node.image is None and a.material_slots[0].material == mine
+    assert sorted(o.name for o in scene.objects) == ["A", "B"]
+    sc.remove_scene(scene)
+    bpy.data.materials.remove(mine)
+
+
 def test_an_existing_world_is_used_and_kept():
     scene, _, _ = _user_scene()
     mine = sc.world(scene, strength=0.5, ao_distance=3.0)
