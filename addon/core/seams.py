@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from .brdf import normalize
 from .memo import storable
 from .rows import unique_rows
 
@@ -51,11 +52,6 @@ def welded(positions, tolerance=1e-6):
     return unique_rows(np.round((p - p.min(axis=0)) / step).astype(np.int64))
 
 
-def _unit(v):
-    """Rows of ``v`` (N, 3) scaled to unit length (zero rows stay zero)."""
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-30)
-
-
 def seam_edges(tri_vertices, tri_uv, tri_normals=None, uv_tolerance=UV_TOLERANCE, normal_tolerance=NORMAL_TOLERANCE):
     """The seams of a triangle mesh: edges (vertex pairs) shared by exactly two triangles whose UVs differ at either
     vertex by more than ``uv_tolerance`` texels, and (with ``tri_normals`` (T, 3, 3) corner normals) whose corner
@@ -83,8 +79,8 @@ def seam_edges(tri_vertices, tri_uv, tri_normals=None, uv_tolerance=UV_TOLERANCE
     smooth = np.ones(len(i), bool)
     if tri_normals is not None:
         n = np.asarray(tri_normals, float).reshape(-1, 3)
-        dot0 = np.sum(_unit(n[i]) * _unit(n[b0]), axis=-1)
-        dot1 = np.sum(_unit(n[i1]) * _unit(n[b1]), axis=-1)
+        dot0 = np.sum(normalize(n[i]) * normalize(n[b0]), axis=-1)
+        dot1 = np.sum(normalize(n[i1]) * normalize(n[b1]), axis=-1)
         smooth = (1.0 - np.minimum(dot0, dot1)) <= normal_tolerance
     keep = split & smooth
     return Seams(a[keep], b[keep], uv[i2][keep], uv[j2][keep], int((split & ~smooth).sum()))
