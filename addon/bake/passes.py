@@ -40,6 +40,7 @@ class BakeResult:
     estimated_error RMS over covered texels, same units as values (NaN when not estimated)
     estimate        which estimate ``estimated_error`` is (one of ESTIMATES, plus DENOISED when denoised)
     capped          a target error missed within max_samples / MAX_PAIRS (:func:`warn_capped`)
+    unlit           the warning line of a lit kind's map 0 everywhere (``write.check_lit``), else ""
     """
     values: object
     mask: object
@@ -50,6 +51,7 @@ class BakeResult:
     pilot_samples: int = 0
     cycles_seconds: float = 0.0
     capped: bool = False
+    unlit: str = ""
 
 
 def fixed_calls(kind, options):

@@ -105,7 +105,7 @@ def _bake_fixed(objects, maps, out, options, scene, on_step):
     saved = cycles.bake_settings(scene) + [(owner, attr) for owner, attr, _ in variants]
     with Progress("bake", steps) as progress, SavedState(scene, everyone, saved) as state:
         run = _Run(scene, maps, out, options, report, report_path, digests, stems, t_all, progress, on_step, state,
-                   TemporaryMaterials(state))
+                   TemporaryMaterials(state), world=scene.world)
         cycles.evaluate_as_render(scene, variants)
         cycles.show(everyone, state)
         cycles.flip_inside_out(scene, everyone, flips, state)
@@ -170,6 +170,7 @@ class _Run:
     pace: cost.Speed = None
     uv_cache: uvcache.UVCache = None
     unmerged: dict = dataclasses.field(default_factory=dict)
+    world: object = None              # the scene's own world (None: none; the bakes get a black one)
     merged_at: float = float("-inf")
 
     def step(self, message):
@@ -309,6 +310,7 @@ class _Run:
         if target.size is not None:
             write.check_covered(name, group, kind, result, self.layers, target.areas)
         write.check_plausible(self.scene, name, group, kind, result)
+        write.check_lit(self.scene, name, kind, result, self.world)
         margin = self.margins.get(group[0].name, float(self.options.margin))
         t_files = time.perf_counter()
         result.seconds += t_files - t_map     # the header's il:seconds: bakes and checks, not the files

@@ -46,7 +46,8 @@ def _kept_entries(name, group, kind, out, options, stems, stored, old_reports):
     path = group_map_file(name, kind, out, options, group, stems)
     result = BakeResult(None, None, int(number("il:samples")), number("il:seconds"),
                         number("il:estimated_error", float("nan")), header_text(header.get("il:error_estimate")) or "",
-                        int(number("il:pilot_samples")), number("il:cycles_seconds"))
+                        int(number("il:pilot_samples")), number("il:cycles_seconds"),
+                        unlit=header_text(header.get("il:unlit")) or "")
     extras, png = {group[0].name: {"attribute": KINDS[kind].attribute}}, None
     if options.target == "image":
         png = map_file(out, stems, name, kind, ".png")

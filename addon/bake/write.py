@@ -6,6 +6,7 @@ import bpy
 import numpy as np
 
 from ..core import lightmap
+from ..core import errors
 from ..core.errors import ILError
 from ..core.io import exr, png as io_png
 from . import orientation, uv as uvmod, uvchecks
@@ -36,6 +37,24 @@ def check_plausible(scene, name, group, kind, result):
                       f"{orientation.FIX}): nothing written")
 
 
+def check_lit(scene, name, kind, result, world):
+    """For a kind lights shade (``Kind.lit``): a map 0 on every covered texel (vertex) is right, E = 0, but no light,
+    world or emission reaches the objects, which is rarely what was meant (a file without lights or world, lights
+    hidden from render). Warn with what the scene lacks (``world``: its own, None when it has none) and keep the line on ``result.unlit`` (report entries'
+    "unlit", header "il:unlit")."""
+    if not KINDS[kind].lit:
+        return
+    values = flat(result.values) if isinstance(result.values, dict) else result.values[result.mask]
+    if not values.size or float(np.max(values)) > 0.0:
+        return
+    lights = [o for o in scene.objects if o.type == "LIGHT" and not o.hide_render and o.data.energy > 0]
+    lacks = [what for what, missing in (("no lights", not lights), ("no world", world is None)) if missing]
+    cause = f"the scene has {' and '.join(lacks)}" if lacks else "its lights and world do not reach it"
+    result.unlit = (f"'{name}' {kind}: 0 on every {'texel' if result.mask is not None else 'vertex'} ({cause}): "
+                    f"add a light, or a world that is not black")
+    errors.warn(result.unlit)
+
+
 def check_covered(name, group, kind, result, layers, areas):
     """The baked mask must cover MIN_COVERAGE of the charts' area (never report an empty map as a success)."""
     h, w = result.mask.shape
@@ -56,7 +75,7 @@ def _attributes(kind, result, options, uv_name):
             "il:denoised": int(bool(options.denoise and options.target == "image" and record.denoise)),
             "il:estimated_error": result.estimated_error, "il:error_estimate": result.estimate,
             "il:pilot_samples": int(result.pilot_samples), "il:seconds": round(result.seconds, 4),
-            "il:cycles_seconds": round(result.cycles_seconds, 4)}
+            "il:cycles_seconds": round(result.cycles_seconds, 4)} | ({"il:unlit": result.unlit} if result.unlit else {})
 
 
 def preview(kind, values, mask):
@@ -75,6 +94,8 @@ def entry(path, res, result, extra=None):
         e["pilot_samples"] = int(result.pilot_samples)
     if getattr(result, "capped", False):
         e["capped"] = True
+    if getattr(result, "unlit", ""):
+        e["unlit"] = result.unlit
     e.update(extra or {})
     return e
 

@@ -1,7 +1,9 @@
 """Light-map bakes of meshes and scenes made with Blender's own operators: a primitive added with a negative scale
 (inside out), a scene without a world, Array and Mirror copies sharing light-map texels. Closed forms from
 REFERENCE.md §1 and §3."""
+import json
 import math
+import re
 
 import bpy
 import bmesh  # noqa: E402  (after bpy)
@@ -167,22 +169,36 @@ def _plane_with_uvs(scene, size):
 
 @pytest.mark.both_versions
 def test_scene_without_a_world_is_black_as_cycles_renders_it(tmp_path):
-    """No world, no light: E = 0 exactly (a new 5.0 world is grey 0.05 unless blackened). No world, a point light
+    """No world, no light: E = 0 exactly (a new 5.0 world is grey 0.05 unless blackened), with a warning naming what
+    the scene lacks, kept in the report and the header (and in an entry rebuilt from it). No world, a point light
     of P = 100 W, radius 0, at height h = 2 over a 2 m plane: E = P cos θ / (4π d²) = P h / (4π d³) at every
     texel centre (REFERENCE.md §1), within the Monte Carlo noise of the two-halves estimate."""
     scene = sc.new_scene("T")
     assert scene.world is None
     plane = _plane_with_uvs(scene, 2.0)
     n = 8
-    bake_lightmaps([plane], ["irradiance"], tmp_path / "dark",
-                   BakeOptions(resolution=n, samples=4, bounces=0, uv_layer="UVMap", margin=0), scene=scene)
-    ch, _ = exr.read_exr(tmp_path / "dark" / "R_irradiance.exr")
+    dark = BakeOptions(resolution=n, samples=4, bounces=0, uv_layer="UVMap", margin=0, overwrite=True)
+    line = "'R' irradiance: 0 on every texel (the scene has no lights and no world): add a light"
+    with pytest.warns(ILWarning, match=re.escape(line)):
+        rep = bake_lightmaps([plane], ["ao", "irradiance"], tmp_path / "dark", dark, scene=scene)
+    ch, header = exr.read_exr(tmp_path / "dark" / "R_irradiance.exr")
     assert ch["A"].min() == 1.0 and all(np.all(ch[c] == 0.0) for c in "RGB")
+    entries = rep["objects"]["R"]
+    assert entries["irradiance"]["unlit"].startswith(line) and header["il:unlit"] == entries["irradiance"]["unlit"]
+    assert "unlit" not in entries["ao"]                  # AO is not lit: the sky is 1 without a world too
+    (tmp_path / "dark" / "bake_report.json").unlink()     # a rerun rebuilds the entry from the header
+    rep = bake_lightmaps([plane], ["irradiance"], tmp_path / "dark", dark, scene=scene)
+    kept = json.loads((tmp_path / "dark" / "bake_report.json").read_text())["objects"]["R"]["irradiance"]
+    assert rep["unchanged"] == {"R": ["irradiance"]} and kept["unlit"] == header["il:unlit"]
+    with pytest.warns(ILWarning, match="'R' irradiance: 0 on every vertex"):
+        bake_lightmaps([plane], ["irradiance"], tmp_path / "vertex", dark.replace(target="vertex", uv_layer=None),
+                       scene=scene)
     assert scene.world is None and not [w for w in bpy.data.worlds if w.name.startswith("IL ")]
     sc.light(scene, "Bulb", "POINT", 100.0, location=(0, 0, 2.0))
     rep = bake_lightmaps([plane], ["irradiance"], tmp_path / "lit",
                          BakeOptions(resolution=n, samples=16, bounces=0, uv_layer="UVMap", margin=0), scene=scene)
-    ch, _ = exr.read_exr(tmp_path / "lit" / "R_irradiance.exr")
+    ch, header = exr.read_exr(tmp_path / "lit" / "R_irradiance.exr")
+    assert "unlit" not in rep["objects"]["R"]["irradiance"] and "il:unlit" not in header
     c = (np.arange(n) + 0.5) / n * 2.0 - 1.0
     x, y = np.meshgrid(c, c[::-1])
     d = np.sqrt(x * x + y * y + 4.0)
