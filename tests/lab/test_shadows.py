@@ -183,6 +183,9 @@ def test_script_errors_are_clear(script, tmp_path):
     assert list(bpy.data.scenes) == [bpy.context.scene]              # nothing was left behind
     # a .blend without the named light, through the script as a pipeline runs it: exit 2, one line
     scene = shadow_scenes.build("sphere", "sun", (32, 32))
+    with pytest.raises(InputError, match=rf"no light named 'Nope' in scene '{scene.name}' "
+                                         rf"\(its lights: {scene['il_shadow_light']}\)"):
+        ShadowFrame(scene, "Nope")
     blend = tmp_path / "no_light.blend"
     bpy.data.objects.remove(scene.objects[scene["il_shadow_light"]])
     bpy.context.window_manager  # noqa: B018 - keep the context alive for the save
@@ -191,7 +194,7 @@ def test_script_errors_are_clear(script, tmp_path):
             bpy.data.scenes.remove(s)
     bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
     r = script("shadows.py", blend, "--light", "Sun", "--methods", "shadowmap", "--out", tmp_path / "o")
-    assert r.returncode == 2 and "no light named 'Sun'" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert r.returncode == 2 and "no light named 'Sun' in scene" in r.stderr and "(it has no lights)" in r.stderr and len(r.stderr.strip().splitlines()) == 1
 
 
 def test_script_writes_masks_and_report(script, tmp_path):

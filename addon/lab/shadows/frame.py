@@ -93,7 +93,9 @@ class ShadowFrame:
 
     def __init__(self, scene, light_name, resolution=128, samples=1):
         if light_name not in scene.objects:
-            raise InputError(f"no light named '{light_name}' in scene '{scene.name}'")
+            lights = sorted(o.name for o in scene.objects if o.type == "LIGHT")
+            raise InputError(f"no light named '{light_name}' in scene '{scene.name}' "
+                             + (f"(its lights: {', '.join(lights)})" if lights else "(it has no lights)"))
         if scene.camera is None:
             raise InputError(f"scene '{scene.name}' has no camera")
         if resolution < 8 or resolution > depth_map.MAX_RESOLUTION:
