@@ -56,6 +56,21 @@ def captured(always=False):
             _lines.extend(log.read().decode("utf-8", "replace").splitlines())
 
 
+def silence_rest():
+    """Point descriptors 1 and 2 at the null device for the rest of the process, after a script's last line: what
+    Blender prints as it shuts down (bpy 4.5's "Error: Not freed memory blocks" on stdout after a file saved by a newer
+    Blender, ``blender -b``'s "Blender quit") stays off the script's output. Kept with IL_DEBUG."""
+    if not _enabled or os.environ.get("IL_DEBUG"):
+        return
+    for stream in (sys.stdout, sys.stderr):
+        stream.flush()
+    _flush_c_stdio()
+    null = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(null, 1)
+    os.dup2(null, 2)
+    os.close(null)
+
+
 def tail():
     """The last captured lines of Blender's output (at most KEPT_LINES)."""
     return list(_lines)
