@@ -58,8 +58,9 @@ def captured(always=False):
 
 def silence_rest():
     """Point descriptors 1 and 2 at the null device for the rest of the process, after a script's last line: what
-    Blender prints as it shuts down (bpy 4.5's "Error: Not freed memory blocks" on stdout after a file saved by a newer
-    Blender, ``blender -b``'s "Blender quit") stays off the script's output. Kept with IL_DEBUG."""
+    the bpy module prints as the process ends (bpy 4.5's "Error: Not freed memory blocks" on stdout after a file
+    saved by a newer Blender) stays off the script's output. Only where nothing else runs after the script (not
+    inside ``blender -b``, where a later ``-P`` script still prints). Kept with IL_DEBUG."""
     if not _enabled or os.environ.get("IL_DEBUG"):
         return
     for stream in (sys.stdout, sys.stderr):
