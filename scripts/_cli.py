@@ -227,6 +227,8 @@ def run(p, main, argv=None):
         files.remove_own_temporaries()
     if code and os.environ.get("IL_DEBUG") and chatter.tail():
         print(f"{p.prog}: Blender's own output, last lines:\n  " + "\n  ".join(chatter.tail()), file=sys.stderr)
+    sys.stdout.flush()
+    sys.stderr.flush()
     if not _inside_blender():            # the pip bpy module: nothing of the user's runs after the script
         chatter.silence_rest()
     if code:

@@ -5,8 +5,7 @@ import json
 import bpy
 import numpy as np
 
-from ..core import lightmap
-from ..core import errors
+from ..core import errors, lightmap
 from ..core.errors import ILError
 from ..core.io import exr, png as io_png
 from . import orientation, uv as uvmod, uvchecks
@@ -40,8 +39,8 @@ def check_plausible(scene, name, group, kind, result):
 def check_lit(scene, name, kind, result, world):
     """For a kind lights shade (``Kind.lit``): a map 0 on every covered texel (vertex) is right, E = 0, but no light,
     world or emission reaches the objects, which is rarely what was meant (a file without lights or world, lights
-    hidden from render). Warn with what the scene lacks (``world``: its own, None when it has none) and keep the line on ``result.unlit`` (report entries'
-    "unlit", header "il:unlit")."""
+    hidden from render). Warn with what the scene lacks (``world``: its own, None when it has none) and keep the
+    line on ``result.unlit`` (report entries' "unlit", header "il:unlit")."""
     if not KINDS[kind].lit:
         return
     values = flat(result.values) if isinstance(result.values, dict) else result.values[result.mask]
