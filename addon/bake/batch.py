@@ -33,7 +33,7 @@ def _batch_refusal(obj, layers, state, depsgraph, instanced):
 
     A batch stands a joined copy of the objects' evaluated meshes in for them, so an object is batched only
     when that copy is the same surface to Cycles: positive scale (a mirrored object's winding would flip),
-    visible to every ray kind, no holdout or shadow catcher, no custom normals (they do not survive the join),
+    visible to every ray kind, no holdout or shadow catcher (custom normals are carried: :func:`_joined`),
     its light-map layer in the evaluated mesh, not hidden for render, not part of a collection another
     object instances (hiding it would hide the instances too), and no Geometry Nodes that branch on Is Viewport (the
     joined copy is the viewport's evaluation, with the render's settings: ``cycles.render_variants``)."""
@@ -47,10 +47,7 @@ def _batch_refusal(obj, layers, state, depsgraph, instanced):
         return "instanced"
     if any(m.type == "NODES" and m.show_render and _is_viewport_in(m.node_group) for m in obj.modifiers):
         return "geometry nodes that branch on Is Viewport"
-    custom, carried = evaluated.figure(obj, depsgraph, _batchable, layers.get(obj.name)) or (False, False)
-    if custom:
-        return "custom normals"
-    if not carried:
+    if not evaluated.figure(obj, depsgraph, _carries, layers.get(obj.name)):
         return "light-map layer not in the evaluated mesh"
     return None
 
@@ -66,9 +63,9 @@ def _is_viewport_in(tree, seen=None):
                for n in tree.nodes)
 
 
-def _batchable(me, layer):
-    """(evaluated mesh ``me`` has custom normals, it carries UV layer ``layer``)."""
-    return bool(getattr(me, "has_custom_normals", False)), layer in me.uv_layers
+def _carries(me, layer):
+    """Evaluated mesh ``me`` carries UV layer ``layer``."""
+    return layer in me.uv_layers
 
 
 def _instanced(scene):
@@ -183,7 +180,8 @@ class _Proxy:
 
 def _joined(parts, mesh):
     """Fill the empty ``mesh`` with every part (:class:`evaluated.Triangles` in world space; vertices offset, one
-    triangle per loop triangle), UVs as PROXY_UV, material indices, flat faces and sharp edges kept."""
+    triangle per loop triangle), UVs as PROXY_UV, material indices, flat faces and sharp edges kept, and the custom
+    normals of the parts that have them (the others' corners keep the normals Blender makes: zero vectors)."""
     offsets = np.cumsum([0] + [len(p.co) for p in parts])
     co = np.concatenate([p.co for p in parts]) if parts else np.zeros((0, 3), np.float32)
     tris = np.concatenate([p.tris + k for p, k in zip(parts, offsets)]) if parts else np.zeros((0, 3), np.int64)
@@ -209,6 +207,10 @@ def _joined(parts, mesh):
         key = lambda e: np.minimum(e[:, 0], e[:, 1]) * n + np.maximum(e[:, 0], e[:, 1])
         edges = attribute(mesh, ".edge_verts", np.int32).reshape(-1, 2).astype(np.int64)
         set_attribute(mesh, "sharp_edge", "BOOLEAN", "EDGE", np.isin(key(edges), key(sharp)))
+    if any(len(p.normals) for p in parts):
+        mesh.normals_split_custom_set(np.concatenate([p.normals if len(p.normals) else np.zeros((len(p.tris), 3, 3),
+                                                                                                np.float32)
+                                                      for p in parts]).reshape(-1, 3))
     mesh.update()
 
 

@@ -64,13 +64,16 @@ def _of(obj, depsgraph, fn, args):
 class Triangles:
     """An evaluated mesh's loop triangles (the triangles Cycles bakes, chosen in object space) as arrays: positions
     (V, 3) (object space as read, world space once :meth:`placed`), triangle vertices (T, 3), UVs of one layer per
-    corner (T, 3, 2), per triangle its material index and smooth flag, the sharp edges (E, 2)."""
+    corner (T, 3, 2), per triangle its material index and smooth flag, the sharp edges (E, 2), and the corner normals
+    (T, 3, 3) of a mesh with custom normals ((0, 3, 3) without: the joined mesh makes the same ones from the sharp
+    edges and smooth flags)."""
     co: np.ndarray
     tris: np.ndarray
     uv: np.ndarray
     material: np.ndarray
     smooth: np.ndarray
     sharp: np.ndarray
+    normals: np.ndarray
 
     @classmethod
     def of(cls, me, layer):
@@ -85,14 +88,23 @@ class Triangles:
         ev = attribute(me, ".edge_verts", np.int32)
         ev = (ev if ev is not None else read(me.edges, "vertices", np.int32, 2)).reshape(-1, 2)
         sharp = attribute(me, "sharp_edge", bool)
+        custom = getattr(me, "has_custom_normals", False)
+        normals = read(me.corner_normals, "vector", np.float32, 3).reshape(-1, 3)[tl] if custom else \
+            np.zeros((0, 3, 3), np.float32)
         return cls(positions(me), corner_vertices(me)[tl], corner_uv(me, layer)[tl],
                    (mat if mat is not None else np.zeros(nf, np.int32))[tp],
                    ~(flat if flat is not None else np.zeros(nf, bool))[tp],
-                   ev[sharp] if sharp is not None else np.zeros((0, 2), np.int32))
+                   ev[sharp] if sharp is not None else np.zeros((0, 2), np.int32), normals)
 
     def placed(self, matrix):
-        """These triangles with their positions in world space by ``matrix`` (indices as int64, for a join)."""
+        """These triangles with their positions in world space by ``matrix`` (indices as int64, for a join), custom
+        normals by its inverse transpose, made unit."""
         m = np.array(matrix, np.float64)
         world = (self.co.astype(np.float64) @ m[:3, :3].T + m[:3, 3]).astype(np.float32)
+        normals = self.normals
+        if len(normals):
+            n = normals.reshape(-1, 3).astype(np.float64) @ np.linalg.inv(m[:3, :3])
+            n /= np.maximum(np.linalg.norm(n, axis=1), 1e-30)[:, None]
+            normals = n.astype(np.float32).reshape(normals.shape)
         return Triangles(world, self.tris.astype(np.int64), self.uv, self.material, self.smooth,
-                         self.sharp.astype(np.int64))
+                         self.sharp.astype(np.int64), normals)

@@ -131,6 +131,54 @@ def test_a_batch_bakes_the_meshes_a_render_evaluates(tmp_path, monkeypatch):
     assert (sub.levels, sub.render_levels, bevel.show_viewport, bevel.show_render) == (0, 3, False, True)
 
 
+def _tilt_custom_normals(obj, dx):
+    """Give ``obj`` custom normals: its own corner normals tilted by ``dx`` along x, as an importer gives them."""
+    me = obj.data
+    n = np.zeros(len(me.loops) * 3, np.float32)
+    me.corner_normals.foreach_get("vector", n)
+    n = n.reshape(-1, 3)
+    n[:, 0] += dx
+    me.normals_split_custom_set(n / np.linalg.norm(n, axis=1)[:, None])
+
+
+@pytest.mark.both_versions
+def test_meshes_with_custom_normals_are_batched_with_their_normals(tmp_path, monkeypatch):
+    """glTF and OBJ importers give meshes custom normals; the batch's joined mesh carries them (in world space, by
+    the inverse transpose of a rotated and non-uniformly scaled cube's matrix), so such meshes share the batch's
+    Cycles calls: AO bit for bit as one call per object, irradiance within 1e-3 of it (the joined copy's normals
+    are encoded again in its own normal spaces), and the normals count: the cube tilted 27 degrees gets an
+    irradiance 1 % or more away from the same cube without them, far beyond that."""
+    bpy.ops.mesh.primitive_plane_add(size=4)
+    floor = bpy.context.object
+    bpy.ops.mesh.primitive_cube_add(size=1, location=(0, 0, 0.7), rotation=(0.3, 0.2, 0.5), scale=(1, 1.4, 0.8))
+    cube = bpy.context.object
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(1.3, 0, 0.6), segments=16, ring_count=8)
+    bpy.ops.object.shade_smooth()
+    sphere = bpy.context.object
+    plain = cube.data.copy()
+    for o in (cube, sphere):
+        _tilt_custom_normals(o, 0.5)
+    bpy.ops.object.light_add(type="POINT", location=(0, 0, 3))
+    bpy.context.object.data.energy = 300
+    objects = [floor, cube, sphere]
+    _batch_bakes_as_single_calls(objects, [o.name for o in objects], tmp_path, monkeypatch)
+    opts = dict(resolution=32, samples=8, keep_products=False, force=True, overwrite=True)
+    folders = {}
+    for label, batch in (("one", False), ("batch", True)):
+        bake_lightmaps(objects, ["irradiance"], str(tmp_path / f"e_{label}"), BakeOptions(batch=batch, **opts))
+        folders[label] = maps(tmp_path / f"e_{label}", objects, ["irradiance"])
+    cube.data = plain
+    bake_lightmaps([cube], ["irradiance"], str(tmp_path / "e_plain"), BakeOptions(batch=False, **opts))
+    without = maps(tmp_path / "e_plain", [cube], ["irradiance"])[(cube.name, "irradiance")]
+    for key, a in folders["one"].items():
+        b = folders["batch"][key]
+        mask = a["A"] > 0.5
+        assert np.array_equal(mask, b["A"] > 0.5) and mask.sum() > 100, key
+        assert np.abs(a["R"][mask] - b["R"][mask]).max() <= 1e-3 * a["R"][mask].mean(), key
+    tilted = folders["one"][(cube.name, "irradiance")]
+    assert abs(tilted["R"][tilted["A"] > 0.5].mean() / without["R"][without["A"] > 0.5].mean() - 1) > 0.01
+
+
 def test_irradiance_does_not_depend_on_bake_order(tmp_path):
     """Each object's bounce light comes from the same materials whichever object was baked first."""
     objects = small_level()[:4]
