@@ -208,9 +208,8 @@ def _joined(parts, mesh):
         edges = attribute(mesh, ".edge_verts", np.int32).reshape(-1, 2).astype(np.int64)
         set_attribute(mesh, "sharp_edge", "BOOLEAN", "EDGE", np.isin(key(edges), key(sharp)))
     if any(len(p.normals) for p in parts):
-        mesh.normals_split_custom_set(np.concatenate([p.normals if len(p.normals) else np.zeros((len(p.tris), 3, 3),
-                                                                                                np.float32)
-                                                      for p in parts]).reshape(-1, 3))
+        normals = [p.normals if len(p.normals) else np.zeros((len(p.tris), 3, 3), np.float32) for p in parts]
+        mesh.normals_split_custom_set(np.concatenate(normals).reshape(-1, 3))
     mesh.update()
 
 

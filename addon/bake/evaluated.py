@@ -17,6 +17,7 @@ import numpy as np
 from ..blender.digest import mesh_digest, rna_digest
 from ..blender.scene import (attribute, corner_triangles, corner_uv, corner_vertices, evaluated_mesh, from_its_mesh,
                              positions, read, triangle_polygons)
+from ..core.brdf import normalize
 from ..core.memo import FIGURES, digest, storable
 from . import uv as uvmod
 
@@ -103,8 +104,6 @@ class Triangles:
         world = (self.co.astype(np.float64) @ m[:3, :3].T + m[:3, 3]).astype(np.float32)
         normals = self.normals
         if len(normals):
-            n = normals.reshape(-1, 3).astype(np.float64) @ np.linalg.inv(m[:3, :3])
-            n /= np.maximum(np.linalg.norm(n, axis=1), 1e-30)[:, None]
-            normals = n.astype(np.float32).reshape(normals.shape)
+            normals = normalize(normals @ np.linalg.inv(m[:3, :3])).astype(np.float32)
         return Triangles(world, self.tris.astype(np.int64), self.uv, self.material, self.smooth,
                          self.sharp.astype(np.int64), normals)
