@@ -1,9 +1,11 @@
 """Level benchmark: a generated level of 200+ objects baked AO + irradiance per object and as an atlas; pipeline
 wall time against Blender's bare bake calls, peak RSS, texels per second, atlas utilisation against uv.pack_islands;
 time outside Cycles over time inside at --samples and at 64 (production) samples, first runs and reruns with a
-light changed (layouts from the UV cache).
+light changed (layouts from the UV cache; --reruns of them at 64 samples, each in a new process: the median one's
+row, with the range).
 
     python scripts/bench_level.py --out out/bench_level [--quick] [--props N] [--texel-density T] [--samples N]
+                                  [--reruns N]
 """
 import json
 import os
@@ -18,7 +20,7 @@ def main(args):
     from addon.core import charts
     out = os.path.abspath(args.out)
     result = level.run(out, quick=args.quick, props=args.props, texel_density=args.texel_density,
-                       samples=args.samples)
+                       samples=args.samples, reruns=args.reruns)
     for name, rows in result.tables.items():
         charts.write_csv(os.path.join(out, f"{name}.csv"), rows)
         for row in rows:
@@ -32,6 +34,8 @@ def build_parser():
     p.add_argument("--props", type=_cli.number(int, 1, 5000), help="props in the level (default 200, quick 24)")
     p.add_argument("--texel-density", type=_cli.number(float, above=0), help="texels per metre (default 10)")
     p.add_argument("--samples", type=_cli.number(int, 1, 4096), help="Cycles samples (default 8, quick 4)")
+    p.add_argument("--reruns", type=_cli.number(int, 1, 99),
+                   help="reruns at 64 samples with a light changed, each in a new process (default 3)")
     return p
 
 

@@ -151,3 +151,14 @@ def test_the_level_benchmarks_rerun_runs_in_a_new_process_and_puts_the_layers_ba
         assert sorted(p.name for p in tmp_path.iterdir()) == ["per_object"]
     finally:
         remove_scene(scene)
+
+
+def test_the_level_benchmarks_rerun_row_is_the_median_runs_with_the_range():
+    """lab.bench.level.median_rerun: the row of the run with the median ratio (its seconds with it), the count and the
+    ratio's range; with an even count, the lower middle run."""
+    from addon.lab.bench import level
+    rows = [{"pipeline_seconds": s, "outside_over_cycles": r} for s, r in ((2.4, 0.2), (2.1, 0.1), (2.2, 0.15))]
+    assert level.median_rerun(rows) == {"pipeline_seconds": 2.2, "outside_over_cycles": 0.15, "reruns": 3,
+                                        "outside_over_cycles_range": "0.100-0.200"}
+    assert level.median_rerun(rows[:2])["pipeline_seconds"] == 2.1
+    assert level.median_rerun(rows[:1])["outside_over_cycles_range"] == "0.200-0.200"
