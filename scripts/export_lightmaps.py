@@ -32,6 +32,8 @@ def main(args):
         raise InputError(f"--out: its output folder is a file: {os.path.dirname(out)}")
     if not out.lower().endswith(".glb"):
         raise InputError(f"--out: not a .glb file name: {out}")
+    if os.path.isdir(out):
+        raise InputError(f"--out: is a folder: {out}")
     if not os.path.isdir(os.path.dirname(out)):
         raise InputError(f"--out: no such folder: {os.path.dirname(out)}")
     folder = os.path.abspath(args.lightmaps)
@@ -41,6 +43,12 @@ def main(args):
         import io_scene_gltf2  # noqa: F401
     except ImportError:
         raise InputError("Blender's glTF exporter (io_scene_gltf2) is not available in this Blender") from None
+    if args.godot or args.unity:
+        from addon.bake.engines import engine_maps
+        from addon.bake.gltf import Plan
+        names = list(Plan(folder, bpy.context.scene).maps)
+        if names:                                   # else export_glb says why nothing can be exported
+            engine_maps(bpy.context.scene, folder, names, args.godot)
     result = export_glb(bpy.context.scene, folder, out, ao_with_irradiance=args.ao_with_irradiance)
     for line in result["notes"]:
         errors.warn(line)

@@ -11,8 +11,7 @@ from ..core.errors import InputError
 from ..core.io import engines, exr
 from ..core.io.files import write_bytes
 from ..core.io.files import write_json
-from .gltf import Plan
-from .kinds import KINDS
+from .gltf import Plan, read_map
 
 
 def _node_parts(obj):
@@ -32,24 +31,41 @@ def _engine_map(scene, folder, names, kind="irradiance"):
             continue
         _, file = entry
         if file not in maps:
-            channels, _ = exr.read_exr(file)
-            maps[file] = KINDS[kind].from_exr(channels)
+            maps[file] = read_map(kind, file)
         users[name] = _node_parts(scene.objects[name])
         map_of[name] = file
     return engines.EngineMap(users, map_of, maps)
 
 
-def write_engine_files(scene, folder, glb, names, godot=True, unity=True):
-    """Write the Godot and/or Unity files for the objects ``names`` of the export ``glb``; return their paths."""
+def engine_maps(scene, folder, names, godot=True):
+    """(irradiance :class:`core.io.engines.EngineMap`, directional one or None) of the objects ``names`` for the
+    engine files; InputError when none has a map to hand over or, for ``godot``, when the stacked texture would be
+    too large or the nodes' names would not stay the glTF's (:func:`core.io.engines.godot_name_clashes`). The
+    export script calls it before writing the .glb, so that a refusal writes nothing."""
     em = _engine_map(scene, folder, names)
-    out, stem = os.path.dirname(glb), os.path.splitext(os.path.basename(glb))[0]
-    written = []
     sh = _engine_map(scene, folder, names, "directional")
     sh = sh if sh.map_of and set(sh.map_of) >= set(em.map_of) else None
     if not (em.map_of or sh):
         raise InputError("--godot / --unity: no exported object has an irradiance or directional map to hand over")
-    if godot and (sh or em.map_of):
+    if godot:
         engines.check_godot_size(sh or em, 4 if sh else 1)
+        needed = {part for parts in (sh or em).users.values() for part in parts}
+        clashes = engines.godot_name_clashes([o.name for o in scene.objects], needed)
+        if clashes:
+            listed = "; ".join(", ".join(f"'{n}'" for n in group) for group in clashes)
+            raise InputError(f"--godot: objects whose names Godot's glTF import makes alike (it writes "
+                             f"{engines.GODOT_INVALID} as _, then numbers the copies): {listed}: rename them so "
+                             f"that the light maps find their nodes")
+    return em, sh
+
+
+def write_engine_files(scene, folder, glb, names, godot=True, unity=True):
+    """Write the Godot and/or Unity files for the objects ``names`` of the export ``glb`` (:func:`engine_maps`);
+    return their paths."""
+    em, sh = engine_maps(scene, folder, names, godot)
+    out, stem = os.path.dirname(glb), os.path.splitext(os.path.basename(glb))[0]
+    written = []
+    if godot:
         image, where = engines.godot_sh_layers(sh) if sh else engines.godot_layers(em)
         layers = 4 * len(where) if sh else len(where)
         texture = f"{stem}.lightmap.exr"

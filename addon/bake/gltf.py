@@ -76,6 +76,24 @@ def encode_directional(values):
     return [e0] + [np.rint(m * LEVELS).clip(0, LEVELS).astype(np.uint8) for m in l1], intensity
 
 
+def read_map(kind, path):
+    """The values of map file ``path`` of ``kind`` (``Kind.from_exr``); InputError naming the file when it cannot be
+    read, lacks the kind's channels or holds values that are not finite (a file edited or written by another tool:
+    the bake never writes them), so an export refuses it before writing anything."""
+    try:
+        channels, _ = exr.read_exr(path)
+        values = KINDS[kind].from_exr(channels)
+    except KeyError as e:
+        raise InputError(f"{path}: no channel {e}, so not a map of kind '{kind}': bake it again") from None
+    except (OSError, RuntimeError, ValueError) as e:
+        raise InputError(f"{path}: cannot be read as a {kind} map ({e}): bake it again") from None
+    bad = ~np.isfinite(values)
+    if bad.any():
+        raise InputError(f"{path}: {int(bad.sum())} value(s) of the {kind} map are not finite (NaN or infinite): "
+                         f"bake it again")
+    return values
+
+
 def encoding_error(intensity):
     """The largest |decoded - E| of :func:`encode_irradiance` (half an 8-bit step of ``intensity``)."""
     return intensity / (2 * LEVELS)
@@ -108,7 +126,7 @@ class Plan:
                     vertex.append(f"{name} ({kind})")
                     continue
                 layer = entry.get("uv_layer")
-                if not layer or obj.data.uv_layers.get(layer) is None:
+                if not isinstance(layer, str) or not layer or obj.data.uv_layers.get(layer) is None:
                     no_uv.append(f"{name} ('{layer}')")
                     break
                 file = entry_file(folder, entry)
@@ -135,6 +153,23 @@ class Plan:
             self.notes.append("skipped, map file missing: " + ", ".join(no_file))
         if absent:
             self.notes.append("in the report but not a mesh in the scene: " + ", ".join(absent))
+
+    def encoded(self):
+        """{(kind, file): (PNG bytes, or a directional map's four, intensity)} of every map to export, each file
+        read once (:func:`read_map`: a file that cannot be exported is refused here, before anything is written)."""
+        out = {}
+        for maps in self.maps.values():
+            for kind, (_, path) in maps.items():
+                if (kind, path) in out:
+                    continue
+                values = read_map(kind, path)
+                if kind == "directional":
+                    layers, intensity = encode_directional(values)
+                    out[(kind, path)] = [encode_png(p) for p in layers], intensity
+                else:
+                    pixels, intensity = encode_irradiance(values) if kind == "irradiance" else (encode_ao(values), 1.0)
+                    out[(kind, path)] = encode_png(pixels), intensity
+        return out
 
 
 def _reorder_uvs(me, layer):
@@ -209,14 +244,14 @@ def _prepared(scene, plan):
 
 
 def _extension_class(plan, state, ao_with_irradiance=False):
-    """The exporter's user extension for ``plan``; ``state`` collects textures (one per map file), intensities
-    and errors (the exporter logs and swallows a hook's exceptions)."""
+    """The exporter's user extension for ``plan``; ``state`` holds the maps encoded (``Plan.encoded``) and collects
+    textures (one per map file), intensities and errors (the exporter logs and swallows a hook's exceptions)."""
     from io_scene_gltf2.io.com import gltf2_io
     from io_scene_gltf2.io.com.gltf2_io_extensions import Extension
     from io_scene_gltf2.io.exp.binary_data import BinaryData
 
-    def gltf_texture(pixels, name):
-        image = gltf2_io.Image(buffer_view=BinaryData(data=encode_png(pixels)), extensions=None, extras=None,
+    def gltf_texture(png, name):
+        image = gltf2_io.Image(buffer_view=BinaryData(data=png), extensions=None, extras=None,
                                mime_type="image/png", name=name, uri=None)
         if "sampler" not in state:
             state["sampler"] = gltf2_io.Sampler(extensions=None, extras=None, mag_filter=LINEAR,
@@ -227,15 +262,12 @@ def _extension_class(plan, state, ao_with_irradiance=False):
         """(glTF texture, intensity) of a map file; a directional map gives ([four textures], intensity)."""
         key = (kind, path)
         if key not in state["textures"]:
-            chans, _ = exr.read_exr(path)
-            values = KINDS[kind].from_exr(chans)
+            png, intensity = state["encoded"][key]
             name = os.path.splitext(os.path.basename(path))[0]
             if kind == "directional":
-                layers, intensity = encode_directional(values)
-                tex = [gltf_texture(p, f"{name}_{part}") for p, part in zip(layers, ("e0", "l1y", "l1z", "l1x"))]
+                tex = [gltf_texture(p, f"{name}_{part}") for p, part in zip(png, ("e0", "l1y", "l1z", "l1x"))]
             else:
-                pixels, intensity = encode_irradiance(values) if kind == "irradiance" else (encode_ao(values), 1.0)
-                tex = gltf_texture(pixels, name)
+                tex = gltf_texture(png, name)
             state["textures"][key] = (tex, intensity)
         return state["textures"][key]
 
@@ -305,7 +337,7 @@ def export_glb(scene, folder, out, ao_with_irradiance=False):
     plan = Plan(folder, scene)
     if not plan.maps:
         raise InputError("no object of the report can carry its maps: " + "; ".join(plan.notes or ["none baked"]))
-    state = {"textures": {}, "errors": [], "done": set()}
+    state = {"textures": {}, "errors": [], "done": set(), "encoded": plan.encoded()}
     tmp = os.path.join(os.path.dirname(out), f".{os.path.basename(out)}.{os.getpid()}.tmp.glb")
     try:
         hooks = _extension_class(plan, state, ao_with_irradiance)

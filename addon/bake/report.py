@@ -195,13 +195,17 @@ def _load_report(path, then):
 
 
 def entry_file(folder, entry):
-    """The map file of a report entry: its "file", else a file of that name in ``folder`` (a moved folder); None
-    when neither exists."""
-    name = entry.get("file") or ""
-    if name and os.path.isabs(name) and os.path.isfile(name):
-        return name
-    moved = os.path.join(folder, os.path.basename(name))
-    return moved if name and os.path.isfile(moved) else None
+    """The map file of a report entry: the file named as its "file" (a path written by the bake, / or \\
+    separated) in ``folder`` itself, the folder as given (also copied or moved: a copy's report still names the
+    original's paths), never a file elsewhere; None when it is not there or "file" is not a path."""
+    name = entry.get("file") if isinstance(entry, dict) else None
+    if not isinstance(name, str):
+        return None
+    base = name.replace("\\", "/").rsplit("/", 1)[-1]
+    if base in ("", ".", ".."):
+        return None
+    path = os.path.join(folder, base)
+    return path if os.path.isfile(path) else None
 
 
 def read_objects(path):

@@ -3,6 +3,7 @@ own EXRs and the .glb's node names (what Godot's and Unity's glTF importers name
 engines: docs/lightmaps.md says what was verified."""
 import json
 import math
+import os
 import re
 
 import numpy as np
@@ -55,3 +56,28 @@ def test_godot_and_unity_files_hold_e_over_pi_for_each_glb_node(baked, tmp_path,
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith("scene.")) == sorted(
         ["scene.glb", "scene.lightmap.exr", "scene.lightmap.exr.import", "scene.lightmap.tres", "scene.unity.json"]
         + [f"scene.unity_lightmap_{i}.exr" for i in range(len(names))])
+
+
+def test_names_godot_makes_alike_are_refused_for_godot(tmp_path, script):
+    """Objects named 'x.y' and 'x_y' become two Godot nodes 'x_y' and 'x_y2' (its glTF import writes . as _ and
+    numbers the copies), so a LightmapGIData naming '../x_y' twice would light one node with both maps: --godot is
+    refused naming them, before anything is written; Unity, which keys renderers by the glTF's names, is not."""
+    import bpy
+    from addon.bake import bake_lightmaps
+    from addon.bake.options import BakeOptions
+    from tests.scripts.test_export_lightmaps import _scene
+    scene, plane, cube = _scene()
+    plane.name, cube.name = "x.y", "x_y"
+    out = tmp_path / "maps"
+    bake_lightmaps([plane, cube], ["irradiance"], str(out), BakeOptions(resolution=8, samples=1, bounces=1),
+                   scene=scene)
+    blend = tmp_path / "named.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    dest = tmp_path / "godot"
+    dest.mkdir()
+    r = script("export_lightmaps.py", blend, "--lightmaps", out, "--out", dest / "s.glb", "--godot")
+    assert r.returncode == 2 and "'x.y', 'x_y'" in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert os.listdir(dest) == []
+    r = script("export_lightmaps.py", blend, "--lightmaps", out, "--out", dest / "s.glb", "--unity")
+    assert r.returncode == 0, r.stderr
+    assert sorted(json.loads((dest / "s.unity.json").read_text())["renderers"]) == ["x.y", "x_y"]

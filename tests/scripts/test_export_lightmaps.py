@@ -205,3 +205,67 @@ def test_bad_input_exits_2(baked, tmp_path, script):
     assert r.returncode == 2
     assert len(r.stderr.strip().splitlines()) == 1 and "bake_report.json" in r.stderr
     assert not (tmp_path / "x.glb").exists()
+
+
+def _poke(path, value, scale=1.0):
+    """Rewrite map file ``path`` with every value times ``scale`` and texel (0, 0) set to ``value`` (None: kept)."""
+    ch, header = exr.read_exr(path)
+    ch = {k: v * scale if k != "A" else v for k, v in ch.items()}
+    if value is not None:
+        for k in "RGB":
+            ch[k][0, 0] = value
+    _write_raw(path, ch)          # exr.write_exr refuses values that are not finite
+
+
+def _write_raw(path, channels):
+    import OpenEXR
+    with OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage},
+                      {k: np.ascontiguousarray(v, np.float32) for k, v in channels.items()}) as f:
+        f.write(str(path))
+
+
+def test_a_copied_folder_exports_its_own_maps(baked, tmp_path, script):
+    """The report of a copied bake folder still names the original's files: the export reads the maps of the folder
+    it is given (the copy's, here twice as bright), never files elsewhere."""
+    import shutil
+    blend, out, report = baked
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    _poke(copy / os.path.basename(report["Cube"]["irradiance"]["file"]), None, scale=2.0)
+    chans, _ = exr.read_exr(report["Cube"]["irradiance"]["file"])
+    peak = max(float(chans[c].max()) for c in "RGB")
+    r = script("export_lightmaps.py", blend, "--lightmaps", copy, "--out", tmp_path / "copy.glb")
+    assert r.returncode == 0, r.stderr
+    line = next(l for l in r.stdout.splitlines() if l.startswith("Cube:"))
+    assert float(line.split("intensity ")[1].split()[0]) == pytest.approx(2 * peak, rel=1e-5)
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf")], ids=["nan", "inf"])
+def test_a_map_that_is_not_finite_is_refused_before_anything_is_written(baked, tmp_path, script, value):
+    blend, out, report = baked
+    path = report["Cube"]["irradiance"]["file"]
+    _poke(path, value)
+    for extra in ((), ("--godot", "--unity")):
+        dest = tmp_path / f"out{len(extra)}"
+        dest.mkdir()
+        r = script("export_lightmaps.py", blend, "--lightmaps", out, "--out", dest / "s.glb", *extra)
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+        assert path in r.stderr and "not finite" in r.stderr
+        assert os.listdir(dest) == []
+
+
+def test_engine_files_refused_before_the_glb_when_nothing_can_be_handed_over(baked, tmp_path, script):
+    """AO alone gives an engine nothing to hand over: --godot / --unity refuse before writing the .glb; --out naming
+    a folder is refused as such."""
+    blend, out, _ = baked
+    path = out / "bake_report.json"
+    report = json.loads(path.read_text())
+    report["objects"] = {name: {"ao": maps["ao"]} for name, maps in report["objects"].items()}
+    path.write_text(json.dumps(report))
+    dest = tmp_path / "engines"
+    dest.mkdir()
+    r = script("export_lightmaps.py", blend, "--lightmaps", out, "--out", dest / "s.glb", "--unity")
+    assert r.returncode == 2 and "irradiance or directional" in r.stderr and os.listdir(dest) == []
+    (dest / "s.glb").mkdir()
+    r = script("export_lightmaps.py", blend, "--lightmaps", out, "--out", dest / "s.glb")
+    assert r.returncode == 2 and "--out: is a folder" in r.stderr and len(r.stderr.strip().splitlines()) == 1

@@ -50,6 +50,16 @@ def godot_node_name(name):
     return "".join("_" if c in GODOT_INVALID else c for c in name)
 
 
+def godot_name_clashes(names, needed):
+    """Groups (sorted lists) of ``names`` (every node of the glTF) that Godot's glTF import gives one node name
+    (:func:`godot_node_name`; it then numbers all but the first, scene-wide, in the glTF's order), among them a name
+    of ``needed`` (the nodes a LightmapGIData path runs through)."""
+    groups = {}
+    for name in names:
+        groups.setdefault(godot_node_name(name), []).append(name)
+    return [sorted(g) for _, g in sorted(groups.items()) if len(g) > 1 and any(n in needed for n in g)]
+
+
 def _node_path(parts):
     path = "/".join(godot_node_name(p) for p in parts)
     return "../" + path.replace("\\", "\\\\")
