@@ -35,6 +35,7 @@ from ..core import directional
 from ..core.errors import ILError, InputError
 from ..core.io import exr
 from ..core.io.png import encode_png
+from . import cycles
 from .kinds import KINDS
 from .report import REPORT, entry_file, read_objects
 
@@ -153,6 +154,17 @@ class Plan:
             self.notes.append("skipped, map file missing: " + ", ".join(no_file))
         if absent:
             self.notes.append("in the report but not a mesh in the scene: " + ", ".join(absent))
+        unlit = sorted(name for name, maps in self.maps.items() for kind, (entry, _) in maps.items()
+                       if entry.get("unlit"))
+        if unlit:
+            self.notes.append("exported black, the bake found no light reaching them (their report entries' "
+                              "\"unlit\"): " + ", ".join(unlit))
+        placed = sorted({f"{name} (by '{o.name}')" for o in scene.objects if o.instance_type == "COLLECTION"
+                         and o.instance_collection is not None for name in self.maps
+                         if name in o.instance_collection.all_objects})
+        if placed:
+            self.notes.append("placed again by a collection instance, whose copies carry the map baked where the "
+                              "object itself stands (make the instance real to bake each copy): " + ", ".join(placed))
 
     def encoded(self):
         """{(kind, file): (PNG bytes, or a directional map's four, intensity)} of every map to export, each file
@@ -274,10 +286,14 @@ def _extension_class(plan, state, ao_with_irradiance=False):
     class LightmapExtension:
         def gather_mesh_hook(self, gltf2_mesh, blender_mesh, *rest):
             """(mesh, blender mesh, object, vertex groups, modifiers, materials, settings) in 4.5-5.3: the
-            temporary copy's glTF mesh gets the original mesh's name."""
+            temporary copy's glTF mesh gets the original mesh's name (a mesh with its modifiers applied is a new
+            one: the name is then its object's temporary copy's)."""
             try:
-                if blender_mesh is not None and blender_mesh.get(NAME):
-                    gltf2_mesh.name = blender_mesh[NAME]
+                obj = rest[0] if rest else None
+                for me in (blender_mesh, getattr(obj, "data", None)):
+                    if me is not None and me.get(NAME):
+                        gltf2_mesh.name = me[NAME]
+                        break
             except Exception as e:  # noqa: BLE001
                 state["errors"].append(f"{type(e).__name__}: {e}")
 
@@ -313,6 +329,22 @@ def _extension_class(plan, state, ao_with_irradiance=False):
 
 
 @contextlib.contextmanager
+def _as_rendered(scene):
+    """The viewport's evaluation of ``scene`` given a render's settings (``cycles.render_variants``: the meshes the
+    bake baked, e.g. a Subdivision Surface at its render levels) for the block; the settings come back after."""
+    variants = cycles.render_variants(scene, list(scene.objects))
+    saved = [(owner, attr, getattr(owner, attr)) for owner, attr, _ in variants]
+    try:
+        cycles.evaluate_as_render(scene, variants)
+        yield
+    finally:
+        for owner, attr, value in reversed(saved):
+            setattr(owner, attr, value)
+        if saved:
+            scene.view_layers[0].update()
+
+
+@contextlib.contextmanager
 def _registered(extension):
     """``extension`` seen by the glTF exporter (which collects ``glTF2ExportUserExtension`` of each enabled
     add-on's module) during the block only: a temporary add-on entry naming this module."""
@@ -341,9 +373,9 @@ def export_glb(scene, folder, out, ao_with_irradiance=False):
     tmp = os.path.join(os.path.dirname(out), f".{os.path.basename(out)}.{os.getpid()}.tmp.glb")
     try:
         hooks = _extension_class(plan, state, ao_with_irradiance)
-        with _prepared(scene, plan), _registered(hooks), interrupt.blender_call():
+        with _prepared(scene, plan), _as_rendered(scene), _registered(hooks), interrupt.blender_call():
             result = bpy.ops.export_scene.gltf(filepath=tmp, export_format="GLB", use_selection=False,
-                                               export_texcoords=True, export_animations=False)
+                                               export_texcoords=True, export_animations=False, export_apply=True)
         if "FINISHED" not in result:
             raise ILError(f"Blender's glTF exporter did not finish ({', '.join(result)})")
         if state["errors"]:

@@ -269,3 +269,59 @@ def test_engine_files_refused_before_the_glb_when_nothing_can_be_handed_over(bak
     (dest / "s.glb").mkdir()
     r = script("export_lightmaps.py", blend, "--lightmaps", out, "--out", dest / "s.glb")
     assert r.returncode == 2 and "--out: is a folder" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_modifiers_are_exported_applied_as_the_bake_baked_them(tmp_path):
+    """A cube with a Subdivision Surface (1 level in the viewport, 2 in renders: the bake bakes 2) and an Array: the
+    .glb carries the mesh the bake baked (2 x 6 x 16 quads), its TEXCOORD_1 the evaluated light-map UVs, under the
+    original mesh's name with its map; the modifier's viewport level is 1 again after the export."""
+    from addon.bake.gltf import export_glb
+    scene, plane, cube = _scene()
+    sub = cube.modifiers.new("Subdivision", "SUBSURF")
+    sub.levels, sub.render_levels = 1, 2
+    cube.modifiers.new("Array", "ARRAY").count = 2
+    out = tmp_path / "maps"
+    report = bake_lightmaps([plane, cube], ["irradiance"], str(out), BakeOptions(resolution=32, samples=1, bounces=1),
+                            scene=scene)["objects"]
+    glb = tmp_path / "mods.glb"
+    result = export_glb(scene, str(out), str(glb))
+    assert sorted(result["objects"]) == ["Cube", "Plane"] and sub.levels == 1
+    gltf, binary = _read_glb(glb)
+    node = next(n for n in gltf["nodes"] if n["name"] == "Cube")
+    mesh = gltf["meshes"][node["mesh"]]
+    assert mesh["name"] == cube.data.name
+    (prim,) = mesh["primitives"]
+    assert gltf["accessors"][prim["indices"]]["count"] == 3 * 2 * 2 * 6 * 16
+    assert EXTENSION in gltf["materials"][prim["material"]]["extensions"]
+    sub.levels = 2
+    try:
+        evaluated = cube.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+        uv = np.array([d.uv[:] for d in evaluated.uv_layers[report["Cube"]["irradiance"]["uv_layer"]].data])
+    finally:
+        sub.levels = 1
+    uv1 = _accessor(gltf, binary, prim["attributes"]["TEXCOORD_1"])
+    assert {(round(u, 4), round(1.0 - v, 4)) for u, v in uv} == {(round(float(u), 4), round(float(v), 4))
+                                                                  for u, v in uv1}
+
+
+def test_the_export_says_what_it_carries_that_is_not_the_bakes_answer(baked, tmp_path):
+    """A map the bake found unlit (its entry's "unlit") is exported black with a note naming it; an object a collection
+    instance places again is named with the instance (its copies carry the map baked where the object stands)."""
+    from addon.bake.gltf import export_glb
+    _, out, _ = baked
+    scene = bpy.context.scene
+    cube = bpy.data.objects["Cube"]
+    props = bpy.data.collections.new("Props")
+    scene.collection.children.link(props)
+    props.objects.link(cube)
+    instance = bpy.data.objects.new("Instance", None)
+    instance.instance_type, instance.instance_collection = "COLLECTION", props
+    scene.collection.objects.link(instance)
+    path = out / "bake_report.json"
+    report = json.loads(path.read_text())
+    report["objects"]["Plane"]["irradiance"]["unlit"] = "'Plane' irradiance: 0 on every texel"
+    path.write_text(json.dumps(report))
+    notes = export_glb(scene, str(out), str(tmp_path / "notes.glb"))["notes"]
+    assert len(notes) == 2, notes
+    assert notes[0].startswith("exported black") and notes[0].endswith(": Plane")
+    assert notes[1].endswith("Cube (by 'Instance')")
