@@ -8,10 +8,10 @@ Each baked mesh carries its light-map UV layer as TEXCOORD_1, irradiance as the 
 {"index", "texCoord": 1, "intensity"}: an 8-bit linear PNG of E / max(E) with intensity = max(E) in W/m², AO as the
 material's occlusionTexture (texCoord 1) where no irradiance was baked (E holds the occlusion already, and a client
 multiplies the light map by the occlusion: --ao-with-irradiance exports both; docs/lightmaps.md, "Export"). A
-batch bake does not save the .blend, so open the copy it saved (bake.py --save-as): objects whose light-map UV layer
-is not in the file are named and skipped. Only --out is written (a temporary file beside it, then moved into
-place), and with --godot / --unity the engine files beside it, named after it (docs/lightmaps.md, "Godot 4 and
-Unity"): STEM.lightmap.exr, .exr.import and STEM.lightmap.tres; STEM.unity_lightmap_K.exr and STEM.unity.json.
+batch bake does not save the .blend: the light-map UV layers it generated come from the bake folder's UV cache
+(or open the copy bake.py --save-as wrote); objects whose layer is in neither are named and skipped. Only --out is
+written (a temporary file beside it, then moved into place), and with --godot / --unity the engine files beside it,
+named after it (docs/lightmaps.md, "Godot 4 and Unity"): STEM.lightmap.exr, .exr.import and STEM.lightmap.tres; STEM.unity_lightmap_K.exr and STEM.unity.json.
 """
 import os
 import sys

@@ -35,7 +35,7 @@ from ..core import directional
 from ..core.errors import ILError, InputError
 from ..core.io import exr
 from ..core.io.png import encode_png
-from . import cycles
+from . import cycles, uvcache
 from .kinds import KINDS
 from .report import REPORT, entry_file, read_objects
 
@@ -102,7 +102,9 @@ def encoding_error(intensity):
 
 class Plan:
     """What the export carries: {object name: {kind: (entry, file)}} of the baked meshes that can carry it, the
-    light-map UV layer of each, and the lines naming objects left out."""
+    light-map UV layer of each, the UVs of the layers the file lacks (``restore``: read from the bake folder's UV
+    cache by the entries' "uv_cache", :func:`uvcache.layout_of`; a batch bake does not save the .blend) and the
+    lines naming objects left out."""
 
     def __init__(self, folder, scene):
         path = os.path.join(folder, REPORT)
@@ -111,7 +113,7 @@ class Plan:
         report = read_objects(path)
         if not report:
             raise InputError(f"{path} is unreadable or lists no baked objects")
-        self.maps, self.layers, self.notes = {}, {}, []
+        self.maps, self.layers, self.notes, self.restore = {}, {}, [], {}
         vertex, no_uv, no_file, absent = [], [], [], []
         for name, entries in sorted(report.items()):
             obj = scene.objects.get(name)
@@ -127,9 +129,15 @@ class Plan:
                     vertex.append(f"{name} ({kind})")
                     continue
                 layer = entry.get("uv_layer")
-                if not isinstance(layer, str) or not layer or obj.data.uv_layers.get(layer) is None:
+                if not isinstance(layer, str) or not layer:
                     no_uv.append(f"{name} ('{layer}')")
                     break
+                if obj.data.uv_layers.get(layer) is None and name not in self.restore:
+                    uv = uvcache.layout_of(folder, entry.get("uv_cache"), len(obj.data.loops))
+                    if uv is None:
+                        no_uv.append(f"{name} ('{layer}')")
+                        break
+                    self.restore[name] = uv
                 file = entry_file(folder, entry)
                 if file is None:
                     no_file.append(f"{name} ({kind}: {entry.get('file')})")
@@ -145,9 +153,11 @@ class Plan:
                 continue
             self.maps.pop(name, None)
             self.layers.pop(name, None)
+            self.restore.pop(name, None)
         if no_uv:
-            self.notes.append("skipped, the light-map UV layer is not in the .blend (a batch bake does not save it: "
-                              "bake with --save-as and export that copy): " + ", ".join(sorted(set(no_uv))))
+            self.notes.append("skipped, the light-map UV layer is neither in the .blend nor in the bake folder's UV "
+                              "cache (.il-uv-cache; a mesh edited since the bake, a layer of your own that the file "
+                              "lost): " + ", ".join(sorted(set(no_uv))))
         if vertex:
             self.notes.append("skipped, vertex-colour maps are not exported: " + ", ".join(vertex))
         if no_file:
@@ -224,6 +234,12 @@ def _prepared(scene, plan):
             meshes.append(me)
             me[NAME] = obj.data.name
             obj.data = me
+            if name in plan.restore:
+                layer = me.uv_layers.new(name=plan.layers[name], do_init=False)
+                if layer is None:
+                    raise InputError(f"'{name}': its mesh has as many UV layers as Blender holds: the light-map layer "
+                                     f"from the bake folder's UV cache cannot be added")
+                layer.data.foreach_set("uv", plan.restore[name])
             _reorder_uvs(me, plan.layers[name])
             if not obj.material_slots:
                 mat = bpy.data.materials.new(f"{name} light map")

@@ -47,7 +47,8 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     "cycles_seconds" (inside the Cycles bake calls), "pilot_samples" (target_error runs) and, for
     images, "preview", "uv_layer", "coverage", "denoised", "unwrap" (the unwrapper of a layout generated in this
     run: "smart_project" or "lightmap_pack", ending in "+raster_pack" when its charts were placed again by their
-    texels) and "low_fill" (the warning line of a generated layout covering under uvchecks.FILL of its map).
+    texels), "low_fill" (the warning line of a generated layout covering under uvchecks.FILL of its map) and
+    "uv_cache" ([key, index] of the layout in ``<out>/.il-uv-cache``: an export of a file without the layer reads it).
     """
     named = isinstance(out, (str, os.PathLike)) and os.fspath(out).strip()
     with FIGURES.stored(figures_folder(out)) if named else contextlib.nullcontext():
@@ -164,6 +165,7 @@ class _Run:
     margins: dict = dataclasses.field(default_factory=dict)
     unwraps: dict = dataclasses.field(default_factory=dict)
     windows: dict = dataclasses.field(default_factory=dict)
+    caches: dict = dataclasses.field(default_factory=dict)
     fills: dict = dataclasses.field(default_factory=dict)
     errors: list = dataclasses.field(default_factory=list)
     tracker: Tracker = None
@@ -237,9 +239,9 @@ class _Run:
                     self.bake_alone(target, m)
 
     def record(self, made):
-        """Keep a :class:`uv.Layouts`' layers, sides, margins, unwrappers and windows."""
+        """Keep a :class:`uv.Layouts`' layers, sides, margins, unwrappers, windows and UV cache keys."""
         for have, new in ((self.layers, made.layers), (self.sides, made.sides), (self.margins, made.margins),
-                          (self.unwraps, made.unwraps), (self.windows, made.windows)):
+                          (self.unwraps, made.unwraps), (self.windows, made.windows), (self.caches, made.caches)):
             have.update(new)
 
     def check_fill(self, targets):
@@ -316,7 +318,7 @@ class _Run:
         result.seconds += t_files - t_map     # the header's il:seconds: bakes and checks, not the files
         entries = write.write_map(name, group, kind, result, self.out, self.options, self.layers, margin,
                                   target.overlap, self.digests[(name, kind)], self.stems, self.fills, self.unwraps,
-                                  self.scene)
+                                  self.scene, self.caches)
         for o in group:
             entries[o.name]["seconds"] = round(result.seconds + time.perf_counter() - t_files, 4)  # files included
             self.report["objects"].setdefault(o.name, {})[kind] = entries[o.name]

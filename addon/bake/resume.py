@@ -60,8 +60,9 @@ def _kept_entries(name, group, kind, out, options, stems, stored, old_reports):
             lines = json.loads(header_text(header.get("il:low_fill")) or "{}")
             made = json.loads(header_text(header.get("il:unwrap")) or "{}")
             seams = json.loads(header_text(header.get("il:seams")) or "{}")
+            cached = json.loads(header_text(header.get("il:uv_cache")) or "{}")
         except ValueError:
-            per, lines, made, seams = {}, {}, {}, {}
+            per, lines, made, seams, cached = {}, {}, {}, {}, {}
         whole = {"coverage": number("il:coverage"), "chart_area": number("il:chart_area")}
         if header.get("il:overlap") is not None:
             whole["overlap"] = number("il:overlap")
@@ -82,6 +83,8 @@ def _kept_entries(name, group, kind, out, options, stems, stored, old_reports):
                 extras[o.name]["unwrap"] = made[o.name]
             if isinstance(seams, dict) and isinstance(seams.get(o.name), dict):
                 extras[o.name]["seams"] = seams[o.name]
+            if isinstance(cached, dict) and isinstance(cached.get(o.name), list):
+                extras[o.name]["uv_cache"] = cached[o.name]
     entries = {}
     for o in group:
         fresh = write.entry(path, res, result, extras[o.name])

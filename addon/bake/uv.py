@@ -192,24 +192,29 @@ class Layouts:
     ``sides`` the side a generated layout was made for, ``margins`` its margin in texels (possibly lowered to
     half a texel; else the asked one; :func:`dilation` gives the texels the map is dilated by), ``unwraps`` the
     unwrapper of a generated layout (unwrap.UNWRAPPERS), ``windows`` (width, height, side) of a
-    generated layout carried into a window of its map (:func:`_cut_window`): its map is width x height."""
+    generated layout carried into a window of its map (:func:`_cut_window`): its map is width x height; ``caches``
+    (UV cache key, index of the object in the entry) of a layout the UV cache holds (generated or read from it), by
+    which an export of a file that lacks the layer finds it again (report entries' "uv_cache")."""
     layers: dict = dataclasses.field(default_factory=dict)
     sides: dict = dataclasses.field(default_factory=dict)
     margins: dict = dataclasses.field(default_factory=dict)
     unwraps: dict = dataclasses.field(default_factory=dict)
     windows: dict = dataclasses.field(default_factory=dict)
+    caches: dict = dataclasses.field(default_factory=dict)
 
 
 @dataclasses.dataclass
 class _Made:
     """A generated layout: the side it was made for, its margin in texels, its unwrapper, the side asked before it
-    was enlarged (0: not enlarged), the window (width, height, side) it was carried into (None: the square)."""
+    was enlarged (0: not enlarged), the window (width, height, side) it was carried into (None: the square), the
+    UV cache key it is kept under (None: no cache)."""
     side: int
     margin: float
     unwrap: str
     enlarged_from: int = 0
     welded: bool = False
     window: tuple = None
+    key: str = None
 
 
 def prepare(scene, objects, state, options, together=False, cache=None):
@@ -249,6 +254,7 @@ def _prepare_groups(scene, objects, state, options, together, cache, made):
                     if digest not in cache.memory:  # else its mesh's own key (moved, turned): that entry stays
                         cache.put(digest, uvcache.Entry([corner_uv(first.data, LIGHTMAP).ravel()],
                                                         layout.side, layout.margin, layout.unwrap, 0, layout.window))
+                    layout.key = digest
         else:
             layout = _layout(scene, group, state, options, made.layers, together, cache)
             if not together:
@@ -259,6 +265,8 @@ def _prepare_groups(scene, objects, state, options, together, cache, made):
             made.sides[o.name], made.margins[o.name], made.unwraps[o.name] = layout.side, layout.margin, layout.unwrap
             if layout.window:
                 made.windows[o.name] = layout.window
+        if layout.key:
+            made.caches.update((o.name, (layout.key, i)) for i, o in enumerate(group))
 
 
 def _shared(obj, layout, options):
@@ -292,13 +300,14 @@ def _layout(scene, group, state, options, names, together, cache):
         digest = uvcache.key(group, scene.view_layers[0].depsgraph, options, together)
         entry = cache.get(digest, [o.data for o in group])
     if entry is not None:
-        return _from_entry(group, entry, state, options)
+        return dataclasses.replace(_from_entry(group, entry, state, options), key=digest)
     if not together and LIGHTMAP in group[0].data.uv_layers and _reusable(group[0], options):
         return None
     made = _cut_window(group, _unwrap_with_margin(group, state, options, names), state, names, options)
     if cache is not None:
         uvs = [corner_uv(o.data, LIGHTMAP).ravel() for o in group]
         cache.put(digest, uvcache.Entry(uvs, made.side, made.margin, made.unwrap, made.enlarged_from, made.window))
+        made = dataclasses.replace(made, key=digest)
     return made
 
 

@@ -325,3 +325,48 @@ def test_the_export_says_what_it_carries_that_is_not_the_bakes_answer(baked, tmp
     assert len(notes) == 2, notes
     assert notes[0].startswith("exported black") and notes[0].endswith(": Plane")
     assert notes[1].endswith("Cube (by 'Instance')")
+
+
+def test_the_file_a_batch_bake_left_as_it_was_exports_through_the_bakes_uv_cache(tmp_path, script):
+    """bake.py never writes the file it bakes, so that file lacks the generated light-map layers: the export finds
+    them in the bake folder's UV cache (the report entries' "uv_cache"), the same TEXCOORD_1 and maps as the copy
+    --save-as wrote; a mesh edited since, or an entry naming no cache file, is skipped with its note."""
+    _scene()
+    original, copy = tmp_path / "level.blend", tmp_path / "copy.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(original), copy=True)
+    maps = tmp_path / "maps"
+    r = script("bake.py", original, "--objects", "Plane", "Cube", "--maps", "irradiance", "--resolution", "16",
+               "--samples", "2", "--out", maps, "--save-as", copy)
+    assert r.returncode == 0, r.stderr
+    report = json.loads((maps / "bake_report.json").read_text())["objects"]
+    assert all(len(report[n]["irradiance"]["uv_cache"][0]) == 40 for n in ("Plane", "Cube"))
+    glbs = {}
+    for blend in (original, copy):
+        glbs[blend] = tmp_path / f"{blend.stem}.glb"
+        r = script("export_lightmaps.py", blend, "--lightmaps", maps, "--out", glbs[blend])
+        assert r.returncode == 0 and "warning" not in r.stderr, r.stderr
+    texcoords = []
+    for glb in glbs.values():
+        gltf, binary = _read_glb(glb)
+        nodes = {n["name"]: n for n in gltf["nodes"]}
+        prims = {name: gltf["meshes"][nodes[name]["mesh"]]["primitives"][0] for name in ("Plane", "Cube")}
+        assert all(EXTENSION in gltf["materials"][p["material"]]["extensions"] for p in prims.values())
+        texcoords.append({name: _accessor(gltf, binary, p["attributes"]["TEXCOORD_1"]) for name, p in prims.items()})
+    for name in ("Plane", "Cube"):
+        np.testing.assert_array_equal(texcoords[0][name], texcoords[1][name])
+    path = maps / "bake_report.json"
+    data = json.loads(path.read_text())
+    data["objects"]["Cube"]["irradiance"]["uv_cache"] = ["../" * 3 + "x", 0]
+    path.write_text(json.dumps(data))
+    bpy.ops.wm.open_mainfile(filepath=str(original))
+    import bmesh
+    me = bpy.data.objects["Plane"].data            # the plane's mesh edited since the bake: its faces subdivided
+    bm = bmesh.new()
+    bm.from_mesh(me)
+    bmesh.ops.subdivide_edges(bm, edges=bm.edges[:], cuts=1, use_grid_fill=True)
+    bm.to_mesh(me)
+    bm.free()
+    bpy.ops.wm.save_as_mainfile(filepath=str(original), copy=True)
+    r = script("export_lightmaps.py", original, "--lightmaps", maps, "--out", tmp_path / "none.glb")
+    assert r.returncode == 2 and "UV cache" in r.stderr and "Cube ('Lightmap')" in r.stderr, r.stderr
+    assert "Plane ('Lightmap')" in r.stderr and len(r.stderr.strip().splitlines()) == 1
