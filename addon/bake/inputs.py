@@ -7,6 +7,7 @@ import numpy as np
 
 from ..blender import compat
 from ..blender.digest import node_tree_digest, rna_digest
+from ..blender.materials import user_material
 from ..blender.scene import corner_uv, corner_vertices, positions, subdivided_only
 from ..core.io import exr
 from . import uv as uvmod
@@ -45,7 +46,7 @@ def input_hash(scene, group, kind, options, lighting, parts=None):
     and triangles, exact), its modifiers' settings and the evaluated counts (none for a mesh only subdivided,
     ``blender.scene.subdivided_only``, whose evaluated mesh is not read; the evaluated positions themselves
     change in their last bit when a UV layer is added under a Subdivision; the UVs of ``options.uv_layer`` when
-    given), its transform and its materials' node trees, the
+    given), its transform and its materials' node trees (the user's own: ``blender.materials.user_material``), the
     lights and world (``lighting``, :func:`lighting_digest`; a ``lit`` kind only: irradiance) and the options that
     change the map.
     Other objects are not in it: moving an occluder leaves its neighbours' maps as they are (``force`` bakes them).
@@ -65,8 +66,8 @@ def input_hash(scene, group, kind, options, lighting, parts=None):
                 parts[o.as_pointer()] = part
         for data in part:
             h.update(data)
-        for slot in o.material_slots:
-            mat = slot.material
+        own = [user_material(slot.material) for slot in o.material_slots]
+        for mat in own if any(own) else ():          # empty slots render as none (a preview adds one)
             h.update((mat.name if mat else "-").encode())
             if KINDS[kind].lit and mat is not None:
                 h.update(repr(tuple(mat.diffuse_color)).encode())

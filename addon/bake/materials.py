@@ -20,6 +20,9 @@ class TemporaryMaterials:
     Directional: the irradiance material with the Lambert's normal tilted by nodes set per bake
     (:func:`directional_material`, :func:`show_bake`).
 
+    The originals are the user's own materials (``blender.materials.user_material``: a light-map preview, shading
+    model or environment mapping shown on a slot is looked through).
+
     Irradiance: per original slot material a copy whose surface is
     ``Mix(original, white Lambert, factor = Light Path "Is Camera Ray")``. Cycles starts
     every bake sample at the baked point with a camera path state (PATH_RAY_CAMERA,
@@ -39,7 +42,7 @@ class TemporaryMaterials:
         """Put the ``kind`` materials on every slot of ``group``; return their image nodes."""
         nodes = []
         for o in group:
-            originals = [mat for _, mat in self.state.slots[o.name]] or [None]
+            originals = [materials.user_material(mat) for _, mat in self.state.slots[o.name]] or [None]
             if len(o.material_slots) == 0:
                 o.data.materials.append(None)
             for slot, orig in zip(o.material_slots, originals):
@@ -53,7 +56,7 @@ class TemporaryMaterials:
     def batch_slots(self, obj, kind, key, image):
         """The ``kind`` materials of ``obj``'s slots (one for an object without slots) for a batched bake, their
         image nodes on ``image``: made once per group ``key`` and original material."""
-        originals = [mat for _, mat in self.state.slots[obj.name]] or [None]
+        originals = [materials.user_material(mat) for _, mat in self.state.slots[obj.name]] or [None]
         out = []
         for orig in originals:
             mat, tex = self.material(kind, orig, key)

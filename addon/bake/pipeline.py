@@ -10,6 +10,7 @@ import time
 
 import bpy
 
+from ..blender.materials import shows_layers, user_material
 from ..blender.progress import Progress
 from ..blender.state import SavedState
 from ..core import budget, errors
@@ -38,7 +39,8 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     baked. The user's file comes back as it was (materials,
     images, UV layers, selection, active object, render settings), also on errors and
     interruptions; only the products (generated "Lightmap" UV layer, "IL AO" /
-    "IL Irradiance" colour attributes) stay when ``options.keep_products``.
+    "IL Irradiance" colour attributes) stay when ``options.keep_products``. The bakes light the scene through the
+    user's own materials where the add-on's layers (light-map preview, shading model, environment mapping) show.
     ``on_step(message)`` is called at every step (progress hooks, tests).
 
     Report entry per object and map: DESIGN.md's "file", "resolution", "samples" (per texel, all bakes),
@@ -104,9 +106,13 @@ def _bake_fixed(objects, maps, out, options, scene, on_step):
         return JobResult(report, report_path, summary(report))
     variants = cycles.render_variants(scene, everyone)
     saved = cycles.bake_settings(scene) + [(owner, attr) for owner, attr, _ in variants]
-    with Progress("bake", steps) as progress, SavedState(scene, everyone, saved) as state:
+    layered = [o for o in scene.objects if o not in everyone and shows_layers(o)]
+    with Progress("bake", steps) as progress, SavedState(scene, everyone + layered, saved) as state:
         run = _Run(scene, maps, out, options, report, report_path, digests, stems, t_all, progress, on_step, state,
                    TemporaryMaterials(state), world=scene.world)
+        for o in layered:                   # the other objects light the bakes through the user's own materials
+            for slot in o.material_slots:
+                slot.material = user_material(slot.material)
         cycles.evaluate_as_render(scene, variants)
         cycles.show(everyone, state)
         cycles.flip_inside_out(scene, everyone, flips, state)

@@ -41,3 +41,30 @@ def no_closure(name, material=None):
     emission.inputs["Strength"].default_value = 0.0
     nt.links.new(emission.outputs["Emission"], out.inputs["Surface"])
     return mat
+
+
+def user_material(mat):
+    """The user's own material under the add-on's layers on a slot (None: an empty slot): a light-map preview
+    (``il_lightmap_link``: the slot's material before it, ``il_lightmap_original``), a shading model (``il_model``) or environment mapping (``il_envmap``) material
+    (``il_original``, or nothing when ``il_empty``), unwound however they are stacked; ``mat`` when it is none of
+    them. A bake lights the scene through these, not through the layers shown on top of them."""
+    for _ in range(8):
+        if mat is None:
+            return None
+        if "il_lightmap_link" in mat and mat.get("il_lightmap"):
+            mat = mat.get("il_lightmap_original")
+        elif mat.get("il_model") or mat.get("il_envmap") is not None:
+            if mat.get("il_empty"):
+                return None
+            if mat.get("il_original") is None:
+                return mat
+            mat = mat["il_original"]
+        else:
+            return mat
+    return mat
+
+
+def shows_layers(obj):
+    """Whether a slot of ``obj`` shows an add-on material over the user's own (:func:`user_material`)."""
+    return any(slot.material is not None and user_material(slot.material) != slot.material
+               for slot in getattr(obj, "material_slots", ()))

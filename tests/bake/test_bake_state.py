@@ -262,3 +262,43 @@ def test_ao_bakes_without_the_worlds_importance_map_and_the_world_comes_back(tmp
     bake_lightmaps([floor], ["ao"], tmp_path / "none", opts)
     a, b = (exr.read_exr(tmp_path / d / "Floor_ao.exr")[0] for d in ("manual", "none"))
     assert a.keys() == b.keys() and all(np.array_equal(a[c], b[c]) for c in a) and a["Y"].max() > 0
+
+
+def _emissive(name, strength):
+    m = bpy.data.materials.new(name)
+    compat.ensure_use_nodes(m)
+    bsdf = m.node_tree.nodes.get("Principled BSDF")
+    bsdf.inputs["Emission Color"].default_value = (1.0, 0.9, 0.8, 1.0)
+    bsdf.inputs["Emission Strength"].default_value = strength
+    return m
+
+
+@pytest.mark.both_versions
+def test_a_bake_lights_the_scene_through_the_users_materials_under_previews_and_shading_models(tmp_path):
+    """The add-on's own layers on slots (the light-map preview, a shading model) are looked through: the lamp that
+    lights the floor is an emissive material the preview and the Phong model hide, also on an object not baked.
+    Baked again with them shown, the maps are those of the first bake bit for bit, the inputs hash as unchanged, and
+    the layers are on the slots again afterwards."""
+    from addon.nodes import lightmap_preview as lp, material
+    scene = bpy.context.scene
+    floor = sc.plane(scene, "Floor", 4.0)
+    lamp = sc.plane(scene, "Lamp", 1.0, location=(0, 0, 1.5))
+    lamp.rotation_euler = (np.pi, 0.0, 0.0)
+    lamp.data.materials.append(_emissive("Bulb", 20.0))
+    box = sc.box(scene, "Box", 0.5)
+    box.location = (1.0, 1.0, 0.25)
+    box.data.materials.append(_emissive("Glow", 5.0))
+    opts = BakeOptions(resolution=16, samples=4, bounces=1, overwrite=True)
+    first = bake_lightmaps([floor, lamp], ["irradiance"], str(tmp_path / "a"), opts, scene=scene)
+    before = {n: exr.read_exr(first["objects"][n]["irradiance"]["file"])[0] for n in ("Floor", "Lamp")}
+    lp.apply_lightmaps([floor, lamp], str(tmp_path / "a"))
+    material.assign_materials(scene, [box], "PHONG")
+    shown = {o.name: [s.material for s in o.material_slots] for o in (floor, lamp, box)}
+    assert all(m.get("il_lightmap") or m.get("il_model") for ms in shown.values() for m in ms)
+    again = bake_lightmaps([floor, lamp], ["irradiance"], str(tmp_path / "b"), opts, scene=scene)
+    for name, chans in before.items():
+        after = exr.read_exr(again["objects"][name]["irradiance"]["file"])[0]
+        assert all(np.array_equal(chans[c], after[c]) for c in "RGB"), name
+    assert {o.name: [s.material for s in o.material_slots] for o in (floor, lamp, box)} == shown
+    resumed = bake_lightmaps([floor, lamp], ["irradiance"], str(tmp_path / "a"), opts, scene=scene)
+    assert resumed["unchanged"] == {"Floor": ["irradiance"], "Lamp": ["irradiance"]}
