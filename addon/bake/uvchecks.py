@@ -116,7 +116,8 @@ def check_overlap(scene, objects, layers, size):
     Measured at the map's size, scaled down to OVERLAP_SIDE. Warns above MAX_OVERLAP, naming the Array / Mirror
     modifiers whose copies repeat the base mesh's UVs (the light-map layer is made on the base mesh, so every copy gets
     the same texels; Solidify's second shell is such a copy), else too few texels for the triangles
-    (:func:`too_few_texels`), else the layer itself."""
+    (:func:`too_few_texels`), else a Boolean's operand that brings its own layer (:func:`_boolean_operands`), else
+    the layer itself."""
     scale = min(1.0, OVERLAP_SIDE / max(size))
     w, h = max(1, round(size[0] * scale)), max(1, round(size[1] * scale))
     depsgraph = scene.view_layers[0].depsgraph
@@ -134,6 +135,11 @@ def check_overlap(scene, objects, layers, size):
                         f"hold several faces, modifier {names}): apply the modifier to give each copy its own")
         elif _rendered_overlap(o, layer, depsgraph, FINE_SIDE, FINE_SIDE) <= MAX_OVERLAP:
             errors.warn(too_few_texels(o, _rendered_uv(o, layer, depsgraph), size))
+        elif _boolean_operands(o, layer):
+            names = ", ".join(f"'{x.name}'" for x in _boolean_operands(o, layer))
+            errors.warn(f"'{o.name}': the faces its Boolean modifier takes from {names} carry that mesh's UV layer "
+                        f"'{layer}' and share texels with its own ({100 * frac:.0f} % of its texels hold several "
+                        f"faces): apply the modifier, or leave {names} out of the bake")
         else:
             errors.warn(f"'{o.name}': faces share texels of UV layer '{layer}' ({100 * frac:.0f} % of its texels "
                         f"hold several faces, which get one value): use a layer without overlapping charts, or let "
@@ -142,6 +148,18 @@ def check_overlap(scene, objects, layers, size):
         return fractions, fractions[objects[0].name]
     every = np.concatenate([_rendered_uv(o, layers[o.name], depsgraph) for o in objects])
     return fractions, FIGURES.call(lightmap.overlap_fraction, every, w, h)
+
+
+def _boolean_operands(obj, layer):
+    """The meshes whose faces a Boolean modifier of ``obj`` (shown in renders) adds to it with their own UV layer
+    ``layer`` (Blender's Boolean keeps an operand's layer of the same name on its faces: a cutter baked too brings its
+    light-map layout into ``obj``'s)."""
+    out = []
+    for m in obj.modifiers:
+        if m.type == "BOOLEAN" and m.show_render:
+            ops = [m.object] if m.operand_type == "OBJECT" else list(m.collection.all_objects if m.collection else ())
+            out += [x for x in ops if x is not None and x.type == "MESH" and layer in x.data.uv_layers and x not in out]
+    return out
 
 
 def _rendered_overlap(obj, layer, depsgraph, w, h):

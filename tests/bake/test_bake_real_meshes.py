@@ -847,3 +847,28 @@ def test_a_remembered_smart_uv_project_layout_is_the_one_it_makes_again(monkeypa
         atlas.unwrap(1 / 32, 64)
         atlas.unwrap(1 / 32, 64)                                 # an atlas's re-packs depend on the side: not kept
         assert len(edits) >= 7 and atlas.layouts == {}
+
+
+@pytest.mark.both_versions
+def test_a_boolean_baked_with_its_cutter_names_the_cutter_for_the_shared_texels(tmp_path):
+    """Blender's Boolean keeps the cutter's UV layer of the same name on the faces it takes from it: baked together,
+    the cutter's generated "Lightmap" layout lands in the cut object's, whose texels then overlap. The warning names
+    the cutter and the ways out (before: "let the bake generate one", of a layer the bake had generated)."""
+    import warnings
+    block = added(bpy.ops.mesh.primitive_cube_add, size=2.0)
+    block.name = "Block"
+    cutter = added(bpy.ops.mesh.primitive_cube_add, size=1.0, location=(1.0, 1.0, 1.0))
+    cutter.name = "Cutter"
+    mod = block.modifiers.new("Cut", "BOOLEAN")
+    mod.operation, mod.object = "DIFFERENCE", cutter
+    opts = BakeOptions(resolution=32, samples=1, margin=1)
+    with pytest.warns(ILWarning, match=r"'Block': the faces its Boolean modifier takes from 'Cutter'") as caught:
+        rep = bake_lightmaps([block, cutter], ["ao"], tmp_path / "both", opts)
+    assert rep["objects"]["Block"]["ao"]["overlap"] > 0.01
+    assert not any("let the bake generate one" in str(w.message) for w in caught)
+    cutter.data.uv_layers.remove(cutter.data.uv_layers["Lightmap"])
+    block.data.uv_layers.remove(block.data.uv_layers["Lightmap"])
+    with warnings.catch_warnings(record=True) as alone:
+        warnings.simplefilter("always")
+        bake_lightmaps([block], ["ao"], tmp_path / "alone", opts)
+    assert not any("Boolean" in str(w.message) for w in alone)
