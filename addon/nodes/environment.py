@@ -236,10 +236,7 @@ def assign_environment_mapping(scene, objects, options=None):
     Non-meshes are skipped with a warning; InputError (nothing changed) when no mesh or no world image."""
     options = (options or EnvironmentOptions()).validate()
     objects = list(objects)
-    meshes, skipped = split_shadable(objects)
-    lights = [o.name for o in objects if o.type == "LIGHT"]
-    if lights:
-        skipped.append(f"{', '.join(lights)}: not a mesh")
+    meshes, skipped = split_shadable(objects, lights=True)
     if not meshes:
         what = "; ".join(skipped) or "nothing is selected"
         raise InputError(f"nothing to shade: select at least one mesh object ({what})")

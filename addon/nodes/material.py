@@ -517,11 +517,12 @@ def _unshadable(obj):
     return None
 
 
-def split_shadable(objects):
-    """(meshes that can be shaded, ["A, B: reason", ...] for the rest); selected lights are neither."""
+def split_shadable(objects, lights=False):
+    """(meshes that can be shaded, ["A, B: reason", ...] for the rest); selected lights are neither (the lights
+    of a shading model), or not meshes with ``lights``."""
     meshes, by_reason = [], {}
     for obj in objects:
-        reason = _unshadable(obj)
+        reason = "type" if lights and obj.type == "LIGHT" else _unshadable(obj)
         if reason is not None:
             by_reason.setdefault(reason, []).append(obj.name)
         elif obj.type == "MESH":

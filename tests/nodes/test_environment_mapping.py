@@ -113,9 +113,12 @@ def test_operator_skips_refuses_and_restores():
     with pytest.raises(InputError, match="nothing to shade"):
         E.assign_environment_mapping(sc, [camera])
     _world(sc)
+    lamp = bpy.data.objects.new("lamp", bpy.data.lights.new("lamp", "POINT"))
+    sc.collection.objects.link(lamp)
     for projection, shape in (("CUBE", (18, 108)), ("SPHERE", (45, 45))):
-        mats, warnings = E.assign_environment_mapping(sc, [ball, camera], E.EnvironmentOptions(projection=projection))
-        assert any("cam" in w for w in warnings)
+        mats, warnings = E.assign_environment_mapping(sc, [ball, camera, lamp],
+                                                      E.EnvironmentOptions(projection=projection))
+        assert warnings == ["skipped cam, lamp: not meshes"]          # one reason, named once
         img = next(n.image for n in mats[0].node_tree.nodes if n.bl_idname == "ShaderNodeTexImage")
         assert (img.size[1], img.size[0]) == shape                     # equal texel count: 2 H² = 2048
         assert mats[0]["il_original"] == own                           # the user's, not the first IL material
