@@ -11,7 +11,8 @@ multiplies the light map by the occlusion: --ao-with-irradiance exports both; do
 batch bake does not save the .blend: the light-map UV layers it generated come from the bake folder's UV cache
 (or open the copy bake.py --save-as wrote); objects whose layer is in neither are named and skipped. Only --out is
 written (a temporary file beside it, then moved into place), and with --godot / --unity the engine files beside it,
-named after it (docs/lightmaps.md, "Godot 4 and Unity"): STEM.lightmap.exr, .exr.import and STEM.lightmap.tres; STEM.unity_lightmap_K.exr and STEM.unity.json.
+named after it (docs/lightmaps.md, "Godot 4 and Unity"): STEM.lightmap.exr, .exr.import and STEM.lightmap.tres;
+STEM.unity_lightmap_K.exr and STEM.unity.json.
 """
 import os
 import sys

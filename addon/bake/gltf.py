@@ -114,7 +114,7 @@ class Plan:
         if not report:
             raise InputError(f"{path} is unreadable or lists no baked objects")
         self.maps, self.layers, self.notes, self.restore = {}, {}, [], {}
-        vertex, no_uv, no_file, absent = [], [], [], []
+        vertex, no_uv, no_file, absent, changed, refs = [], [], [], [], [], {}
         for name, entries in sorted(report.items()):
             obj = scene.objects.get(name)
             if obj is None or obj.type != "MESH":
@@ -132,19 +132,25 @@ class Plan:
                 if not isinstance(layer, str) or not layer:
                     no_uv.append(f"{name} ('{layer}')")
                     break
-                if obj.data.uv_layers.get(layer) is None and name not in self.restore:
-                    uv = uvcache.layout_of(folder, entry.get("uv_cache"), len(obj.data.loops))
-                    if uv is None:
-                        no_uv.append(f"{name} ('{layer}')")
-                        break
-                    self.restore[name] = uv
+                ref = entry.get("uv_cache")
+                if found and (self.layers[name] != layer or refs[name] != ref):
+                    no_uv.append(f"{name} ({kind} on '{layer}', baked through another layout than its other maps)")
+                    continue
                 file = entry_file(folder, entry)
                 if file is None:
                     no_file.append(f"{name} ({kind}: {entry.get('file')})")
                     continue
-                if found and self.layers[name] != layer:
-                    no_uv.append(f"{name} ({kind} on '{layer}', not '{self.layers[name]}')")
-                    continue
+                if not found:
+                    uv = uvcache.layout_of(folder, ref, len(obj.data.loops))
+                    if uv is None and uvcache.cached_entry(folder, ref):
+                        changed.append(name)
+                        break
+                    if uv is None and obj.data.uv_layers.get(layer) is None:
+                        no_uv.append(f"{name} ('{layer}')")
+                        break
+                    if uv is not None:
+                        self.restore[name] = uv      # the layout the maps were baked on, over the file's layer
+                    refs[name] = ref
                 self.layers[name] = layer
                 found[kind] = (entry, file)
             else:
@@ -158,6 +164,9 @@ class Plan:
             self.notes.append("skipped, the light-map UV layer is neither in the .blend nor in the bake folder's UV "
                               "cache (.il-uv-cache; a mesh edited since the bake, a layer of your own that the file "
                               "lost): " + ", ".join(sorted(set(no_uv))))
+        if changed:
+            self.notes.append("skipped, the mesh's corners are not those its light-map layout was made for (edited "
+                              "since the bake: bake it again): " + ", ".join(changed))
         if vertex:
             self.notes.append("skipped, vertex-colour maps are not exported: " + ", ".join(vertex))
         if no_file:
@@ -172,17 +181,23 @@ class Plan:
         placed = sorted({f"{name} (by '{o.name}')" for o in scene.objects if o.instance_type == "COLLECTION"
                          and o.instance_collection is not None for name in self.maps
                          if name in o.instance_collection.all_objects})
+        keyed = sorted(o.name for o in scene.objects if o.type == "MESH" and o.data.shape_keys is not None
+                       and any(m.show_viewport or m.show_render for m in o.modifiers))
+        if keyed:
+            self.notes.append("shape keys not exported, as Blender's glTF exporter applies the modifiers of these "
+                              "objects (so that the triangles are those baked): " + ", ".join(keyed))
         if placed:
             self.notes.append("placed again by a collection instance, whose copies carry the map baked where the "
                               "object itself stands (make the instance real to bake each copy): " + ", ".join(placed))
 
-    def encoded(self):
-        """{(kind, file): (PNG bytes, or a directional map's four, intensity)} of every map to export, each file
-        read once (:func:`read_map`: a file that cannot be exported is refused here, before anything is written)."""
+    def encoded(self, ao_with_irradiance=False):
+        """{(kind, file): (PNG bytes, or a directional map's four, intensity)} of every map to export (AO where no
+        irradiance is, unless ``ao_with_irradiance``), each file read once (:func:`read_map`: a file that cannot be
+        exported is refused here, before anything is written)."""
         out = {}
         for maps in self.maps.values():
             for kind, (_, path) in maps.items():
-                if (kind, path) in out:
+                if (kind, path) in out or kind == "ao" and "irradiance" in maps and not ao_with_irradiance:
                     continue
                 values = read_map(kind, path)
                 if kind == "directional":
@@ -235,7 +250,7 @@ def _prepared(scene, plan):
             me[NAME] = obj.data.name
             obj.data = me
             if name in plan.restore:
-                layer = me.uv_layers.new(name=plan.layers[name], do_init=False)
+                layer = me.uv_layers.get(plan.layers[name]) or me.uv_layers.new(name=plan.layers[name], do_init=False)
                 if layer is None:
                     raise InputError(f"'{name}': its mesh has as many UV layers as Blender holds: the light-map layer "
                                      f"from the bake folder's UV cache cannot be added")
@@ -385,7 +400,7 @@ def export_glb(scene, folder, out, ao_with_irradiance=False):
     plan = Plan(folder, scene)
     if not plan.maps:
         raise InputError("no object of the report can carry its maps: " + "; ".join(plan.notes or ["none baked"]))
-    state = {"textures": {}, "errors": [], "done": set(), "encoded": plan.encoded()}
+    state = {"textures": {}, "errors": [], "done": set(), "encoded": plan.encoded(ao_with_irradiance)}
     tmp = os.path.join(os.path.dirname(out), f".{os.path.basename(out)}.{os.getpid()}.tmp.glb")
     try:
         hooks = _extension_class(plan, state, ao_with_irradiance)

@@ -106,7 +106,7 @@ def _bake_fixed(objects, maps, out, options, scene, on_step):
         return JobResult(report, report_path, summary(report))
     variants = cycles.render_variants(scene, everyone)
     saved = cycles.bake_settings(scene) + [(owner, attr) for owner, attr, _ in variants]
-    layered = [o for o in scene.objects if o not in everyone and shows_layers(o)]
+    layered = _layered(scene, everyone)
     with Progress("bake", steps) as progress, SavedState(scene, everyone + layered, saved) as state:
         run = _Run(scene, maps, out, options, report, report_path, digests, stems, t_all, progress, on_step, state,
                    TemporaryMaterials(state), world=scene.world)
@@ -133,6 +133,19 @@ def _bake_fixed(objects, maps, out, options, scene, on_step):
     if failed:
         merge_report(report_path, {"objects": {}, "seconds": report["seconds"], "failed": failed})
     return JobResult(report, report_path, summary(report) + progress_line)
+
+
+def _layered(scene, everyone):
+    """The objects of ``scene`` other than ``everyone`` whose slots show the add-on's material layers
+    (``blender.materials.shows_layers``) and can take the user's own for the bakes: editable meshes (the others are
+    named in a warning: the bakes see their layers)."""
+    baked = {o.as_pointer() for o in everyone}
+    layered = [o for o in scene.objects if o.as_pointer() not in baked and shows_layers(o)]
+    fixed = [o for o in layered if o.type != "MESH" or o.library is not None or o.data.library is not None]
+    if fixed:
+        errors.warn("the bakes see the Illumination Lab materials shown on " + ", ".join(o.name for o in fixed)
+                    + " (linked from a library, or not meshes: their own materials cannot be put back for the bake)")
+    return [o for o in layered if o not in fixed]
 
 
 def _sharing(requested, baked):

@@ -167,14 +167,22 @@ class UVCache:
                            max_bytes=self.MAX_BYTES)
 
 
-def layout_of(folder, ref, loops):
-    """The UVs (flat float32, 2 per loop) of one object of a layout in the UV cache of output folder ``folder``: ``ref``
-    = [key, index] (a report entry's "uv_cache"), the entry there holding ``loops`` finite UVs in the unit square for
-    it; None otherwise (``ref`` comes from a file: it names an entry of the cache or nothing)."""
+def cached_entry(folder, ref):
+    """The path of the UV cache entry ``ref`` = [key, index] (a report entry's "uv_cache") names in output folder
+    ``folder`` when it is there, else None (``ref`` comes from a file: it names an entry of the cache or nothing)."""
     if not (isinstance(ref, list) and len(ref) == 2 and isinstance(ref[0], str) and re.fullmatch("[0-9a-f]{40}", ref[0])
             and type(ref[1]) is int):
         return None
-    entry = _read(os.path.join(folder, DIR, ref[0] + SUFFIX))
+    path = os.path.join(folder, DIR, ref[0] + SUFFIX)
+    return path if os.path.isfile(path) else None
+
+
+def layout_of(folder, ref, loops):
+    """The UVs (flat float32, 2 per loop) of one object of a layout in the UV cache of output folder ``folder``: the
+    entry :func:`cached_entry` finds, holding ``loops`` finite UVs in the unit square for object ``ref[1]``; None
+    otherwise."""
+    path = cached_entry(folder, ref)
+    entry = _read(path) if path else None
     if entry is None or not 0 <= ref[1] < len(entry.uvs):
         return None
     uv = entry.uvs[ref[1]]

@@ -135,11 +135,13 @@ def check_overlap(scene, objects, layers, size):
                         f"hold several faces, modifier {names}): apply the modifier to give each copy its own")
         elif _rendered_overlap(o, layer, depsgraph, FINE_SIDE, FINE_SIDE) <= MAX_OVERLAP:
             errors.warn(too_few_texels(o, _rendered_uv(o, layer, depsgraph), size))
-        elif _boolean_operands(o, layer):
-            names = ", ".join(f"'{x.name}'" for x in _boolean_operands(o, layer))
-            errors.warn(f"'{o.name}': the faces its Boolean modifier takes from {names} carry that mesh's UV layer "
-                        f"'{layer}' and share texels with its own ({100 * frac:.0f} % of its texels hold several "
-                        f"faces): apply the modifier, or leave {names} out of the bake")
+        elif operands := _boolean_operands(o, layer):
+            names = ", ".join(f"'{x.name}'" for x in operands)
+            way = (f"apply the modifier, or leave {names} out of the bake" if layer == LIGHTMAP else
+                   f"apply the modifier, or give those faces their own place in '{layer}'")
+            errors.warn(f"'{o.name}': the faces its Boolean modifier takes from {names} keep their own UV layer "
+                        f"'{layer}' and share texels with its faces ({100 * frac:.0f} % of its texels hold several "
+                        f"faces): {way}")
         else:
             errors.warn(f"'{o.name}': faces share texels of UV layer '{layer}' ({100 * frac:.0f} % of its texels "
                         f"hold several faces, which get one value): use a layer without overlapping charts, or let "

@@ -115,9 +115,9 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
     ``stems`` the file stems of :func:`file_stems`; ``low_fill`` {object: the :func:`uvchecks.low_fill` line} (report
     entries' "low_fill", header "il:low_fill"); ``unwraps`` {object: unwrapper of a layout made in this run}
     (entries' "unwrap", header "il:unwrap"); ``caches`` {object: (UV cache key, index)} of layouts the UV cache holds
-    (entries' "uv_cache", header "il:uv_cache": an export finds the layer there). With ``scene``, the seams are measured and stitched when needed
-    (:func:`seams.seam_step`: entries' "seams", header "il:seam_rms", "il:seam_fixed" and "il:seams", the entries'
-    figures by object, so an entry rebuilt on resume keeps them)."""
+    (entries' "uv_cache", header "il:uv_cache": an export finds the layer there). With ``scene``, the seams are
+    measured and stitched when needed (:func:`seams.seam_step`: entries' "seams", header "il:seam_rms",
+    "il:seam_fixed" and "il:seams", the entries' figures by object, so an entry rebuilt on resume keeps them)."""
     stems = stems or file_stems()
     if options.target != "image":
         return _write_vertices(group, kind, result, out, options, digest, stems)

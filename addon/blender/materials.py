@@ -45,9 +45,10 @@ def no_closure(name, material=None):
 
 def user_material(mat):
     """The user's own material under the add-on's layers on a slot (None: an empty slot): a light-map preview
-    (``il_lightmap_link``: the slot's material before it, ``il_lightmap_original``), a shading model (``il_model``) or environment mapping (``il_envmap``) material
-    (``il_original``, or nothing when ``il_empty``), unwound however they are stacked; ``mat`` when it is none of
-    them. A bake lights the scene through these, not through the layers shown on top of them."""
+    (``il_lightmap_link``: the slot's material before it, ``il_lightmap_original``), a shading model (``il_model``) or
+    environment mapping (``il_envmap``) material (``il_original``, or nothing when ``il_empty``), unwound however they
+    are stacked; ``mat`` when it is none of them. A bake lights the scene through these, not through the layers shown
+    on top of them."""
     for _ in range(8):
         if mat is None:
             return None

@@ -39,7 +39,7 @@ def read_report(folder):
     return read_objects(path)
 
 
-#: The map file of a report entry (its "file", else that name in the folder: a moved folder), or None.
+#: The map file of a report entry (its "file"'s name in the folder: also a copied or moved one), or None.
 map_file = entry_file
 
 

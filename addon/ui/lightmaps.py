@@ -157,6 +157,8 @@ class IL_OT_export_lightmaps(JobOperator, bpy.types.Operator):
             raise InputError(f"Choose a .glb file to write, not '{os.path.basename(out)}'")
         if not os.path.isdir(os.path.dirname(out)):
             raise InputError(f"No such folder: {os.path.dirname(out)}")
+        if os.path.isdir(out):
+            raise InputError(f"'{os.path.basename(out)}' is a folder: choose a .glb file to write")
         try:
             import io_scene_gltf2  # noqa: F401
         except ImportError:

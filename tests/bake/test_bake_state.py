@@ -302,3 +302,18 @@ def test_a_bake_lights_the_scene_through_the_users_materials_under_previews_and_
     assert {o.name: [s.material for s in o.material_slots] for o in (floor, lamp, box)} == shown
     resumed = bake_lightmaps([floor, lamp], ["irradiance"], str(tmp_path / "a"), opts, scene=scene)
     assert resumed["unchanged"] == {"Floor": ["irradiance"], "Lamp": ["irradiance"]}
+
+
+def test_an_object_that_cannot_take_its_own_material_back_is_named(tmp_path):
+    """A curve showing an add-on material (made by hand: the operators shade meshes only) keeps it for the bake, which
+    says so instead of failing on it."""
+    scene = bpy.context.scene
+    floor = sc.plane(scene, "Floor", 2.0)
+    curve = bpy.data.objects.new("Rail", bpy.data.curves.new("Rail", "CURVE"))
+    scene.collection.objects.link(curve)
+    own, shown = bpy.data.materials.new("Own"), bpy.data.materials.new("IL Phong: Own")
+    shown["il_model"], shown["il_original"] = "PHONG", own
+    curve.data.materials.append(shown)
+    with pytest.warns(UserWarning, match="the bakes see the Illumination Lab materials shown on Rail"):
+        bake_lightmaps([floor], ["irradiance"], str(tmp_path / "out"), BakeOptions(resolution=8, samples=1))
+    assert curve.material_slots[0].material == shown

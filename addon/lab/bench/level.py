@@ -8,7 +8,8 @@ median fill of the maps and how many warned of a low fill, peak RSS, texels per 
 (measured alike: :func:`layout_utilisation`, :func:`pack_islands_utilisation`). The per-object bake is
 also run at production samples (:data:`PRODUCTION_SAMPLES`), and each is redone with its meshes unchanged but a
 light changed (irradiance rebaked, AO resumed) and the "Lightmap" layers gone, in a new process that opens the level
-saved (at production samples :data:`RERUNS` times: the median one's row): the layouts come from the UV cache (``bake/uvcache.py``) and the figures from its store
+saved (at production samples :data:`RERUNS` times: the median one's row): the layouts come from the UV cache
+(``bake/uvcache.py``) and the figures from its store
 (``core/memo.py``). The production run starts with no figure remembered, as a first run in a new process does (the
 4-spp run before it measured the same layouts). The time outside Cycles over the time inside is
 the figure issue 27 bounds (at most 1 on a first run, 0.1 on such a rerun). The production rerun's row also gives
