@@ -50,7 +50,8 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     images, "preview", "uv_layer", "coverage", "denoised", "unwrap" (the unwrapper of a layout generated in this
     run: "smart_project" or "lightmap_pack", ending in "+raster_pack" when its charts were placed again by their
     texels), "low_fill" (the warning line of a generated layout covering under uvchecks.FILL of its map) and
-    "uv_cache" ([key, index] of the layout in ``<out>/.il-uv-cache``: an export of a file without the layer reads it).
+    "uv_cache" ([key, index] of the layout in ``<out>/.il-uv-cache``: an export of a file without the layer reads it)
+    and "unmapped" (the warning line of faces the layer gives no texel, :func:`uvchecks.check_unmapped`).
     """
     named = isinstance(out, (str, os.PathLike)) and os.fspath(out).strip()
     with FIGURES.stored(figures_folder(out)) if named else contextlib.nullcontext():
@@ -337,7 +338,7 @@ class _Run:
         result.seconds += t_files - t_map     # the header's il:seconds: bakes and checks, not the files
         entries = write.write_map(name, group, kind, result, self.out, self.options, self.layers, margin,
                                   target.overlap, self.digests[(name, kind)], self.stems, self.fills, self.unwraps,
-                                  self.scene, self.caches)
+                                  self.scene, self.caches, target.unmapped)
         for o in group:
             entries[o.name]["seconds"] = round(result.seconds + time.perf_counter() - t_files, 4)  # files included
             self.report["objects"].setdefault(o.name, {})[kind] = entries[o.name]

@@ -308,12 +308,14 @@ def _map_size(group, layers, sides, options, windows=None):
 @dataclasses.dataclass
 class Target:
     """One map group of a run: ``name`` (an object's or ATLAS), its objects, and for image maps its (width,
-    height), the charts' UV ``areas`` {object: area} and ``overlap`` ({object: fraction}, group fraction)."""
+    height), the charts' UV ``areas`` {object: area}, ``overlap`` ({object: fraction}, group fraction) and the
+    ``unmapped`` lines of objects whose faces the layer leaves out ({object: line}, :func:`uvchecks.check_unmapped`)."""
     name: str
     group: list
     size: tuple = None
     areas: dict = None
     overlap: tuple = None
+    unmapped: dict = None
 
     @property
     def texels(self):
@@ -335,6 +337,7 @@ def plan(scene, groups, maps, layers, sides, options, fail, windows=None):
                     raise InputError(f"'{name}': {refusal}")
                 target.areas = uvchecks.check_coverage(group, layers, target.size)
                 target.overlap = uvchecks.check_overlap(scene, group, layers, target.size)
+                target.unmapped = uvchecks.check_unmapped(scene, group, layers)
         except (InputError, ILError) as e:
             fail(name, e)
             continue

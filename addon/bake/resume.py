@@ -61,8 +61,9 @@ def _kept_entries(name, group, kind, out, options, stems, stored, old_reports):
             made = json.loads(header_text(header.get("il:unwrap")) or "{}")
             seams = json.loads(header_text(header.get("il:seams")) or "{}")
             cached = json.loads(header_text(header.get("il:uv_cache")) or "{}")
+            lost = json.loads(header_text(header.get("il:unmapped")) or "{}")
         except ValueError:
-            per, lines, made, seams, cached = {}, {}, {}, {}, {}
+            per, lines, made, seams, cached, lost = {}, {}, {}, {}, {}, {}
         whole = {"coverage": number("il:coverage"), "chart_area": number("il:chart_area")}
         if header.get("il:overlap") is not None:
             whole["overlap"] = number("il:overlap")
@@ -85,6 +86,8 @@ def _kept_entries(name, group, kind, out, options, stems, stored, old_reports):
                 extras[o.name]["seams"] = seams[o.name]
             if isinstance(cached, dict) and isinstance(cached.get(o.name), list):
                 extras[o.name]["uv_cache"] = cached[o.name]
+            if isinstance(lost, dict) and isinstance(lost.get(o.name), str):
+                extras[o.name]["unmapped"] = lost[o.name]
     entries = {}
     for o in group:
         fresh = write.entry(path, res, result, extras[o.name])

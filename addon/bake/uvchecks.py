@@ -12,6 +12,7 @@ import numpy as np
 from ..core import errors, lightmap
 from ..core.memo import FIGURES, digest
 from ..core.errors import InputError
+from ..blender.scene import corner_triangles, corner_vertices, positions
 from . import evaluated
 from .charts import chart_count, side_for_fill
 from .options import article
@@ -150,6 +151,57 @@ def check_overlap(scene, objects, layers, size):
         return fractions, fractions[objects[0].name]
     every = np.concatenate([_rendered_uv(o, layers[o.name], depsgraph) for o in objects])
     return fractions, FIGURES.call(lightmap.overlap_fraction, every, w, h)
+
+
+UNMAPPED = 0.01
+"""Share of an object's surface (its evaluated mesh's area) on faces without area in the light-map layer above which
+a bake warns: they hold no texel of their own and read whatever texel their collapsed UVs fall on."""
+
+
+_MAKERS = ("BOOLEAN", "NODES", "SOLIDIFY", "SCREW", "SKIN", "REMESH", "WIREFRAME")
+"""Modifiers that make faces of their own (a cutter's, a rim, a new surface): the base mesh's UV layer gives them
+the operand's UVs, collapsed ones or none."""
+
+
+def check_unmapped(scene, objects, layers):
+    """{object name: warning line} of ``objects`` whose evaluated faces with no UV area in their light-map layer
+    (:func:`_unmapped`) cover more than UNMAPPED of their surface, naming the modifiers of :data:`_MAKERS` as the
+    likely cause (faces the base mesh's layer does not reach); each line is warned."""
+    depsgraph = scene.view_layers[0].depsgraph
+    lines = {}
+    for o in objects:
+        frac = evaluated.figure(o, depsgraph, _unmapped, layers[o.name])
+        if frac is None or frac <= UNMAPPED:
+            continue
+        made = [m for m in o.modifiers if m.show_render and m.type in _MAKERS]
+        if made:
+            cause = (f"faces its modifier {', '.join(repr(m.name) for m in made)} makes, which the base mesh's layer "
+                     f"does not reach: apply the modifier before baking")
+        elif layers[o.name] == LIGHTMAP:
+            cause = "their light-map UVs collapse to points or lines"
+        else:
+            cause = "their UVs collapse to points or lines: unwrap them, or let the bake generate a layer"
+        lines[o.name] = (f"'{o.name}': {100 * frac:.0f} % of its surface has no place in light-map layer "
+                         f"'{layers[o.name]}' ({cause})")
+        errors.warn(lines[o.name])
+    return lines
+
+
+def _unmapped(me, layer):
+    """Share of evaluated mesh ``me``'s area on triangles whose UV area in ``layer`` is below a millionth of what the
+    mesh's mean texel density (UV area over area) gives their area; None when it lacks the layer."""
+    if layer not in me.uv_layers:
+        return None
+    uv = mesh_triangles_uv(me, layer).astype(np.float64)
+    co = positions(me).astype(np.float64)[corner_vertices(me)[corner_triangles(me)]]
+    area = 0.5 * np.linalg.norm(np.cross(co[:, 1] - co[:, 0], co[:, 2] - co[:, 0]), axis=1)
+    d1, d2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
+    uv_area = 0.5 * np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+    total = float(area.sum())
+    if total <= 0:
+        return 0.0
+    lost = (area > 0) & (uv_area <= 1e-6 * float(uv_area.sum()) / total * area)
+    return float(area[lost].sum() / total)
 
 
 def _boolean_operands(obj, layer):

@@ -108,14 +108,15 @@ def _finite(name, kind, values):
 
 
 def write_map(name, group, kind, result, out, options, layers, margin=None, overlap=None, digest=None, stems=None,
-              low_fill=None, unwraps=None, scene=None, caches=None):
+              low_fill=None, unwraps=None, scene=None, caches=None, unmapped=None):
     """Write the files of one baked map; return ``{object: report entry}``. ``margin``: the layout's margin in
     texels (default the asked one; the map is dilated by :func:`uv.dilation` texels; both in the report and the
     header). ``overlap`` = ({object: fraction}, group fraction) of covered texels shared by several faces;
     ``stems`` the file stems of :func:`file_stems`; ``low_fill`` {object: the :func:`uvchecks.low_fill` line} (report
     entries' "low_fill", header "il:low_fill"); ``unwraps`` {object: unwrapper of a layout made in this run}
     (entries' "unwrap", header "il:unwrap"); ``caches`` {object: (UV cache key, index)} of layouts the UV cache holds
-    (entries' "uv_cache", header "il:uv_cache": an export finds the layer there). With ``scene``, the seams are
+    (entries' "uv_cache", header "il:uv_cache": an export finds the layer there); ``unmapped`` {object: the
+    :func:`uvchecks.check_unmapped` line} (entries' "unmapped", header "il:unmapped"). With ``scene``, the seams are
     measured and stitched when needed (:func:`seams.seam_step`: entries' "seams", header "il:seam_rms",
     "il:seam_fixed" and "il:seams", the entries' figures by object, so an entry rebuilt on resume keeps them)."""
     stems = stems or file_stems()
@@ -166,6 +167,9 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
     cached = {o.name: list(caches[o.name]) for o in group if o.name in (caches or {})}
     if cached:
         attrs["il:uv_cache"] = json.dumps(cached)
+    lost = {o.name: unmapped[o.name] for o in group if o.name in (unmapped or {})}
+    if lost:
+        attrs["il:unmapped"] = json.dumps(lost)
     path = map_file(out, stems, name, kind)
     exr.write_exr(path, KINDS[kind].exr_channels(np.flipud(values), np.flipud(alpha)), attrs)
     png = map_file(out, stems, name, kind, ".png")
@@ -184,6 +188,8 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
             extra["unwrap"] = made[o.name]
         if o.name in cached:
             extra["uv_cache"] = cached[o.name]
+        if o.name in lost:
+            extra["unmapped"] = lost[o.name]
         if o.name in seam_entries:
             extra["seams"] = seam_entries[o.name]
         entries[o.name] = entry(path, res, result, extra)

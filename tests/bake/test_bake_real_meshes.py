@@ -853,7 +853,8 @@ def test_a_remembered_smart_uv_project_layout_is_the_one_it_makes_again(monkeypa
 def test_a_boolean_baked_with_its_cutter_names_the_cutter_for_the_shared_texels(tmp_path):
     """Blender's Boolean keeps the cutter's UV layer of the same name on the faces it takes from it: baked together,
     the cutter's generated "Lightmap" layout lands in the cut object's, whose texels then overlap. The warning names
-    the cutter and the ways out (before: "let the bake generate one", of a layer the bake had generated)."""
+    the cutter and the ways out (before: "let the bake generate one", of a layer the bake had generated). Baked
+    alone, the cut faces have no texel: said, with their share of the surface."""
     import warnings
     block = added(bpy.ops.mesh.primitive_cube_add, size=2.0)
     block.name = "Block"
@@ -870,5 +871,14 @@ def test_a_boolean_baked_with_its_cutter_names_the_cutter_for_the_shared_texels(
     block.data.uv_layers.remove(block.data.uv_layers["Lightmap"])
     with warnings.catch_warnings(record=True) as alone:
         warnings.simplefilter("always")
-        bake_lightmaps([block], ["ao"], tmp_path / "alone", opts)
+        rep = bake_lightmaps([block], ["ao"], tmp_path / "alone", opts)
     assert not any("Boolean" in str(w.message) for w in alone)
+    # Baked alone, the cut faces get the cutter's missing layer as zeros: the cut's three walls of 0.5 x 0.5 m, 0.75 of
+    # the evaluated surface's 24 m², have no texel, and the report says so (before: nothing said).
+    from addon.bake import uvchecks
+    evaluated = block.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+    assert uvchecks._unmapped(evaluated, "Lightmap") == pytest.approx(0.75 / 24, rel=1e-6)
+    line = rep["objects"]["Block"]["ao"]["unmapped"]
+    assert line.startswith("'Block': 3 % of its surface has no place") and "modifier 'Cut'" in line
+    assert any(str(w.message) == line for w in alone)
+    assert "unmapped" not in rep["objects"].get("Cutter", {}).get("ao", {})
