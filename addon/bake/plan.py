@@ -38,9 +38,9 @@ def applicable(scene, objects, options):
         if o.type != "MESH":
             skipped[o.name] = f"not a mesh ({article(o.type.lower())})"
         elif len(o.data.polygons) == 0:
-            skipped[o.name] = "a mesh with no faces"
+            skipped[o.name] = "a mesh without faces"
         elif o.library is not None or o.data.library is not None:
-            skipped[o.name] = "linked from a library (not editable: make it local)"
+            skipped[o.name] = "linked from a library, not editable: make it local"
         elif scene.objects.get(o.name) != o:
             skipped[o.name] = f"not in scene '{scene.name}'"
         elif not _renderable(vl.layer_collection, o):

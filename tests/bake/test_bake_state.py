@@ -147,7 +147,7 @@ def test_state_restored_after_failure_and_interruption(tmp_path, error, atlas):
 BAD = [
     ("nothing", lambda o: ([], {}), "nothing selected"),
     ("non-mesh", lambda o: ([o["lamp"]], {}), "nothing to bake: .Lamp. is not a mesh"),
-    ("no faces", lambda o: ([o["edges"]], {}), "nothing to bake: .Edges. is a mesh with no faces"),
+    ("no faces", lambda o: ([o["edges"]], {}), "nothing to bake: .Edges. is a mesh without faces"),
     ("uv layer", lambda o: ([o["A"]], {"uv_layer": "Nope"}), "has no UV layer 'Nope'"),
     ("res 0", lambda o: ([o["A"]], {"resolution": 0}), "resolution must be between 1 and 16384"),
     ("res big", lambda o: ([o["A"]], {"resolution": 16385}), "resolution must be between 1 and 16384"),
