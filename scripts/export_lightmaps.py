@@ -44,12 +44,13 @@ def main(args):
         import io_scene_gltf2  # noqa: F401
     except ImportError:
         raise InputError("Blender's glTF exporter (io_scene_gltf2) is not available in this Blender") from None
+    names, checked = [], None
     if args.godot or args.unity:
         from addon.bake.engines import engine_maps
         from addon.bake.gltf import Plan
-        names = list(Plan(folder, bpy.context.scene).maps)
+        names = sorted(Plan(folder, bpy.context.scene).maps)
         if names:                                   # else export_glb says why nothing can be exported
-            engine_maps(bpy.context.scene, folder, names, args.godot)
+            checked = engine_maps(bpy.context.scene, folder, names, args.godot)
     result = export_glb(bpy.context.scene, folder, out, ao_with_irradiance=args.ao_with_irradiance)
     for line in result["notes"]:
         errors.warn(line)
@@ -66,7 +67,9 @@ def main(args):
     print(f"wrote {out}: {len(result['objects'])} object(s) with light maps on TEXCOORD_1")
     if args.godot or args.unity:
         from addon.bake.engines import write_engine_files
-        for path in write_engine_files(bpy.context.scene, folder, out, result["objects"], args.godot, args.unity):
+        exported = sorted(result["objects"])
+        for path in write_engine_files(bpy.context.scene, folder, out, exported, args.godot, args.unity,
+                                       checked if exported == names else None):
             print(f"wrote {path}")
 
 

@@ -59,10 +59,10 @@ def engine_maps(scene, folder, names, godot=True):
     return em, sh
 
 
-def write_engine_files(scene, folder, glb, names, godot=True, unity=True):
-    """Write the Godot and/or Unity files for the objects ``names`` of the export ``glb`` (:func:`engine_maps`);
-    return their paths."""
-    em, sh = engine_maps(scene, folder, names, godot)
+def write_engine_files(scene, folder, glb, names, godot=True, unity=True, maps=None):
+    """Write the Godot and/or Unity files for the objects ``names`` of the export ``glb``; return their paths.
+    ``maps``: :func:`engine_maps` of those objects when the caller has them (else read here)."""
+    em, sh = maps or engine_maps(scene, folder, names, godot)
     out, stem = os.path.dirname(glb), os.path.splitext(os.path.basename(glb))[0]
     written = []
     if godot:

@@ -31,6 +31,7 @@ import bpy
 import numpy as np
 
 from ..blender import interrupt
+from ..blender.state import SavedState
 from ..core import directional
 from ..core.errors import ILError, InputError
 from ..core.io import exr
@@ -178,14 +179,14 @@ class Plan:
         if unlit:
             self.notes.append("exported black, the bake found no light reaching them (their report entries' "
                               "\"unlit\"): " + ", ".join(unlit))
-        placed = sorted({f"{name} (by '{o.name}')" for o in scene.objects if o.instance_type == "COLLECTION"
-                         and o.instance_collection is not None for name in self.maps
-                         if name in o.instance_collection.all_objects})
         keyed = sorted(o.name for o in scene.objects if o.type == "MESH" and o.data.shape_keys is not None
                        and any(m.show_viewport or m.show_render for m in o.modifiers))
         if keyed:
             self.notes.append("shape keys not exported, as Blender's glTF exporter applies the modifiers of these "
                               "objects (so that the triangles are those baked): " + ", ".join(keyed))
+        placed = sorted({f"{name} (by '{o.name}')" for o in scene.objects if o.instance_type == "COLLECTION"
+                         and o.instance_collection is not None for name in self.maps
+                         if name in o.instance_collection.all_objects})
         if placed:
             self.notes.append("placed again by a collection instance, whose copies carry the map baked where the "
                               "object itself stands (make the instance real to bake each copy): " + ", ".join(placed))
@@ -364,14 +365,12 @@ def _as_rendered(scene):
     """The viewport's evaluation of ``scene`` given a render's settings (``cycles.render_variants``: the meshes the
     bake baked, e.g. a Subdivision Surface at its render levels) for the block; the settings come back after."""
     variants = cycles.render_variants(scene, list(scene.objects))
-    saved = [(owner, attr, getattr(owner, attr)) for owner, attr, _ in variants]
     try:
-        cycles.evaluate_as_render(scene, variants)
-        yield
+        with SavedState(scene, (), [(owner, attr) for owner, attr, _ in variants]):
+            cycles.evaluate_as_render(scene, variants)
+            yield
     finally:
-        for owner, attr, value in reversed(saved):
-            setattr(owner, attr, value)
-        if saved:
+        if variants:
             scene.view_layers[0].update()
 
 

@@ -186,10 +186,7 @@ def layout_of(folder, ref, loops):
     if entry is None or not 0 <= ref[1] < len(entry.uvs):
         return None
     uv = entry.uvs[ref[1]]
-    if uv.shape != (2 * int(loops),) or not np.isfinite(uv).all() or len(uv) and (uv.min() < -_SLACK
-                                                                                  or uv.max() > 1 + _SLACK):
-        return None
-    return uv
+    return uv if _uv_fits(uv, loops) else None
 
 
 def _read(path):
@@ -229,9 +226,10 @@ def _fits(entry, meshes):
     if entry.window is not None and (len(entry.window) != 3 or min(entry.window) < 1
                                      or max(entry.window[:2]) > entry.window[2]):
         return False
-    for uv, me in zip(entry.uvs, meshes):
-        if uv.dtype != np.float32 or uv.shape != (2 * len(me.loops),) or not np.isfinite(uv).all():
-            return False
-        if len(uv) and (uv.min() < -_SLACK or uv.max() > 1 + _SLACK):
-            return False
-    return True
+    return all(_uv_fits(uv, len(me.loops)) for uv, me in zip(entry.uvs, meshes))
+
+
+def _uv_fits(uv, loops):
+    """``uv`` is float32, 2 × ``loops`` finite UVs inside the unit square (to _SLACK)."""
+    return (uv.dtype == np.float32 and uv.shape == (2 * int(loops),) and bool(np.isfinite(uv).all())
+            and not (len(uv) and (uv.min() < -_SLACK or uv.max() > 1 + _SLACK)))

@@ -165,7 +165,7 @@ the operand's UVs, collapsed ones or none."""
 
 def check_unmapped(scene, objects, layers):
     """{object name: warning line} of ``objects`` whose evaluated faces with no UV area in their light-map layer
-    (:func:`_unmapped`) cover more than UNMAPPED of their surface, naming the modifiers of :data:`_MAKERS` as the
+    (``lightmap.unmapped_fraction``) cover more than UNMAPPED of their surface, naming the modifiers of :data:`_MAKERS` as the
     likely cause (faces the base mesh's layer does not reach); each line is warned."""
     depsgraph = scene.view_layers[0].depsgraph
     lines = {}
@@ -188,20 +188,11 @@ def check_unmapped(scene, objects, layers):
 
 
 def _unmapped(me, layer):
-    """Share of evaluated mesh ``me``'s area on triangles whose UV area in ``layer`` is below a millionth of what the
-    mesh's mean texel density (UV area over area) gives their area; None when it lacks the layer."""
+    """``lightmap.unmapped_fraction`` of evaluated mesh ``me``'s loop triangles in ``layer``; None when it lacks it."""
     if layer not in me.uv_layers:
         return None
-    uv = mesh_triangles_uv(me, layer).astype(np.float64)
-    co = positions(me).astype(np.float64)[corner_vertices(me)[corner_triangles(me)]]
-    area = 0.5 * np.linalg.norm(np.cross(co[:, 1] - co[:, 0], co[:, 2] - co[:, 0]), axis=1)
-    d1, d2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
-    uv_area = 0.5 * np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
-    total = float(area.sum())
-    if total <= 0:
-        return 0.0
-    lost = (area > 0) & (uv_area <= 1e-6 * float(uv_area.sum()) / total * area)
-    return float(area[lost].sum() / total)
+    co = positions(me)[corner_vertices(me)[corner_triangles(me)]]
+    return lightmap.unmapped_fraction(co, mesh_triangles_uv(me, layer))
 
 
 def _boolean_operands(obj, layer):

@@ -26,11 +26,29 @@ def resolution_for_density(area_m2, uv_coverage, texels_per_metre, cap=4096, min
     return int(min(max(n, minimum), cap))
 
 
-def uv_area(tri_uv):
-    """Sum of |triangle areas| in UV space; ``tri_uv`` is (T, 3, 2)."""
+def uv_areas(tri_uv):
+    """|Triangle areas| in UV space, (T,) of ``tri_uv`` (T, 3, 2)."""
     t = np.asarray(tri_uv, float)
     e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
-    return float(0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum())
+    return 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+
+
+def uv_area(tri_uv):
+    """Sum of |triangle areas| in UV space; ``tri_uv`` is (T, 3, 2)."""
+    return float(uv_areas(tri_uv).sum())
+
+
+def unmapped_fraction(tri_co, tri_uv):
+    """Share of the area of triangles ``tri_co`` (T, 3, 3) on those whose UV area (``tri_uv`` (T, 3, 2)) is below a
+    millionth of what the mean density (Σ UV area / Σ area) gives their area: faces a layout leaves without a texel."""
+    t = np.asarray(tri_co, float)
+    area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+    total = float(area.sum())
+    if total <= 0:
+        return 0.0
+    flat = uv_areas(tri_uv)
+    lost = (area > 0) & (flat <= 1e-6 * float(flat.sum()) / total * area)
+    return float(area[lost].sum() / total)
 
 
 def chart_window(tri_uv, side, margin):
