@@ -336,9 +336,10 @@ class _Run:
         margin = self.margins.get(group[0].name, float(self.options.margin))
         t_files = time.perf_counter()
         result.seconds += t_files - t_map     # the header's il:seconds: bakes and checks, not the files
+        per_object = {"low_fill": self.fills, "unwrap": self.unwraps, "uv_cache": self.caches,
+                      "unmapped": target.unmapped}
         entries = write.write_map(name, group, kind, result, self.out, self.options, self.layers, margin,
-                                  target.overlap, self.digests[(name, kind)], self.stems, self.fills, self.unwraps,
-                                  self.scene, self.caches, target.unmapped)
+                                  target.overlap, self.digests[(name, kind)], self.stems, self.scene, per_object)
         for o in group:
             entries[o.name]["seconds"] = round(result.seconds + time.perf_counter() - t_files, 4)  # files included
             self.report["objects"].setdefault(o.name, {})[kind] = entries[o.name]

@@ -57,13 +57,10 @@ def _kept_entries(name, group, kind, out, options, stems, stored, old_reports):
             io_png.write_png(png, write.preview(kind, values, np.ones(values.shape[:2], bool)))
         try:
             per = json.loads(header_text(header.get("il:objects")) or "{}")
-            lines = json.loads(header_text(header.get("il:low_fill")) or "{}")
-            made = json.loads(header_text(header.get("il:unwrap")) or "{}")
             seams = json.loads(header_text(header.get("il:seams")) or "{}")
-            cached = json.loads(header_text(header.get("il:uv_cache")) or "{}")
-            lost = json.loads(header_text(header.get("il:unmapped")) or "{}")
+            kept = {key: json.loads(header_text(header.get("il:" + key)) or "{}") for key in write.PER_OBJECT}
         except ValueError:
-            per, lines, made, seams, cached, lost = {}, {}, {}, {}, {}, {}
+            per, seams, kept = {}, {}, {}
         whole = {"coverage": number("il:coverage"), "chart_area": number("il:chart_area")}
         if header.get("il:overlap") is not None:
             whole["overlap"] = number("il:overlap")
@@ -78,16 +75,11 @@ def _kept_entries(name, group, kind, out, options, stems, stored, old_reports):
                               "denoised": header_text(header.get("il:denoised")) == "1"}
             if "overlap" in own:
                 extras[o.name]["overlap"] = own["overlap"]
-            if isinstance(lines, dict) and isinstance(lines.get(o.name), str):
-                extras[o.name]["low_fill"] = lines[o.name]
-            if isinstance(made, dict) and isinstance(made.get(o.name), str):
-                extras[o.name]["unwrap"] = made[o.name]
             if isinstance(seams, dict) and isinstance(seams.get(o.name), dict):
                 extras[o.name]["seams"] = seams[o.name]
-            if isinstance(cached, dict) and isinstance(cached.get(o.name), list):
-                extras[o.name]["uv_cache"] = cached[o.name]
-            if isinstance(lost, dict) and isinstance(lost.get(o.name), str):
-                extras[o.name]["unmapped"] = lost[o.name]
+            for key, values in kept.items():
+                if isinstance(values, dict) and isinstance(values.get(o.name), write.PER_OBJECT[key]):
+                    extras[o.name][key] = values[o.name]
     entries = {}
     for o in group:
         fresh = write.entry(path, res, result, extras[o.name])

@@ -107,16 +107,20 @@ def _finite(name, kind, values):
                       f"light of infinite strength): nothing written")
 
 
+#: The lines and figures a map keeps per object, in its report entries (key) and its header ("il:" + key, JSON
+#: {object: value}), so that an entry rebuilt on resume keeps them: their JSON type.
+PER_OBJECT = {"low_fill": str, "unwrap": str, "uv_cache": list, "unmapped": str}
+
+
 def write_map(name, group, kind, result, out, options, layers, margin=None, overlap=None, digest=None, stems=None,
-              low_fill=None, unwraps=None, scene=None, caches=None, unmapped=None):
+              scene=None, per_object=None):
     """Write the files of one baked map; return ``{object: report entry}``. ``margin``: the layout's margin in
     texels (default the asked one; the map is dilated by :func:`uv.dilation` texels; both in the report and the
     header). ``overlap`` = ({object: fraction}, group fraction) of covered texels shared by several faces;
-    ``stems`` the file stems of :func:`file_stems`; ``low_fill`` {object: the :func:`uvchecks.low_fill` line} (report
-    entries' "low_fill", header "il:low_fill"); ``unwraps`` {object: unwrapper of a layout made in this run}
-    (entries' "unwrap", header "il:unwrap"); ``caches`` {object: (UV cache key, index)} of layouts the UV cache holds
-    (entries' "uv_cache", header "il:uv_cache": an export finds the layer there); ``unmapped`` {object: the
-    :func:`uvchecks.check_unmapped` line} (entries' "unmapped", header "il:unmapped"). With ``scene``, the seams are
+    ``stems`` the file stems of :func:`file_stems`; ``per_object`` {:data:`PER_OBJECT` key: {object: value}}: the
+    :func:`uvchecks.low_fill` lines ("low_fill"), the unwrapper of a layout made in this run ("unwrap"), the (UV cache
+    key, index) of layouts the UV cache holds ("uv_cache": an export finds the layer there), the
+    :func:`uvchecks.check_unmapped` lines ("unmapped"), in the entries and the header. With ``scene``, the seams are
     measured and stitched when needed (:func:`seams.seam_step`: entries' "seams", header "il:seam_rms",
     "il:seam_fixed" and "il:seams", the entries' figures by object, so an entry rebuilt on resume keeps them)."""
     stems = stems or file_stems()
@@ -158,18 +162,11 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
         attrs["il:objects"] = json.dumps({o.name: {"coverage": covered[o.name], "chart_area": areas[o.name]}
                                           | ({"overlap": float(overlap[0][o.name])} if overlap else {})
                                           for o in group})
-    lines = {o.name: low_fill[o.name] for o in group if o.name in (low_fill or {})}
-    if lines:
-        attrs["il:low_fill"] = json.dumps(lines)
-    made = {o.name: unwraps[o.name] for o in group if o.name in (unwraps or {})}
-    if made:
-        attrs["il:unwrap"] = json.dumps(made)
-    cached = {o.name: list(caches[o.name]) for o in group if o.name in (caches or {})}
-    if cached:
-        attrs["il:uv_cache"] = json.dumps(cached)
-    lost = {o.name: unmapped[o.name] for o in group if o.name in (unmapped or {})}
-    if lost:
-        attrs["il:unmapped"] = json.dumps(lost)
+    kept = {key: {o.name: PER_OBJECT[key](named[o.name]) for o in group if o.name in named}
+            for key, named in (per_object or {}).items() if named}
+    kept = {key: named for key, named in kept.items() if named}
+    for key, named in kept.items():
+        attrs["il:" + key] = json.dumps(named)
     path = map_file(out, stems, name, kind)
     exr.write_exr(path, KINDS[kind].exr_channels(np.flipud(values), np.flipud(alpha)), attrs)
     png = map_file(out, stems, name, kind, ".png")
@@ -182,14 +179,7 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
                  "denoised": bool(options.denoise and KINDS[kind].denoise)}
         if overlap is not None:
             extra["overlap"] = float(overlap[0][o.name])
-        if o.name in lines:
-            extra["low_fill"] = lines[o.name]
-        if o.name in made:
-            extra["unwrap"] = made[o.name]
-        if o.name in cached:
-            extra["uv_cache"] = cached[o.name]
-        if o.name in lost:
-            extra["unmapped"] = lost[o.name]
+        extra.update((key, named[o.name]) for key, named in kept.items() if o.name in named)
         if o.name in seam_entries:
             extra["seams"] = seam_entries[o.name]
         entries[o.name] = entry(path, res, result, extra)
