@@ -31,6 +31,7 @@ import bpy
 import numpy as np
 
 from ..blender import interrupt
+from ..blender.materials import user_link, user_material
 from ..blender.state import SavedState
 from ..core import directional
 from ..core.errors import ILError, InputError
@@ -239,7 +240,11 @@ def _reorder_uvs(me, layer):
 
 @contextlib.contextmanager
 def _prepared(scene, plan):
-    """Temporary mesh copies (light-map layer at index 1) and per-object material copies tagged with the object."""
+    """Temporary mesh copies (light-map layer at index 1) and per-object material copies tagged with the object: copies
+    of the user's own materials under the add-on's layers (``blender.materials.user_material``: a light-map preview,
+    a shading model and environment mapping are not what an engine draws), linked as the user linked them, and on
+    the mesh copy also where linked to the object (Blender's exporter reads the mesh's own materials when it applies
+    modifiers)."""
     saved, meshes, materials = [], [], []
     try:
         for name in plan.maps:
@@ -265,20 +270,21 @@ def _prepared(scene, plan):
                 me.materials.append(mat)
                 continue
             for i, slot in enumerate(obj.material_slots):
-                orig = slot.material
+                link, orig = user_link(slot), user_material(slot.material)
                 mat = orig.copy() if orig is not None else bpy.data.materials.new(f"{name} light map")
                 materials.append(mat)
                 mat[NAME] = orig.name if orig is not None else f"{name} light map"
                 mat[TAG] = name
-                if slot.link == "OBJECT":
+                slot.link = link
+                if link == "OBJECT":
                     slot.material = mat
-                else:
-                    me.materials[i] = mat
+                me.materials[i] = mat
         yield
     finally:
         for obj, data, slots in saved:
             for slot, (link, mat) in zip(obj.material_slots, slots):
-                if slot.link == "OBJECT":
+                slot.link = link
+                if link == "OBJECT":
                     slot.material = mat
             obj.data = data
         for me in meshes:

@@ -65,6 +65,15 @@ def user_material(mat):
     return mat
 
 
+def user_link(slot):
+    """How the user's own material is linked on ``slot`` ("OBJECT" or "DATA"): a light-map preview shows itself on
+    the object and keeps the link it replaced (``il_lightmap_link``); the other layers keep the slot's link."""
+    mat = slot.material
+    if mat is not None and "il_lightmap_link" in mat and mat.get("il_lightmap"):
+        return mat["il_lightmap_link"]
+    return slot.link
+
+
 def shows_layers(obj):
     """Whether a slot of ``obj`` shows an add-on material over the user's own (:func:`user_material`)."""
     return any(slot.material is not None and user_material(slot.material) != slot.material

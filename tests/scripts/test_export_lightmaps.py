@@ -381,3 +381,53 @@ def test_the_file_a_batch_bake_left_as_it_was_exports_through_the_bakes_uv_cache
     assert r.returncode == 2 and len(lines) == 1, r.stderr
     assert "UV cache" in lines[0] and "Cube ('Lightmap')" in lines[0]            # the key names no cache file
     assert "edited since the bake" in lines[0] and "Plane" in lines[0]          # its old layer is not the baked one
+
+
+def _materials_of(glb):
+    """{node name: [(material name, base colour, emissive, extensions)]} of a .glb."""
+    gltf, _ = _read_glb(glb)
+    out = {}
+    for node in gltf["nodes"]:
+        if "mesh" in node:
+            for prim in gltf["meshes"][node["mesh"]]["primitives"]:
+                mat = gltf["materials"][prim["material"]]
+                out.setdefault(node["name"], []).append(
+                    (mat.get("name"), mat.get("pbrMetallicRoughness", {}).get("baseColorFactor"),
+                     mat.get("emissiveFactor"), sorted(mat.get("extensions", {}))))
+    return out
+
+
+def test_the_export_carries_the_users_own_materials_under_a_preview_or_a_shading_model(tmp_path):
+    """The glTF holds the user's materials, each with its light map, however the session shows them: a cube arrayed
+    twice whose material is linked to the object (Blender's exporter reads the mesh's own materials when it applies
+    modifiers) and a plane whose material is the mesh's; the same .glb materials with the irradiance preview shown
+    (before: the preview's emission material, or no light map on the arrayed cube) and with a Phong shading model
+    assigned; the slots show the preview again afterwards, and Remove gives each its own material and link."""
+    from addon.bake.gltf import export_glb
+    from addon.nodes import lightmap_preview as lp, material
+    scene, plane, cube = _scene()
+    cube.modifiers.new("Array", "ARRAY").count = 2
+    own = bpy.data.materials.new("Own")
+    own.diffuse_color = (0.1, 0.6, 0.3, 1.0)
+    cube.material_slots[0].link = "OBJECT"
+    cube.material_slots[0].material = own
+    out = tmp_path / "maps"
+    bake_lightmaps([plane, cube], ["irradiance"], str(out), BakeOptions(resolution=16, samples=1, bounces=1),
+                   scene=scene)
+    assert export_glb(scene, str(out), str(tmp_path / "plain.glb"))["notes"] == []
+    plain = _materials_of(tmp_path / "plain.glb")
+    assert [m[0] for m in plain["Plane"]] == ["Paint"] and [m[0] for m in plain["Cube"]] == ["Own"]
+    assert all(m[2] is None and m[3] == [EXTENSION] for mats in plain.values() for m in mats), plain
+    lp.apply_lightmaps([plane, cube], str(out), "IRRADIANCE")
+    shown = [(s.link, s.material) for o in (plane, cube) for s in o.material_slots]
+    assert all(lp.is_preview(m) for _, m in shown)
+    assert export_glb(scene, str(out), str(tmp_path / "shown.glb"))["notes"] == []
+    assert _materials_of(tmp_path / "shown.glb") == plain
+    assert [(s.link, s.material) for o in (plane, cube) for s in o.material_slots] == shown
+    lp.remove_lightmaps([plane, cube])
+    assert [(s.link, s.material.name) for o in (plane, cube) for s in o.material_slots] == [("DATA", "Paint"),
+                                                                                               ("OBJECT", "Own")]
+    material.assign_shading_model(scene, [plane, cube], "PHONG")
+    assert plane.material_slots[0].material.get("il_model")
+    export_glb(scene, str(out), str(tmp_path / "phong.glb"))
+    assert _materials_of(tmp_path / "phong.glb") == plain
