@@ -38,6 +38,7 @@ from ..core.errors import ILError, InputError
 from ..core.io import exr
 from ..core.io.png import encode_png
 from . import cycles, uvcache
+from .inputs import SCENE_PARTS, changed_since
 from .kinds import KINDS
 from .report import REPORT, entry_file, read_objects
 
@@ -191,6 +192,21 @@ class Plan:
         if placed:
             self.notes.append("placed again by a collection instance, whose copies carry the map baked where the "
                               "object itself stands (make the instance real to bake each copy): " + ", ".join(placed))
+
+    def changed(self, scene):
+        """The lines naming what changed since the maps were baked (:func:`inputs.changed_since` of each map's entry
+        "inputs"): the objects moved, edited or given other modifiers or materials (or another file's objects of
+        the same names), and once for all, lights or a world that changed."""
+        changed = changed_since(scene, {(scene.objects[name], kind): entry.get("inputs")
+                                        for name, maps in self.maps.items() for kind, (entry, _) in maps.items()})
+        own = [f"{name} ({', '.join(SCENE_PARTS[p] for p in parts if p != 'lighting')})"
+               for name, parts in sorted(changed.items()) if parts != ["lighting"]]
+        lines = ["changed since the bake, so their maps show them as they were then (bake them again with "
+                 "--overwrite): " + ", ".join(own)] if own else []
+        if any("lighting" in parts for parts in changed.values()):
+            lines.append(f"{SCENE_PARTS['lighting']} changed since the bake, so the irradiance maps show the light as "
+                         f"it was then (bake them again with --overwrite)")
+        return lines
 
     def encoded(self, ao_with_irradiance=False):
         """{(kind, file): (PNG bytes, or a directional map's four, intensity)} of every map to export (AO where no
@@ -405,6 +421,7 @@ def export_glb(scene, folder, out, ao_with_irradiance=False):
     plan = Plan(folder, scene)
     if not plan.maps:
         raise InputError("no object of the report can carry its maps: " + "; ".join(plan.notes or ["none baked"]))
+    changed = plan.changed(scene)
     state = {"textures": {}, "errors": [], "done": set(), "encoded": plan.encoded(ao_with_irradiance)}
     tmp = os.path.join(os.path.dirname(out), f".{os.path.basename(out)}.{os.getpid()}.tmp.glb")
     try:
@@ -421,7 +438,7 @@ def export_glb(scene, folder, out, ao_with_irradiance=False):
         if os.path.exists(tmp):
             os.remove(tmp)
     missed = sorted(set(plan.maps) - state["done"])
-    notes = list(plan.notes)
+    notes = plan.notes + changed
     if missed:
         notes.append("not exported (no material reached the exporter): " + ", ".join(missed))
     objects = {}

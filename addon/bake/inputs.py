@@ -1,4 +1,5 @@
 """Resume: the input hash of a map (what determines it) and the maps on disk whose inputs are unchanged."""
+import dataclasses
 import hashlib
 import os
 
@@ -50,7 +51,7 @@ def input_hash(scene, group, kind, options, lighting, parts=None):
     lights and world (``lighting``, :func:`lighting_digest`; a ``lit`` kind only: irradiance) and the options that
     change the map.
     Other objects are not in it: moving an occluder leaves its neighbours' maps as they are (``force`` bakes them).
-    ``parts``: a dict keeping each object's part before its materials for the next kind's hash."""
+    ``parts``: a dict keeping each object's :class:`_ObjectParts` for the next kind's hash and :func:`scene_inputs`."""
     h = hashlib.blake2b(digest_size=16)
     h.update(f"{kind}:{bpy.app.version_string}".encode())
     for name in _HASHED_OPTIONS:
@@ -59,44 +60,118 @@ def input_hash(scene, group, kind, options, lighting, parts=None):
         h.update(f"bounces={options.bounces};{lighting}".encode())
     depsgraph = scene.view_layers[0].depsgraph
     for o in group:
-        part = None if parts is None else parts.get(o.as_pointer())
-        if part is None:
-            part = _object_part(o, options, depsgraph)
-            if parts is not None:
-                parts[o.as_pointer()] = part
-        for data in part:
+        for data in object_parts(o, options, depsgraph, parts).all():
             h.update(data)
-        own = [user_material(slot.material) for slot in o.material_slots]
-        for mat in own if any(own) else ():          # empty slots render as none (a preview adds one)
-            h.update((mat.name if mat else "-").encode())
-            if KINDS[kind].lit and mat is not None:
-                h.update(repr(tuple(mat.diffuse_color)).encode())
-                node_tree_digest(h, mat.node_tree)
+        for data in _material_parts(o, kind):
+            h.update(data)
     return h.hexdigest()
 
 
-def _object_part(o, options, depsgraph):
-    """What :func:`input_hash` digests of object ``o`` before its materials, in order (the same for every map
-    kind)."""
-    out = [o.name.encode()]
-    if options.sizes and o.name in options.sizes:
-        out.append(repr(tuple(options.sizes[o.name])).encode())
-    out.append(np.array(o.matrix_world, np.float64).tobytes())
+@dataclasses.dataclass
+class _ObjectParts:
+    """What :func:`input_hash` digests of an object before its materials: its name, its size option, ``placement``
+    (transform, base positions, triangles), ``modifiers`` (their settings, the evaluated counts) and the UVs of the
+    ``uv_layer`` option."""
+    name: list
+    size: list
+    placement: list
+    modifiers: list
+    uvs: list
+
+    def all(self):
+        return self.name + self.size + self.placement + self.modifiers + self.uvs
+
+
+def object_parts(o, options, depsgraph, parts=None):
+    """The :class:`_ObjectParts` of ``o`` (kept in ``parts`` by pointer when given)."""
+    key = o.as_pointer()
+    if parts is not None and key in parts:
+        return parts[key]
     me = o.data
-    out += [positions(me).tobytes(), corner_vertices(me)[uvmod.corners(me)].tobytes()]
+    out = _ObjectParts([o.name.encode()], [], [], [], [])
+    if options.sizes and o.name in options.sizes:
+        out.size.append(repr(tuple(options.sizes[o.name])).encode())
+    out.placement += [np.array(o.matrix_world, np.float64).tobytes(), positions(me).tobytes(),
+                      corner_vertices(me)[uvmod.corners(me)].tobytes()]
     subdivided = subdivided_only(o)             # the mesh and the settings hashed give the evaluated mesh
     for mod in o.modifiers:
         if mod.show_render or (subdivided and mod.show_viewport):
-            out.append(repr((mod.show_viewport, mod.show_render)).encode())
+            out.modifiers.append(repr((mod.show_viewport, mod.show_render)).encode())
             h = _Bytes()
             rna_digest(h, mod)
-            out.append(h.data())
+            out.modifiers.append(h.data())
     if not subdivided:
         ev = o.evaluated_get(depsgraph).data
-        out.append(f"{len(ev.vertices)}:{len(ev.polygons)}".encode())
+        out.modifiers.append(f"{len(ev.vertices)}:{len(ev.polygons)}".encode())
     if options.uv_layer and options.uv_layer in me.uv_layers:
-        out.append(corner_uv(me, options.uv_layer).tobytes())
+        out.uvs.append(corner_uv(me, options.uv_layer).tobytes())
+    if parts is not None:
+        parts[key] = out
     return out
+
+
+def _material_parts(o, kind):
+    """What :func:`input_hash` digests of ``o``'s materials for map ``kind``: the user's own
+    (``blender.materials.user_material``) by name, and for a lit kind their colour and node tree."""
+    own = [user_material(slot.material) for slot in o.material_slots]
+    for mat in own if any(own) else ():          # empty slots render as none (a preview adds one)
+        yield (mat.name if mat else "-").encode()
+        if KINDS[kind].lit and mat is not None:
+            yield repr(tuple(mat.diffuse_color)).encode()
+            h = _Bytes()
+            node_tree_digest(h, mat.node_tree)
+            yield h.data()
+
+
+#: What :func:`scene_inputs` digests, with the words an export's note says of a change to it.
+SCENE_PARTS = {"placement": "moved or its mesh edited", "modifiers": "its modifiers", "materials": "its materials",
+               "lighting": "the lights or the world"}
+
+
+def scene_inputs(scene, obj, kind, lighting, parts=None):
+    """{part of :data:`SCENE_PARTS`: hex digest, "blender": version} of what in the scene map ``kind`` of ``obj``
+    was baked from (the options aside), kept in its report entry ("inputs") and header, so that an export can say
+    what changed since (:func:`changed_since`). "placement" depends on the mesh and transform only; the others on
+    settings whose set differs between Blender versions."""
+    found = object_parts(obj, _NO_OPTIONS, scene.view_layers[0].depsgraph, parts)
+    out = {}
+    for part, data in (("placement", found.placement), ("modifiers", found.modifiers),
+                       ("materials", _material_parts(obj, kind)),
+                       ("lighting", [lighting.encode()] if KINDS[kind].lit else [])):
+        h = hashlib.blake2b(digest_size=16)
+        for d in data:
+            h.update(d)
+        out[part] = h.hexdigest()
+    out["blender"] = bpy.app.version_string
+    return out
+
+
+def changed_since(scene, stored):
+    """{object name: [the :data:`SCENE_PARTS` that differ]} of ``stored`` {(object, kind): the map's
+    :func:`scene_inputs` at its bake}, objects with no change left out: every part is compared when the same
+    Blender reads the file, "placement" alone under another version; a value that is not such a record (a map baked
+    before they were kept) is not compared. The scene is evaluated first (transforms and evaluated meshes are stale
+    after a bake put its settings back, or after a script moved an object)."""
+    scene.view_layers[0].update()
+    lighting, out = lighting_digest(scene), {}
+    for (obj, kind), then in stored.items():
+        if not isinstance(then, dict) or not all(isinstance(then.get(p), str) for p in SCENE_PARTS):
+            continue
+        now = scene_inputs(scene, obj, kind, lighting)
+        same_blender = then.get("blender") == now["blender"]
+        differ = {p for p in SCENE_PARTS if (same_blender or p == "placement") and then[p] != now[p]}
+        if differ:
+            out.setdefault(obj.name, set()).update(differ)
+    return {name: [p for p in SCENE_PARTS if p in parts] for name, parts in out.items()}
+
+
+@dataclasses.dataclass(frozen=True)
+class _NoOptions:
+    sizes: dict = None
+    uv_layer: str = None
+
+
+_NO_OPTIONS = _NoOptions()
 
 
 class _Bytes:

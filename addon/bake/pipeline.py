@@ -19,7 +19,7 @@ from ..core.io.files import remove_stale_temporaries
 from ..core.memo import FIGURES
 from ..core.result import JobResult
 from . import batch as batching, cost, cycles, uv as uvmod, uvcache, uvchecks, write
-from .inputs import input_hash, lighting_digest
+from .inputs import input_hash, lighting_digest, scene_inputs
 from .kinds import KINDS
 from .materials import TemporaryMaterials
 from .options import BakeOptions
@@ -51,7 +51,9 @@ def bake_lightmaps(objects, maps, out, options=None, scene=None, on_step=None):
     run: "smart_project" or "lightmap_pack", ending in "+raster_pack" when its charts were placed again by their
     texels), "low_fill" (the warning line of a generated layout covering under uvchecks.FILL of its map) and
     "uv_cache" ([key, index] of the layout in ``<out>/.il-uv-cache``: an export of a file without the layer reads it)
-    and "unmapped" (the warning line of faces the layer gives no texel, :func:`uvchecks.check_unmapped`).
+    and "unmapped" (the warning line of faces the layer gives no texel, :func:`uvchecks.check_unmapped`), and
+    "inputs" (digests of what in the scene the map was baked from, :func:`inputs.scene_inputs`: an export names
+    the objects changed since).
     """
     named = isinstance(out, (str, os.PathLike)) and os.fspath(out).strip()
     with FIGURES.stored(figures_folder(out)) if named else contextlib.nullcontext():
@@ -87,6 +89,8 @@ def _bake_fixed(objects, maps, out, options, scene, on_step):
     lighting = lighting_digest(scene)
     parts = {}
     digests = {(name, m): input_hash(scene, group, m, options, lighting, parts) for name, group in groups for m in maps}
+    inputs = {(name, m): {o.name: scene_inputs(scene, o, m, lighting, parts) for o in group}
+              for name, group in groups for m in maps}
     del parts
     stems = file_stems()
     report_path = os.path.join(out, report_name)
@@ -110,7 +114,7 @@ def _bake_fixed(objects, maps, out, options, scene, on_step):
     layered = _layered(scene, everyone)
     with Progress("bake", steps) as progress, SavedState(scene, everyone + layered, saved) as state:
         run = _Run(scene, maps, out, options, report, report_path, digests, stems, t_all, progress, on_step, state,
-                   TemporaryMaterials(state), world=scene.world)
+                   TemporaryMaterials(state), world=scene.world, inputs=inputs)
         for o in layered:                   # the other objects light the bakes through the user's own materials
             for slot in o.material_slots:
                 slot.material = user_material(slot.material)
@@ -193,6 +197,7 @@ class _Run:
     uv_cache: uvcache.UVCache = None
     unmerged: dict = dataclasses.field(default_factory=dict)
     world: object = None              # the scene's own world (None: none; the bakes get a black one)
+    inputs: dict = dataclasses.field(default_factory=dict)   # {(name, kind): {object: inputs.scene_inputs}}
     merged_at: float = float("-inf")
 
     def step(self, message):
@@ -337,7 +342,7 @@ class _Run:
         t_files = time.perf_counter()
         result.seconds += t_files - t_map     # the header's il:seconds: bakes and checks, not the files
         per_object = {"low_fill": self.fills, "unwrap": self.unwraps, "uv_cache": self.caches,
-                      "unmapped": target.unmapped}
+                      "unmapped": target.unmapped, "inputs": self.inputs.get((name, kind))}
         entries = write.write_map(name, group, kind, result, self.out, self.options, self.layers, margin,
                                   target.overlap, self.digests[(name, kind)], self.stems, self.scene, per_object)
         for o in group:

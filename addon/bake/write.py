@@ -109,7 +109,7 @@ def _finite(name, kind, values):
 
 #: The lines and figures a map keeps per object, in its report entries (key) and its header ("il:" + key, JSON
 #: {object: value}), so that an entry rebuilt on resume keeps them: their JSON type.
-PER_OBJECT = {"low_fill": str, "unwrap": str, "uv_cache": list, "unmapped": str}
+PER_OBJECT = {"low_fill": str, "unwrap": str, "uv_cache": list, "unmapped": str, "inputs": dict}
 
 
 def write_map(name, group, kind, result, out, options, layers, margin=None, overlap=None, digest=None, stems=None,
@@ -120,7 +120,8 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
     ``stems`` the file stems of :func:`file_stems`; ``per_object`` {:data:`PER_OBJECT` key: {object: value}}: the
     :func:`uvchecks.low_fill` lines ("low_fill"), the unwrapper of a layout made in this run ("unwrap"), the (UV cache
     key, index) of layouts the UV cache holds ("uv_cache": an export finds the layer there), the
-    :func:`uvchecks.check_unmapped` lines ("unmapped"), in the entries and the header. With ``scene``, the seams are
+    :func:`uvchecks.check_unmapped` lines ("unmapped"), what in the scene the map was baked from ("inputs",
+    :func:`inputs.scene_inputs`), in the entries and the header. With ``scene``, the seams are
     measured and stitched when needed (:func:`seams.seam_step`: entries' "seams", header "il:seam_rms",
     "il:seam_fixed" and "il:seams", the entries' figures by object, so an entry rebuilt on resume keeps them)."""
     stems = stems or file_stems()

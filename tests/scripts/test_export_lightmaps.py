@@ -383,6 +383,48 @@ def test_the_file_a_batch_bake_left_as_it_was_exports_through_the_bakes_uv_cache
     assert "edited since the bake" in lines[0] and "Plane" in lines[0]          # its old layer is not the baked one
 
 
+def test_the_export_names_the_objects_changed_since_their_bake(baked, tmp_path):
+    """Each map's entry keeps digests of what in the scene it was baked from ("inputs"): the export of the scene as
+    baked says nothing of changes; a moved cube, a recoloured shared material (a lit map's input: irradiance, not
+    AO) and a brighter world are each named, per object; under another Blender version only the placement is
+    compared (node and modifier settings differ between versions)."""
+    from addon.bake.gltf import export_glb
+    _, out, entries = baked
+    assert set(entries["Cube"]["irradiance"]["inputs"]) == {"placement", "modifiers", "materials", "lighting",
+                                                            "blender"}
+    scene = bpy.context.scene
+    cube, paint = bpy.data.objects["Cube"], bpy.data.materials["Paint"]
+
+    def changed():
+        notes = export_glb(scene, str(out), str(tmp_path / "changed.glb"))["notes"]
+        assert not notes or notes[0].startswith("changed since the bake") or notes[0].startswith("the lights"), notes
+        return notes
+
+    assert changed() == []
+    where = cube.location.copy()
+    cube.location.x += 0.1
+    assert changed() == [f"{CHANGED}Cube (moved or its mesh edited)"]
+    cube.location = where
+    bsdf = next(n for n in paint.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    bsdf.inputs["Base Color"].default_value = (0.2, 0.4, 0.8, 1.0)
+    assert changed() == [f"{CHANGED}Cube (its materials), Plane (its materials)"]
+    background = next(n for n in scene.world.node_tree.nodes if n.bl_idname == "ShaderNodeBackground")
+    background.inputs["Strength"].default_value = 2.0
+    assert changed() == [f"{CHANGED}Cube (its materials), Plane (its materials)", RELIT]
+    path = out / "bake_report.json"
+    report = json.loads(path.read_text())
+    for kind in ("ao", "irradiance"):
+        report["objects"]["Plane"][kind]["inputs"]["blender"] = "2.79"
+    path.write_text(json.dumps(report))
+    bpy.data.objects["Plane"].location.z -= 0.01
+    assert changed() == [f"{CHANGED}Cube (its materials), Plane (moved or its mesh edited)", RELIT]
+
+
+CHANGED = "changed since the bake, so their maps show them as they were then (bake them again with --overwrite): "
+RELIT = ("the lights or the world changed since the bake, so the irradiance maps show the light as it was then (bake "
+         "them again with --overwrite)")
+
+
 def _materials_of(glb):
     """{node name: [(material name, base colour, emissive, extensions)]} of a .glb."""
     gltf, _ = _read_glb(glb)
