@@ -36,9 +36,15 @@ value a render, and every Cycles bake (it evaluates the scene in its own render 
 
 def render_variants(scene, objects):
     """[(owner, viewport setting, the render value)] where the viewport's evaluation of ``objects`` differs from a
-    render's: a modifier on for one and not the other, the :data:`RENDER_VARIANTS` of a modifier, the scene's
-    Simplify cap of subdivision levels. :func:`evaluate_as_render` sets them (SavedState saves the settings first)."""
-    out = []
+    render's: an object, or a collection of the scene holding one, disabled in viewports (the monitor icon: Blender
+    leaves it out of the viewport's evaluation, modifiers unapplied) but rendered, a modifier on for one and not the
+    other, the :data:`RENDER_VARIANTS` of a modifier, the scene's Simplify cap of subdivision levels.
+    :func:`evaluate_as_render` sets them (SavedState saves the settings first)."""
+    out = [(o, "hide_viewport", False) for o in objects if o.hide_viewport and not o.hide_render]
+    disabled = [c for c in scene.collection.children_recursive if c.hide_viewport and not c.hide_render]
+    if disabled:
+        held = {o.as_pointer() for o in objects}
+        out += [(c, "hide_viewport", False) for c in disabled if any(o.as_pointer() in held for o in c.all_objects)]
     for o in objects:
         for mod in o.modifiers:
             if mod.show_viewport != mod.show_render:

@@ -317,3 +317,38 @@ def test_an_object_that_cannot_take_its_own_material_back_is_named(tmp_path):
     with pytest.warns(UserWarning, match="the bakes see the Illumination Lab materials shown on Rail"):
         bake_lightmaps([floor], ["irradiance"], str(tmp_path / "out"), BakeOptions(resolution=8, samples=1))
     assert curve.material_slots[0].material == shown
+
+
+@pytest.mark.both_versions
+def test_objects_disabled_in_viewports_but_rendered_are_baked_as_rendered(tmp_path):
+    """Blender leaves an object disabled in viewports (the monitor icon), or held by a collection so disabled, out of
+    the viewport's evaluation, modifiers unapplied, while renders see it whole. A batched bake of an arrayed cube and
+    a subdivided one in such a collection (and a subdivided cube disabled itself) gives the maps of the same bake with
+    everything shown, bit for bit (the joined mesh held the bare cubes: the subdivided cube's mean E moved by 2x),
+    the checks read the triangles Cycles baked, and the settings come back."""
+    scene = bpy.context.scene
+    sc.world(scene, strength=1.0)
+    sc.plane(scene, "Ground", 6.0)
+    props = bpy.data.collections.new("Props")
+    scene.collection.children.link(props)
+    cubes = []
+    for name, x, mod in (("Arrayed", -1.5, "ARRAY"), ("Rounded", 0.0, "SUBSURF"), ("Alone", 1.5, "SUBSURF")):
+        cube = sc.box(scene, name, 0.5, location=(x, 0.0, 0.5))
+        cube.modifiers.new(mod, mod)
+        if name != "Alone":
+            scene.collection.objects.unlink(cube)
+            props.objects.link(cube)
+        cubes.append(cube)
+    opts = BakeOptions(resolution=24, samples=4, bounces=1, batch=True, keep_products=False)
+    shown = bake_lightmaps(cubes, ["irradiance"], str(tmp_path / "shown"), opts)
+    props.hide_viewport, cubes[2].hide_viewport = True, True
+    bpy.context.view_layer.update()
+    hidden = bake_lightmaps(cubes, ["irradiance"], str(tmp_path / "hidden"), opts)
+    assert props.hide_viewport and cubes[2].hide_viewport
+    for cube in cubes:
+        a = exr.read_exr(str(tmp_path / "shown" / f"{cube.name}_irradiance.exr"))[0]
+        b = exr.read_exr(str(tmp_path / "hidden" / f"{cube.name}_irradiance.exr"))[0]
+        assert all(np.array_equal(a[c], b[c]) for c in "RGBA"), cube.name
+        assert hidden["objects"][cube.name]["irradiance"]["overlap"] == shown["objects"][cube.name]["irradiance"][
+            "overlap"], cube.name
+    assert hidden["objects"]["Arrayed"]["irradiance"]["overlap"] > 0.9     # the Array's copies share its texels

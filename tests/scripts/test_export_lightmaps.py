@@ -473,3 +473,28 @@ def test_the_export_carries_the_users_own_materials_under_a_preview_or_a_shading
     assert plane.material_slots[0].material.get("il_model")
     export_glb(scene, str(out), str(tmp_path / "phong.glb"))
     assert _materials_of(tmp_path / "phong.glb") == plain
+
+
+def test_objects_disabled_in_viewports_are_exported_as_they_were_baked(tmp_path):
+    """An object disabled in viewports but rendered (an arrayed plane), and one in a collection so disabled (a cube
+    under a Subdivision Surface, 2 levels in renders), are left out of the viewport's evaluation: the exporter wrote
+    their bare meshes (2 and 12 triangles). They are exported as baked (4 and 192), and stay disabled afterwards."""
+    from addon.bake.gltf import export_glb
+    scene, plane, cube = _scene()
+    plane.modifiers.new("Array", "ARRAY").count = 2
+    cube.modifiers.new("Subdivision", "SUBSURF").render_levels = 2
+    props = bpy.data.collections.new("Props")
+    scene.collection.children.link(props)
+    scene.collection.objects.unlink(cube)
+    props.objects.link(cube)
+    plane.hide_viewport = props.hide_viewport = True
+    out = tmp_path / "maps"
+    bake_lightmaps([plane, cube], ["irradiance"], str(out), BakeOptions(resolution=16, samples=1, bounces=1),
+                   scene=scene)
+    assert export_glb(scene, str(out), str(tmp_path / "disabled.glb"))["notes"] == []
+    assert plane.hide_viewport and props.hide_viewport
+    gltf, _ = _read_glb(tmp_path / "disabled.glb")
+    triangles = {n["name"]: sum(gltf["accessors"][p["indices"]]["count"] // 3
+                                for p in gltf["meshes"][n["mesh"]]["primitives"])
+                 for n in gltf["nodes"] if "mesh" in n}
+    assert triangles == {"Plane": 4, "Cube": 192}
