@@ -49,20 +49,45 @@ def user_material(mat):
     environment mapping (``il_envmap``) material (``il_original``, or nothing when ``il_empty``), unwound however they
     are stacked; ``mat`` when it is none of them. A bake lights the scene through these, not through the layers shown
     on top of them."""
+    return layers(mat)[1]
+
+
+#: The add-on's material layers by the name their Remove operator says.
+LAYER_NAMES = {"preview": "light-map preview", "shading": "shading model", "environment": "environment mapping"}
+
+
+def layers(mat):
+    """([(kind of :data:`LAYER_NAMES`, material)] of the add-on's layers on a slot holding ``mat``, top first;
+    :func:`user_material`)."""
+    out = []
     for _ in range(8):
         if mat is None:
-            return None
+            break
         if "il_lightmap_link" in mat and mat.get("il_lightmap"):
+            out.append(("preview", mat))
             mat = mat.get("il_lightmap_original")
         elif mat.get("il_model") or mat.get("il_envmap") is not None:
             if mat.get("il_empty"):
-                return None
+                out.append(("shading" if mat.get("il_model") else "environment", mat))
+                return out, None
             if mat.get("il_original") is None:
-                return mat
+                break
+            out.append(("shading" if mat.get("il_model") else "environment", mat))
             mat = mat["il_original"]
         else:
-            return mat
-    return mat
+            break
+    return out, mat
+
+
+def buried(objects, kind):
+    """The name (:data:`LAYER_NAMES`) of a layer shown over a ``kind`` layer on a slot of ``objects`` (its Remove
+    must come first: each Remove takes off the layer on top), or None."""
+    for obj in objects:
+        for slot in getattr(obj, "material_slots", ()):
+            found = layers(slot.material)[0]
+            if any(k == kind for k, _ in found[1:]):
+                return LAYER_NAMES[found[0][0]]
+    return None
 
 
 def user_link(slot):

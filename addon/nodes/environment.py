@@ -25,7 +25,7 @@ from ..core.errors import InputError
 from ..core.options import Options, option
 from .builder import Graph
 from .groups import sync_interface
-from .material import material_slots_of, put_material, split_shadable
+from .material import material_slots_of, put_material, split_shadable, take_off_previews
 
 GROUP = "IL Environment Map"
 GROUP_VERSION = 3
@@ -244,6 +244,7 @@ def assign_environment_mapping(scene, objects, options=None):
     image = map_image(node.image, options.projection, options.map_size)
     interp = node.interpolation if options.projection == "LATLONG" else "Linear"
     warnings = [f"skipped {'; '.join(skipped)}"] if skipped else []
+    take_off_previews(meshes)
     for obj in meshes:
         if len(obj.material_slots) == 0:
             obj.data.materials.append(None)

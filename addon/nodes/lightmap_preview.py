@@ -20,6 +20,7 @@ import bpy
 
 from ..bake.report import REPORT, entry_file, read_objects
 from ..blender import compat
+from ..blender.materials import user_material
 from ..core.errors import InputError
 from . import source
 from .material import split_shadable
@@ -94,10 +95,9 @@ def _upstream(node):
 
 
 def _base_material(mat):
-    """The material whose base colour is shown: an IL shading material's original, else ``mat``."""
-    if mat is not None and mat.get("il_model"):
-        return None if mat.get("il_empty") else mat.get("il_original")
-    return mat
+    """The material whose base colour is shown: the user's own under a shading model or environment mapping
+    (``blender.materials.user_material``)."""
+    return user_material(mat)
 
 
 def build_preview(orig, obj, entry, path, source_id):

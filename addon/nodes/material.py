@@ -32,6 +32,7 @@ import threading
 import bpy
 
 from ..blender import compat
+from ..blender.materials import user_material
 from ..core.errors import InputError
 from ..core.lights import TYPES
 from . import groups, source
@@ -548,10 +549,16 @@ def assign_shading_model(scene, objects, model, lights="ALL", attenuation="PHYSI
 
 
 def _origin(mat):
-    """The user's material an IL material was made from (None for an empty slot); ``mat`` itself otherwise."""
-    if mat is None or mat.get("il_empty"):
-        return None
-    return mat.get("il_original", mat) if mat.get("il_model") else mat
+    """The user's material under the add-on's layers on a slot (``blender.materials.user_material``: a shading model
+    made over environment mapping is made from the user's material, not from the layer, and replaces it)."""
+    return user_material(mat)
+
+
+def take_off_previews(meshes):
+    """Take a light-map preview shown on ``meshes`` off (the slots get back the user's materials and links) before a
+    shading model or environment mapping replaces what the slots show."""
+    from .lightmap_preview import remove_lightmaps        # it imports this module
+    remove_lightmaps(meshes)
 
 
 def _upstream(socket):
@@ -673,6 +680,7 @@ def assign_materials(scene, objects, model, lights="ALL", attenuation="PHYSICAL"
         warnings.append("no lights to link: the material shows ambient and emission only "
                         "(add lights, then Relink Lights)")
     warnings += light_warnings(linked)
+    take_off_previews(meshes)
     for obj in meshes:
         if len(obj.material_slots) == 0:
             obj.data.materials.append(None)
@@ -687,7 +695,7 @@ def assign_materials(scene, objects, model, lights="ALL", attenuation="PHYSICAL"
             mat["il_light_names"] = [o.name for o in linked]
             made[key] = mat
             warnings += w
-        if cur is not None and cur.get("il_model") and cur != made[key]:
+        if cur is not None and (cur.get("il_model") or cur.get("il_envmap") is not None) and cur != made[key]:
             replaced.add(cur)
         put_material(owner, index, made[key])
     for old in replaced:

@@ -1,6 +1,7 @@
 """Panel section "Environment mapping": reflection and refraction mapping of the world's image (issue 29)."""
 import bpy
 
+from ..blender.materials import buried
 from ..core.errors import warn
 from ..core.result import JobResult
 from ..nodes import environment
@@ -50,7 +51,9 @@ class IL_OT_remove_environment_mapping(JobOperator, bpy.types.Operator):
             return False
         if environment.restorable(context.selected_objects):
             return True
-        cls.poll_message_set("Nothing to restore: no selected object has a material made by Assign Environment Mapping")
+        over = buried(context.selected_objects, "environment")
+        cls.poll_message_set(f"Environment mapping is under the {over}: remove that first" if over else
+                             "Nothing to restore: no selected object has a material made by Assign Environment Mapping")
         return False
 
     def job(self, context):

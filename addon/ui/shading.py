@@ -1,5 +1,6 @@
 """Panel section "Shading": node groups, shading-model assignment, light relinking, model parameters."""
 import bpy
+from ..blender.materials import buried
 from ..core.errors import warn
 from ..core.result import JobResult
 from ..nodes import groups, material
@@ -57,7 +58,9 @@ def _restorable(cls, context):
     """True when a selected object holds a material Assign Shading Model made."""
     if material.restorable(context.selected_objects):
         return True
-    cls.poll_message_set("Nothing to restore: no selected object has a material made by Assign Shading Model")
+    over = buried(context.selected_objects, "shading")
+    cls.poll_message_set(f"The shading model is under the {over}: remove that first" if over else
+                         "Nothing to restore: no selected object has a material made by Assign Shading Model")
     return False
 
 

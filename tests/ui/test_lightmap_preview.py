@@ -297,3 +297,47 @@ def test_a_failure_halfway_gives_the_done_objects_back(tmp_path, monkeypatch):
     assert len(calls) == 2 and _slots([plane, cube]) == before
     assert _trees([bpy.data.materials["Paint"], bpy.data.materials["Label"]]) == trees
     assert not [m for m in bpy.data.materials if m.get(lp.TAG)]
+
+
+def test_layers_are_made_from_the_users_material_and_come_off_top_down(tmp_path):
+    """The preview shows the user's base colour x the map also over environment mapping (it read the environment
+    material's, black); a shading model over the preview or environment mapping is made from the user's material
+    (Kd its base colour: it was made from the layer, Kd 0, with the layer's tags, so that layer's Remove took it) and
+    replaces the layer; Remove Shading Model under another layer says to remove that one first; the Removes, top
+    down, give each slot its material and link back."""
+    from addon.lab import envmap as lab_envmap
+    from addon.nodes import environment, material
+    from addon.ui import shading as shading_ui
+    scene, plane, cube, _ = _scene(tmp_path)
+    out = tmp_path / "maps"
+    bake_lightmaps([plane, cube], ["irradiance"], str(out), BakeOptions(resolution=16, samples=1, bounces=1))
+    sky = bpy.data.images.new("sky", 8, 4, float_buffer=True)
+    sky.pixels.foreach_set(np.full(8 * 4 * 4, 0.5, np.float32))
+    lab_envmap.set_world_environment(scene, sky, strength=1.0)
+    before = [(s.link, s.material) for o in (plane, cube) for s in o.material_slots]
+
+    environment.assign_environment_mapping(scene, [plane])
+    lp.apply_lightmaps([plane], str(out), "IRRADIANCE")
+    base = plane.material_slots[0].material.node_tree.nodes["IL base x map"].inputs[0]
+    assert not base.is_linked and tuple(base.default_value) == pytest.approx(PAINT)
+
+    material.assign_shading_model(scene, [plane, cube], "PHONG")
+    for obj, colour in ((plane, PAINT), (cube, (1.0, 1.0, 1.0))):
+        phong = obj.material_slots[0].material
+        assert tuple(material.read_parameters(phong)["Kd"][:3]) == pytest.approx(colour), obj.name
+        assert not lp.is_preview(phong) and phong.get("il_envmap") is None
+    assert [(s.link, s.material.name) for s in cube.material_slots] == [("OBJECT", "IL Phong: Label")]
+    assert not lp.previewed([plane]) and not environment.restorable([plane])
+    material.restore_materials([plane, cube])
+    assert [(s.link, s.material) for o in (plane, cube) for s in o.material_slots] == before
+
+    material.assign_shading_model(scene, [plane], "PHONG")
+    environment.assign_environment_mapping(scene, [plane])
+    said = []
+    poll = type("Poll", (), {"poll_message_set": staticmethod(said.append)})
+    with bpy.context.temp_override(selected_objects=[plane]):
+        assert not shading_ui._restorable(poll, bpy.context)
+    assert said == ["The shading model is under the environment mapping: remove that first"]
+    environment.remove_environment_mapping([plane])
+    material.restore_materials([plane])
+    assert [(s.link, s.material) for o in (plane, cube) for s in o.material_slots] == before
