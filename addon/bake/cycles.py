@@ -287,6 +287,12 @@ def call_bake(scene, group, kind, samples, seed, uv_name, options, bake=None):
         raise ILError(f"Cycles bake failed: {str(e).strip().splitlines()[-1]}") from e
     seconds = time.perf_counter() - t
     if "FINISHED" not in result:
+        lost = [o.name for o in group
+                if uv_name is not None and uv_name not in o.evaluated_get(vl.depsgraph).data.uv_layers]
+        if lost:
+            raise InputError(f"{', '.join(repr(n) for n in lost)}: the evaluated mesh has no UV layer '{uv_name}' (a "
+                             f"modifier, e.g. Geometry Nodes, makes a new mesh without it): apply the modifier, or "
+                             f"keep the layer in its node tree")
         raise ILError(f"Cycles bake did not finish ({', '.join(result)})")
     return seconds
 

@@ -12,7 +12,7 @@ import pytest
 
 from addon.bake import BakeOptions, bake_lightmaps
 from addon.core.io import exr
-from addon.core.errors import ILError, ILWarning
+from addon.core.errors import ILError, ILWarning, InputError
 from addon.blender import compat, scene as sc
 
 
@@ -242,7 +242,6 @@ def test_array_and_mirror_copies_sharing_texels_are_reported(tmp_path):
 
 def test_skipped_objects_are_named_with_the_right_article(tmp_path):
     from addon.bake.options import article
-    from addon.core.errors import InputError
     scene = bpy.context.scene
     bpy.ops.object.empty_add()
     empty = bpy.context.object
@@ -882,3 +881,19 @@ def test_a_boolean_baked_with_its_cutter_names_the_cutter_for_the_shared_texels(
     assert line.startswith("'Block': 3 % of its surface has no place") and "modifier 'Cut'" in line
     assert any(str(w.message) == line for w in alone)
     assert "unmapped" not in rep["objects"].get("Cutter", {}).get("ao", {})
+
+
+def test_a_geometry_nodes_mesh_without_the_light_map_layer_is_refused_with_the_reason(tmp_path):
+    """A Geometry Nodes modifier that makes a new mesh (an Ico Sphere for the cube) drops the light-map layer the bake
+    unwrapped into the base mesh: Cycles cancels the bake without a word; the failure names the object, the layer
+    and what to do."""
+    bpy.ops.mesh.primitive_cube_add(size=1.0)
+    cube = bpy.context.active_object
+    tree = bpy.data.node_groups.new("Replace", "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    ico = tree.nodes.new("GeometryNodeMeshIcoSphere")
+    out = tree.nodes.new("NodeGroupOutput")
+    tree.links.new(ico.outputs["Mesh"], out.inputs[0])
+    cube.modifiers.new("Replace", "NODES").node_group = tree
+    with pytest.raises(InputError, match=r"'Cube': the evaluated mesh has no UV layer 'Lightmap' \(a modifier"):
+        bake_lightmaps([cube], ["ao"], str(tmp_path), BakeOptions(resolution=16, samples=1))
