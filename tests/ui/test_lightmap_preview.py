@@ -304,7 +304,8 @@ def test_layers_are_made_from_the_users_material_and_come_off_top_down(tmp_path)
     material's, black); a shading model over the preview or environment mapping is made from the user's material
     (Kd its base colour: it was made from the layer, Kd 0, with the layer's tags, so that layer's Remove took it) and
     replaces the layer; Remove Shading Model under another layer says to remove that one first; the Removes, top
-    down, give each slot its material and link back."""
+    down, give each slot its material and link back, and a mesh without slots none (the mark of the slot the
+    shading model added was dropped by a Remove that found it under environment mapping)."""
     from addon.lab import envmap as lab_envmap
     from addon.nodes import environment, material
     from addon.ui import shading as shading_ui
@@ -341,3 +342,11 @@ def test_layers_are_made_from_the_users_material_and_come_off_top_down(tmp_path)
     environment.remove_environment_mapping([plane])
     material.restore_materials([plane])
     assert [(s.link, s.material) for o in (plane, cube) for s in o.material_slots] == before
+    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=1, location=(0.0, 3.0, 0.5))
+    ico = bpy.context.active_object                  # no slots: the shading model adds one, and takes it back
+    material.assign_shading_model(scene, [plane, ico], "PHONG")
+    environment.assign_environment_mapping(scene, [ico])
+    material.restore_materials([plane, ico])         # the plane's Phong; the ico's is under environment mapping
+    environment.remove_environment_mapping([ico])
+    material.restore_materials([ico])
+    assert len(ico.material_slots) == 0 and [(s.link, s.material) for s in plane.material_slots] == before[:1]
