@@ -204,8 +204,8 @@ class Plan:
         lines = ["changed since the bake, so their maps show them as they were then (bake them again with "
                  "--overwrite): " + ", ".join(own)] if own else []
         if any("lighting" in parts for parts in changed.values()):
-            lines.append(f"{SCENE_PARTS['lighting']} changed since the bake, so the irradiance maps show the light as "
-                         f"it was then (bake them again with --overwrite)")
+            lines.append(f"{SCENE_PARTS['lighting']} changed since the bake, so the maps of their light (irradiance, "
+                         f"directional) show it as it was then (bake them again with --overwrite)")
         return lines
 
     def encoded(self, ao_with_irradiance=False):
@@ -421,14 +421,16 @@ def export_glb(scene, folder, out, ao_with_irradiance=False):
     plan = Plan(folder, scene)
     if not plan.maps:
         raise InputError("no object of the report can carry its maps: " + "; ".join(plan.notes or ["none baked"]))
-    changed = plan.changed(scene)
     state = {"textures": {}, "errors": [], "done": set(), "encoded": plan.encoded(ao_with_irradiance)}
     tmp = os.path.join(os.path.dirname(out), f".{os.path.basename(out)}.{os.getpid()}.tmp.glb")
     try:
         hooks = _extension_class(plan, state, ao_with_irradiance)
-        with _prepared(scene, plan), _as_rendered(scene), _registered(hooks), interrupt.blender_call():
-            result = bpy.ops.export_scene.gltf(filepath=tmp, export_format="GLB", use_selection=False,
-                                               export_texcoords=True, export_animations=False, export_apply=True)
+        with _as_rendered(scene):
+            changed = plan.changed(scene)
+            with _prepared(scene, plan), _registered(hooks), interrupt.blender_call():
+                result = bpy.ops.export_scene.gltf(filepath=tmp, export_format="GLB", use_selection=False,
+                                                   export_texcoords=True, export_animations=False,
+                                                   export_apply=True)
         if "FINISHED" not in result:
             raise ILError(f"Blender's glTF exporter did not finish ({', '.join(result)})")
         if state["errors"]:

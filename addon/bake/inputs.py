@@ -1,5 +1,4 @@
 """Resume: the input hash of a map (what determines it) and the maps on disk whose inputs are unchanged."""
-import dataclasses
 import hashlib
 import os
 
@@ -7,7 +6,7 @@ import bpy
 import numpy as np
 
 from ..blender import compat
-from ..blender.digest import node_tree_digest, rna_digest
+from ..blender.digest import node_tree_digest, rna_digest, shape_digest
 from ..blender.materials import user_material
 from ..blender.scene import corner_uv, corner_vertices, positions, subdivided_only
 from ..core.io import exr
@@ -51,7 +50,7 @@ def input_hash(scene, group, kind, options, lighting, parts=None):
     lights and world (``lighting``, :func:`lighting_digest`; a ``lit`` kind only: irradiance) and the options that
     change the map.
     Other objects are not in it: moving an occluder leaves its neighbours' maps as they are (``force`` bakes them).
-    ``parts``: a dict keeping each object's :class:`_ObjectParts` for the next kind's hash and :func:`scene_inputs`."""
+    ``parts``: a dict keeping each object's part before its materials for the next kind's hash."""
     h = hashlib.blake2b(digest_size=16)
     h.update(f"{kind}:{bpy.app.version_string}".encode())
     for name in _HASHED_OPTIONS:
@@ -60,53 +59,39 @@ def input_hash(scene, group, kind, options, lighting, parts=None):
         h.update(f"bounces={options.bounces};{lighting}".encode())
     depsgraph = scene.view_layers[0].depsgraph
     for o in group:
-        for data in object_parts(o, options, depsgraph, parts).all():
+        part = None if parts is None else parts.get(o.as_pointer())
+        if part is None:
+            part = _object_part(o, options, depsgraph)
+            if parts is not None:
+                parts[o.as_pointer()] = part
+        for data in part:
             h.update(data)
         for data in _material_parts(o, kind):
             h.update(data)
     return h.hexdigest()
 
 
-@dataclasses.dataclass
-class _ObjectParts:
-    """What :func:`input_hash` digests of an object before its materials: its name, its size option, ``placement``
-    (transform, base positions, triangles), ``modifiers`` (their settings, the evaluated counts) and the UVs of the
-    ``uv_layer`` option."""
-    name: list
-    size: list
-    placement: list
-    modifiers: list
-    uvs: list
-
-    def all(self):
-        return self.name + self.size + self.placement + self.modifiers + self.uvs
-
-
-def object_parts(o, options, depsgraph, parts=None):
-    """The :class:`_ObjectParts` of ``o`` (kept in ``parts`` by pointer when given)."""
-    key = o.as_pointer()
-    if parts is not None and key in parts:
-        return parts[key]
-    me = o.data
-    out = _ObjectParts([o.name.encode()], [], [], [], [])
+def _object_part(o, options, depsgraph):
+    """What :func:`input_hash` digests of object ``o`` before its materials, in order (the same for every map
+    kind)."""
+    out = [o.name.encode()]
     if options.sizes and o.name in options.sizes:
-        out.size.append(repr(tuple(options.sizes[o.name])).encode())
-    out.placement += [np.array(o.matrix_world, np.float64).tobytes(), positions(me).tobytes(),
-                      corner_vertices(me)[uvmod.corners(me)].tobytes()]
+        out.append(repr(tuple(options.sizes[o.name])).encode())
+    out.append(np.array(o.matrix_world, np.float64).tobytes())
+    me = o.data
+    out += [positions(me).tobytes(), corner_vertices(me)[uvmod.corners(me)].tobytes()]
     subdivided = subdivided_only(o)             # the mesh and the settings hashed give the evaluated mesh
     for mod in o.modifiers:
         if mod.show_render or (subdivided and mod.show_viewport):
-            out.modifiers.append(repr((mod.show_viewport, mod.show_render)).encode())
+            out.append(repr((mod.show_viewport, mod.show_render)).encode())
             h = _Bytes()
             rna_digest(h, mod)
-            out.modifiers.append(h.data())
+            out.append(h.data())
     if not subdivided:
         ev = o.evaluated_get(depsgraph).data
-        out.modifiers.append(f"{len(ev.vertices)}:{len(ev.polygons)}".encode())
+        out.append(f"{len(ev.vertices)}:{len(ev.polygons)}".encode())
     if options.uv_layer and options.uv_layer in me.uv_layers:
-        out.uvs.append(corner_uv(me, options.uv_layer).tobytes())
-    if parts is not None:
-        parts[key] = out
+        out.append(corner_uv(me, options.uv_layer).tobytes())
     return out
 
 
@@ -128,50 +113,53 @@ SCENE_PARTS = {"placement": "moved or its mesh edited", "modifiers": "its modifi
                "lighting": "the lights or the world"}
 
 
-def scene_inputs(scene, obj, kind, lighting, parts=None):
+def scene_inputs(scene, obj, kind, lighting, shapes=None):
     """{part of :data:`SCENE_PARTS`: hex digest, "blender": version} of what in the scene map ``kind`` of ``obj``
     was baked from (the options aside), kept in its report entry ("inputs") and header, so that an export can say
-    what changed since (:func:`changed_since`). "placement" depends on the mesh and transform only; the others on
-    settings whose set differs between Blender versions."""
-    found = object_parts(obj, _NO_OPTIONS, scene.view_layers[0].depsgraph, parts)
-    out = {}
-    for part, data in (("placement", found.placement), ("modifiers", found.modifiers),
-                       ("materials", _material_parts(obj, kind)),
-                       ("lighting", [lighting.encode()] if KINDS[kind].lit else [])):
-        h = hashlib.blake2b(digest_size=16)
-        for d in data:
-            h.update(d)
-        out[part] = h.hexdigest()
-    out["blender"] = bpy.app.version_string
-    return out
+    what changed since (:func:`changed_since`): "placement" (transform; the mesh's positions, edges, faces and
+    corners), "modifiers" (those renders use, their settings without the panel's layout, the evaluated counts),
+    "materials" (:func:`input_hash`'s) and, for a lit kind, "lighting". Called with the render's evaluation in place
+    (``cycles.evaluate_as_render``: the counts are those Cycles bakes, also of an object disabled in viewports).
+    ``shapes``: a dict keeping each object's placement and modifiers for its other kinds."""
+    key = obj.as_pointer()
+    shape = None if shapes is None else shapes.get(key)
+    if shape is None:
+        placement = hashlib.blake2b(np.array(obj.matrix_world, np.float64).tobytes(), digest_size=16)
+        shape_digest(placement, obj.data)
+        modifiers = hashlib.blake2b(digest_size=16)
+        for mod in obj.modifiers:
+            if mod.show_render:
+                rna_digest(modifiers, mod, layout=False)
+        ev = obj.evaluated_get(scene.view_layers[0].depsgraph).data
+        modifiers.update(f"{len(ev.vertices)}:{len(ev.polygons)}".encode())
+        shape = placement.hexdigest(), modifiers.hexdigest()
+        if shapes is not None:
+            shapes[key] = shape
+    materials = hashlib.blake2b(digest_size=16)
+    for data in _material_parts(obj, kind):
+        materials.update(data)
+    lit = hashlib.blake2b(lighting.encode() if KINDS[kind].lit else b"", digest_size=16)
+    return {"placement": shape[0], "modifiers": shape[1], "materials": materials.hexdigest(),
+            "lighting": lit.hexdigest(), "blender": bpy.app.version_string}
 
 
 def changed_since(scene, stored):
     """{object name: [the :data:`SCENE_PARTS` that differ]} of ``stored`` {(object, kind): the map's
     :func:`scene_inputs` at its bake}, objects with no change left out: every part is compared when the same
     Blender reads the file, "placement" alone under another version; a value that is not such a record (a map baked
-    before they were kept) is not compared. The scene is evaluated first (transforms and evaluated meshes are stale
-    after a bake put its settings back, or after a script moved an object)."""
+    before they were kept) is not compared. Called, as :func:`scene_inputs`, with the render's evaluation in place;
+    the view layer is updated first (transforms are stale after a script moved an object)."""
     scene.view_layers[0].update()
-    lighting, out = lighting_digest(scene), {}
+    lighting, shapes, out = lighting_digest(scene), {}, {}
     for (obj, kind), then in stored.items():
         if not isinstance(then, dict) or not all(isinstance(then.get(p), str) for p in SCENE_PARTS):
             continue
-        now = scene_inputs(scene, obj, kind, lighting)
+        now = scene_inputs(scene, obj, kind, lighting, shapes)
         same_blender = then.get("blender") == now["blender"]
         differ = {p for p in SCENE_PARTS if (same_blender or p == "placement") and then[p] != now[p]}
         if differ:
             out.setdefault(obj.name, set()).update(differ)
     return {name: [p for p in SCENE_PARTS if p in parts] for name, parts in out.items()}
-
-
-@dataclasses.dataclass(frozen=True)
-class _NoOptions:
-    sizes: dict = None
-    uv_layer: str = None
-
-
-_NO_OPTIONS = _NoOptions()
 
 
 class _Bytes:

@@ -89,8 +89,6 @@ def _bake_fixed(objects, maps, out, options, scene, on_step):
     lighting = lighting_digest(scene)
     parts = {}
     digests = {(name, m): input_hash(scene, group, m, options, lighting, parts) for name, group in groups for m in maps}
-    inputs = {(name, m): {o.name: scene_inputs(scene, o, m, lighting, parts) for o in group}
-              for name, group in groups for m in maps}
     del parts
     stems = file_stems()
     report_path = os.path.join(out, report_name)
@@ -114,12 +112,15 @@ def _bake_fixed(objects, maps, out, options, scene, on_step):
     layered = _layered(scene, everyone)
     with Progress("bake", steps) as progress, SavedState(scene, everyone + layered, saved) as state:
         run = _Run(scene, maps, out, options, report, report_path, digests, stems, t_all, progress, on_step, state,
-                   TemporaryMaterials(state), world=scene.world, inputs=inputs)
+                   TemporaryMaterials(state), world=scene.world)
         for o in layered:                   # the other objects light the bakes through the user's own materials
             for slot in o.material_slots:
                 slot.material = user_material(slot.material)
         cycles.evaluate_as_render(scene, variants)
         cycles.show(everyone, state)
+        shapes = {}
+        run.inputs = {(name, m): {o.name: scene_inputs(scene, o, m, lighting, shapes) for o in group}
+                      for name, group in groups for m in maps}
         cycles.flip_inside_out(scene, everyone, flips, state)
         cycles.setup_render(scene, options, state)
         if options.target == "image":

@@ -734,9 +734,8 @@ any material without users). Returns the number of slots restored."""
             count += 1
         if first and data.get("il_added_slot") and len(data.materials) == 1 and data.materials[0] is None:
             data.materials.clear()      # (pop leaves the objects' slot count stale)
-        if first and "il_added_slot" in data and not any(kind == "shading" for m in data.materials
-                                                         for kind, _ in layers(m)[0]):
-            del data["il_added_slot"]           # no shading layer left, also under another layer
+        if first and "il_added_slot" in data and not any(layers(m)[0] for m in data.materials):
+            del data["il_added_slot"]           # no layer left that needs it, also under another layer
     return count
 
 

@@ -421,8 +421,8 @@ def test_the_export_names_the_objects_changed_since_their_bake(baked, tmp_path):
 
 
 CHANGED = "changed since the bake, so their maps show them as they were then (bake them again with --overwrite): "
-RELIT = ("the lights or the world changed since the bake, so the irradiance maps show the light as it was then (bake "
-         "them again with --overwrite)")
+RELIT = ("the lights or the world changed since the bake, so the maps of their light (irradiance, directional) show "
+         "it as it was then (bake them again with --overwrite)")
 
 
 def _materials_of(glb):
@@ -498,3 +498,24 @@ def test_objects_disabled_in_viewports_are_exported_as_they_were_baked(tmp_path)
                                 for p in gltf["meshes"][n["mesh"]]["primitives"])
                  for n in gltf["nodes"] if "mesh" in n}
     assert triangles == {"Plane": 4, "Cube": 192}
+
+
+def test_what_a_render_does_not_see_is_not_a_change_since_the_bake(tmp_path):
+    """The digests the export compares are of the scene as a render sees it: a cube whose Subdivision Surface is 1
+    level in the viewport and 2 in renders, under an Array, baked; then its modifier panels opened, the Array
+    hidden in the viewport (still rendered), the cube disabled in viewports and the Subdivision's viewport level
+    changed: no change is named (each was named "its modifiers"); the Array's count changed is."""
+    from addon.bake.gltf import export_glb
+    scene, plane, cube = _scene()
+    sub = cube.modifiers.new("Subdivision", "SUBSURF")
+    sub.levels, sub.render_levels = 1, 2
+    array = cube.modifiers.new("Array", "ARRAY")
+    out = tmp_path / "maps"
+    bake_lightmaps([plane, cube], ["irradiance"], str(out), BakeOptions(resolution=16, samples=1, bounces=1),
+                   scene=scene)
+    for name in (n for n in dir(sub) if n.startswith("open_")):
+        setattr(sub, name, not getattr(sub, name))
+    array.show_viewport, cube.hide_viewport, sub.levels = False, True, 0
+    assert export_glb(scene, str(out), str(tmp_path / "same.glb"))["notes"] == []
+    array.count = 3
+    assert export_glb(scene, str(out), str(tmp_path / "more.glb"))["notes"] == [f"{CHANGED}Cube (its modifiers)"]
