@@ -8,9 +8,10 @@ import numpy as np
 from ..blender import compat
 from ..blender.digest import node_tree_digest, rna_digest, shape_digest
 from ..blender.materials import user_material
-from ..blender.scene import corner_uv, corner_vertices, positions, subdivided_only
+from ..blender.scene import corner_uv, corner_vertices, from_its_mesh, positions, subdivided_only
 from ..core.io import exr
 from . import uv as uvmod
+from .cycles import RENDER_VARIANTS
 from .kinds import KINDS
 from .plan import map_file
 
@@ -108,6 +109,11 @@ def _material_parts(o, kind):
             yield h.data()
 
 
+#: Modifier settings only the viewport's evaluation uses (a render uses their render halves, ``cycles.RENDER_VARIANTS``).
+_VIEWPORT_SETTINGS = frozenset(view for pairs in RENDER_VARIANTS.values() for view, _ in pairs)
+#: Modifiers whose evaluated mesh Blender subdivides when it is first read (0.05-0.08 s a level prop).
+_SUBDIVIDING = ("SUBSURF", "MULTIRES")
+
 #: What :func:`scene_inputs` digests, with the words an export's note says of a change to it.
 SCENE_PARTS = {"placement": "moved or its mesh edited", "modifiers": "its modifiers", "materials": "its materials",
                "lighting": "the lights or the world"}
@@ -117,7 +123,9 @@ def scene_inputs(scene, obj, kind, lighting, shapes=None):
     """{part of :data:`SCENE_PARTS`: hex digest, "blender": version} of what in the scene map ``kind`` of ``obj``
     was baked from (the options aside), kept in its report entry ("inputs") and header, so that an export can say
     what changed since (:func:`changed_since`): "placement" (transform; the mesh's positions, edges, faces and
-    corners), "modifiers" (those renders use, their settings without the panel's layout, the evaluated counts),
+    corners), "modifiers" (those renders use, their settings without the viewport's halves or the panel's layout;
+    the evaluated counts of a mesh that is neither unmodified nor subdivided, whose subdivision Blender would compute
+    on reading them),
     "materials" (:func:`input_hash`'s) and, for a lit kind, "lighting". Called with the render's evaluation in place
     (``cycles.evaluate_as_render``: the counts are those Cycles bakes, also of an object disabled in viewports).
     ``shapes``: a dict keeping each object's placement and modifiers for its other kinds."""
@@ -127,11 +135,12 @@ def scene_inputs(scene, obj, kind, lighting, shapes=None):
         placement = hashlib.blake2b(np.array(obj.matrix_world, np.float64).tobytes(), digest_size=16)
         shape_digest(placement, obj.data)
         modifiers = hashlib.blake2b(digest_size=16)
-        for mod in obj.modifiers:
-            if mod.show_render:
-                rna_digest(modifiers, mod, layout=False)
-        ev = obj.evaluated_get(scene.view_layers[0].depsgraph).data
-        modifiers.update(f"{len(ev.vertices)}:{len(ev.polygons)}".encode())
+        rendered = [mod for mod in obj.modifiers if mod.show_render]
+        for mod in rendered:
+            rna_digest(modifiers, mod, layout=False, skip=_VIEWPORT_SETTINGS)
+        if not from_its_mesh(obj) and not any(mod.type in _SUBDIVIDING for mod in rendered):
+            ev = obj.evaluated_get(scene.view_layers[0].depsgraph).data
+            modifiers.update(f"{len(ev.vertices)}:{len(ev.polygons)}".encode())
         shape = placement.hexdigest(), modifiers.hexdigest()
         if shapes is not None:
             shapes[key] = shape

@@ -42,15 +42,15 @@ def shape_digest(h, me):
         h.update(name.encode() + (b"-" if values is None else values.tobytes()))
 
 
-def rna_digest(h, struct, layout=True):
-    """A modifier's type and every setting (objects and node groups it uses by name, a node group's tree);
-    ``layout`` False: without the sub-panels opened in its panel (``open_*``)."""
+def rna_digest(h, struct, layout=True, skip=()):
+    """A modifier's type and every setting (objects and node groups it uses by name, a node group's tree) but those
+    named in ``skip``; ``layout`` False: without the sub-panels opened in its panel (``open_*``)."""
     h.update(struct.bl_rna.identifier.encode())
     for prop in struct.bl_rna.properties:
         if prop.identifier in ("rna_type", "name", "is_override_data_editable", "show_expanded", "is_active",
                                "show_viewport", "show_in_editmode", "show_on_cage", "persistent_uid"):
             continue
-        if not layout and prop.identifier.startswith("open_"):
+        if prop.identifier in skip or (not layout and prop.identifier.startswith("open_")):
             continue
         value = getattr(struct, prop.identifier, None)
         if hasattr(value, "name") and hasattr(value, "bl_rna"):
