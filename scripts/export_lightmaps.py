@@ -50,7 +50,7 @@ def main(args):
         from addon.bake.gltf import Plan
         names = sorted(Plan(folder, bpy.context.scene).maps)
         if names:                                   # else export_glb says why nothing can be exported
-            checked = engine_maps(bpy.context.scene, folder, names, args.godot)
+            checked = engine_maps(bpy.context.scene, folder, names, args.godot, args.unity)
     result = export_glb(bpy.context.scene, folder, out, ao_with_irradiance=args.ao_with_irradiance)
     for line in result["notes"]:
         errors.warn(line)

@@ -100,3 +100,16 @@ def test_a_godot_array_too_large_is_refused_with_the_way_out():
             engines.check_godot_size(big)
     finally:
         engines.GODOT_MAX_BYTES = small_limit
+
+
+def test_godot_paths_are_the_names_godots_import_gives_the_glb_nodes():
+    """Godot names a glTF's nodes in index order: invalid characters as "_", a taken name numbered from 2,
+    "Skeleton3D" taken first (GLTFDocument::_assign_node_names); a skin's joints and what hangs from them are not
+    nodes of the scene. Paths run from the scene root through the glTF's parents, not Blender's (a light's child is
+    a root node when the light is not exported)."""
+    gltf = {"nodes": [{"name": "Skeleton3D"}, {"name": "x.y"}, {"name": "x_y", "children": [3]}, {"name": "x_y2"},
+                      {"name": "Rig", "children": [5]}, {"name": "Bone", "children": [6]}, {"name": "OnBone"},
+                      {"name": "OnSun"}],
+            "skins": [{"joints": [5]}]}
+    assert engines.godot_paths(gltf) == {"Skeleton3D": ["Skeleton3D2"], "x.y": ["x_y"], "x_y": ["x_y2"],
+                                         "x_y2": ["x_y2", "x_y22"], "Rig": ["Rig"], "OnSun": ["OnSun"]}

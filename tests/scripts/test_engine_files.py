@@ -81,3 +81,53 @@ def test_names_godot_makes_alike_are_refused_for_godot(tmp_path, script):
     r = script("export_lightmaps.py", blend, "--lightmaps", out, "--out", dest / "s.glb", "--unity")
     assert r.returncode == 0, r.stderr
     assert sorted(json.loads((dest / "s.unity.json").read_text())["renderers"]) == ["x.y", "x_y"]
+
+
+def test_godot_paths_follow_the_glb_and_what_no_engine_file_takes_is_said(tmp_path, script):
+    """A cube parented to a sun lamp (the .glb leaves lights out, so the cube is a root node) and a plane named
+    'Skeleton3D' (a name Godot keeps for itself: its node is 'Skeleton3D2') get the paths Godot's import gives them
+    (before: '../Sun/Cube' and '../Skeleton3D', lighting nothing). An object parented to a bone is refused for
+    Godot. With directional maps only, --unity is refused before anything is written; an object with a directional
+    map only among objects with irradiance only is named as in no engine file."""
+    import bpy
+    from addon.bake import bake_lightmaps
+    from addon.bake.options import BakeOptions
+    from tests.scripts.test_export_lightmaps import _scene
+    scene, plane, cube = _scene()
+    plane.name = "Skeleton3D"
+    bpy.ops.object.light_add(type="SUN", location=(0.0, 0.0, 3.0))
+    sun = bpy.context.active_object
+    cube.parent = sun
+    cube.matrix_parent_inverse = sun.matrix_world.inverted()
+    out = tmp_path / "maps"
+    opts = BakeOptions(resolution=8, samples=1, bounces=1)
+    bake_lightmaps([plane, cube], ["irradiance"], str(out), opts, scene=scene)
+    blend = tmp_path / "lamp.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    r = script("export_lightmaps.py", blend, "--lightmaps", out, "--out", tmp_path / "s.glb", "--godot", "--unity")
+    assert r.returncode == 0, r.stderr
+    paths = re.findall(r'NodePath\("([^"]+)"\)', (tmp_path / "s.lightmap.tres").read_text())
+    assert sorted(paths) == ["../Cube", "../Skeleton3D2"]
+
+    bpy.ops.object.armature_add(location=(2.0, 0.0, 0.0))
+    rig = bpy.context.active_object
+    cube.parent, cube.parent_type, cube.parent_bone = rig, "BONE", rig.data.bones[0].name
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    dest = tmp_path / "bone"
+    dest.mkdir()
+    r = script("export_lightmaps.py", blend, "--lightmaps", out, "--out", dest / "s.glb", "--godot")
+    assert r.returncode == 2 and "parented to a bone" in r.stderr and "'Cube'" in r.stderr, r.stderr
+    assert os.listdir(dest) == []
+
+    cube.parent = None
+    mixed = tmp_path / "mixed"
+    bake_lightmaps([cube], ["directional"], str(mixed), opts, scene=scene)
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    r = script("export_lightmaps.py", blend, "--lightmaps", mixed, "--out", dest / "s.glb", "--unity")
+    assert r.returncode == 2 and "--unity: no exported object has an irradiance map" in r.stderr, r.stderr
+    assert os.listdir(dest) == []
+    bake_lightmaps([plane], ["irradiance"], str(mixed), opts.replace(overwrite=True), scene=scene)
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    r = script("export_lightmaps.py", blend, "--lightmaps", mixed, "--out", dest / "s.glb", "--godot", "--unity")
+    assert r.returncode == 0, r.stderr
+    assert "not in the Godot files (a directional map only" in r.stderr and r.stderr.count(": Cube\n") == 2, r.stderr

@@ -17,7 +17,9 @@ uv2); glTF's flipped v and the image row order cancel, so the maps are written a
   ``lightmapScaleOffset`` set from a script. Objects of one atlas share a map; their UVs are already in it.
 """
 import dataclasses
+import json
 import math
+import struct
 
 import numpy as np
 
@@ -58,6 +60,47 @@ def godot_name_clashes(names, needed):
     for name in names:
         groups.setdefault(godot_node_name(name), []).append(name)
     return [sorted(g) for _, g in sorted(groups.items()) if len(g) > 1 and any(n in needed for n in g)]
+
+
+def read_glb_json(path):
+    """The JSON chunk of the glTF binary at ``path`` as a dict (InputError when it is not one)."""
+    with open(path, "rb") as f:
+        head = f.read(20)
+        if len(head) < 20 or head[:4] != b"glTF" or head[16:20] != b"JSON":
+            raise InputError(f"{path}: not a glTF binary")
+        (length,) = struct.unpack("<I", head[12:16])
+        return json.loads(f.read(length))
+
+
+def godot_paths(gltf):
+    """{glTF node name: [its node's name and its parents' in Godot's import, scene root first]} of the glTF JSON
+    ``gltf``'s nodes that are neither a skin's joint nor under one. Godot's glTF import names the nodes in their index
+    order, each with :data:`GODOT_INVALID` as "_" and numbered (2, 3, ...) when the name is taken, "Skeleton3D"
+    taken first (GLTFDocument::_parse_scenes, _assign_node_names, _gen_unique_name); a node name the glTF repeats
+    keeps its first node."""
+    nodes = gltf.get("nodes", [])
+    joints = {j for skin in gltf.get("skins", []) for j in skin.get("joints", [])}
+    taken, names = {"Skeleton3D"}, {}
+    for i, node in enumerate(nodes):
+        if i in joints:
+            continue
+        base = godot_node_name(node.get("name") or "Node")
+        name, k = base, 1
+        while name in taken:
+            k += 1
+            name = f"{base}{k}"
+        taken.add(name)
+        names[i] = name
+    parent = {c: i for i, node in enumerate(nodes) for c in node.get("children", [])}
+    out = {}
+    for i, node in enumerate(nodes):
+        path, j = [], i
+        while j is not None and j in names:
+            path.insert(0, names[j])
+            j = parent.get(j)
+        if j is None and node.get("name") not in out:
+            out[node.get("name")] = path
+    return out
 
 
 def _node_path(parts):
