@@ -114,21 +114,24 @@ _VIEWPORT_SETTINGS = frozenset(view for pairs in RENDER_VARIANTS.values() for vi
 #: Modifiers whose evaluated mesh Blender subdivides when it is first read (0.05-0.08 s a level prop).
 _SUBDIVIDING = ("SUBSURF", "MULTIRES")
 
+#: The way :func:`scene_inputs` digests the scene: records made another way are not compared.
+SCENE_RECIPE = 1
+
 #: What :func:`scene_inputs` digests, with the words an export's note says of a change to it.
 SCENE_PARTS = {"placement": "moved or its mesh edited", "modifiers": "its modifiers", "materials": "its materials",
                "lighting": "the lights or the world"}
 
 
 def scene_inputs(scene, obj, kind, lighting, shapes=None):
-    """{part of :data:`SCENE_PARTS`: hex digest, "blender": version} of what in the scene map ``kind`` of ``obj``
-    was baked from (the options aside), kept in its report entry ("inputs") and header, so that an export can say
-    what changed since (:func:`changed_since`): "placement" (transform; the mesh's positions, edges, faces and
-    corners), "modifiers" (those renders use, their settings without the viewport's halves or the panel's layout;
-    the evaluated counts of a mesh that is neither unmodified nor subdivided, whose subdivision Blender would compute
-    on reading them),
-    "materials" (:func:`input_hash`'s) and, for a lit kind, "lighting". Called with the render's evaluation in place
-    (``cycles.evaluate_as_render``: the counts are those Cycles bakes, also of an object disabled in viewports).
-    ``shapes``: a dict keeping each object's placement and modifiers for its other kinds."""
+    """{part of :data:`SCENE_PARTS`: hex digest, "blender": version, "recipe": :data:`SCENE_RECIPE`} of what in the
+    scene map ``kind`` of ``obj`` was baked from (the options aside), kept in its report entry ("inputs") and header,
+    so that an export can say what changed since (:func:`changed_since`): "placement" (transform; the mesh's
+    positions, edges, faces and corners), "modifiers" (those renders use, their settings without the viewport's
+    halves or the panel's layout; the evaluated counts of a mesh neither unmodified nor subdivided, whose
+    subdivision Blender would compute on reading them), "materials" (:func:`input_hash`'s) and, for a lit kind,
+    "lighting". Called with the render's evaluation in place (``cycles.evaluate_as_render``: the counts are those
+    Cycles bakes, also of an object disabled in viewports). ``shapes``: a dict keeping each object's placement and
+    modifiers for its other kinds."""
     key = obj.as_pointer()
     shape = None if shapes is None else shapes.get(key)
     if shape is None:
@@ -149,23 +152,23 @@ def scene_inputs(scene, obj, kind, lighting, shapes=None):
         materials.update(data)
     lit = hashlib.blake2b(lighting.encode() if KINDS[kind].lit else b"", digest_size=16)
     return {"placement": shape[0], "modifiers": shape[1], "materials": materials.hexdigest(),
-            "lighting": lit.hexdigest(), "blender": bpy.app.version_string}
+            "lighting": lit.hexdigest(), "blender": bpy.app.version_string, "recipe": SCENE_RECIPE}
 
 
 def changed_since(scene, stored):
     """{object name: [the :data:`SCENE_PARTS` that differ]} of ``stored`` {(object, kind): the map's
     :func:`scene_inputs` at its bake}, objects with no change left out: every part is compared when the same
-    Blender reads the file, "placement" alone under another version; a value that is not such a record (a map baked
-    before they were kept) is not compared. Called, as :func:`scene_inputs`, with the render's evaluation in place;
+    Blender reads the file, "placement" alone under another version; a value that is not such a record of this
+    :data:`SCENE_RECIPE` (a map baked before they were kept, or digested another way) is not compared. Called, as :func:`scene_inputs`, with the render's evaluation in place;
     the view layer is updated first (transforms are stale after a script moved an object)."""
     scene.view_layers[0].update()
     lighting, shapes, out = lighting_digest(scene), {}, {}
     for (obj, kind), then in stored.items():
-        if not isinstance(then, dict) or not all(isinstance(then.get(p), str) for p in SCENE_PARTS):
+        if not isinstance(then, dict) or then.get("recipe") != SCENE_RECIPE:
             continue
         now = scene_inputs(scene, obj, kind, lighting, shapes)
         same_blender = then.get("blender") == now["blender"]
-        differ = {p for p in SCENE_PARTS if (same_blender or p == "placement") and then[p] != now[p]}
+        differ = {p for p in SCENE_PARTS if (same_blender or p == "placement") and then.get(p) != now[p]}
         if differ:
             out.setdefault(obj.name, set()).update(differ)
     return {name: [p for p in SCENE_PARTS if p in parts] for name, parts in out.items()}

@@ -391,7 +391,7 @@ def test_the_export_names_the_objects_changed_since_their_bake(baked, tmp_path):
     from addon.bake.gltf import export_glb
     _, out, entries = baked
     assert set(entries["Cube"]["irradiance"]["inputs"]) == {"placement", "modifiers", "materials", "lighting",
-                                                            "blender"}
+                                                            "blender", "recipe"}
     scene = bpy.context.scene
     cube, paint = bpy.data.objects["Cube"], bpy.data.materials["Paint"]
 
