@@ -24,8 +24,7 @@ def _node_parts(obj):
     return parts
 
 
-def _engine_map(scene, folder, names, kind="irradiance"):
-    plan = Plan(folder, scene)
+def _engine_map(scene, plan, names, kind):
     users, map_of, maps = {}, {}, {}
     for name in names:
         entry = plan.maps.get(name, {}).get(kind)
@@ -55,8 +54,9 @@ def engine_maps(scene, folder, names, godot=True, unity=False):
     nodes' names would not stay the glTF's (:func:`core.io.engines.godot_name_clashes`) or an object hangs from a
     bone or deforms with an armature (Godot's import moves it under the skeleton). The export script calls it
     before writing the .glb, so that a refusal writes nothing."""
-    em = _engine_map(scene, folder, names)
-    every = _engine_map(scene, folder, names, "directional")
+    plan = Plan(folder, scene)
+    em = _engine_map(scene, plan, names, "irradiance")
+    every = _engine_map(scene, plan, names, "directional")
     sh = every if every.map_of and set(every.map_of) >= set(em.map_of) else None
     if not (em.map_of or sh):
         raise InputError("--godot / --unity: no exported object has an irradiance or directional map to hand over")

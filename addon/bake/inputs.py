@@ -109,7 +109,8 @@ def _material_parts(o, kind):
             yield h.data()
 
 
-#: Modifier settings only the viewport's evaluation uses (a render uses their render halves, ``cycles.RENDER_VARIANTS``).
+#: Modifier settings only the viewport's evaluation uses (a render uses their render halves,
+#: ``cycles.RENDER_VARIANTS``).
 _VIEWPORT_SETTINGS = frozenset(view for pairs in RENDER_VARIANTS.values() for view, _ in pairs)
 #: Modifiers whose evaluated mesh Blender subdivides when it is first read (0.05-0.08 s a level prop).
 _SUBDIVIDING = ("SUBSURF", "MULTIRES")
@@ -159,8 +160,9 @@ def changed_since(scene, stored):
     """{object name: [the :data:`SCENE_PARTS` that differ]} of ``stored`` {(object, kind): the map's
     :func:`scene_inputs` at its bake}, objects with no change left out: every part is compared when the same
     Blender reads the file, "placement" alone under another version; a value that is not such a record of this
-    :data:`SCENE_RECIPE` (a map baked before they were kept, or digested another way) is not compared. Called, as :func:`scene_inputs`, with the render's evaluation in place;
-    the view layer is updated first (transforms are stale after a script moved an object)."""
+    :data:`SCENE_RECIPE` (a map baked before they were kept, or digested another way) is not compared. Called, as
+    :func:`scene_inputs`, with the render's evaluation in place; the view layer is updated first (transforms are
+    stale after a script moved an object)."""
     scene.view_layers[0].update()
     lighting, shapes, out = lighting_digest(scene), {}, {}
     for (obj, kind), then in stored.items():

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..blender.scene import corner_triangles, corner_vertices, positions
 from ..core import smoothing
+from ..core.lightmap import triangle_areas
 from ..core.rows import unique_rows
 from .charts import first_at_position
 
@@ -23,7 +24,7 @@ UNWRAP_BAND = 64.0
 def mesh_area(me):
     """Surface area of mesh ``me`` in object space (its own units, no transform)."""
     t = positions(me).astype(float)[corner_vertices(me)[corner_triangles(me)]]
-    return float(0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum())
+    return float(triangle_areas(t).sum())
 
 
 def unwrap_scale(meshes):

@@ -138,7 +138,7 @@ def world_area(obj):
 
 def _world_area(obj):
     t = world_triangles(obj)
-    return float(0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum())
+    return float(lightmap.triangle_areas(t).sum())
 
 
 def world_triangles(obj):

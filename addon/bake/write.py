@@ -163,11 +163,12 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
         attrs["il:objects"] = json.dumps({o.name: {"coverage": covered[o.name], "chart_area": areas[o.name]}
                                           | ({"overlap": float(overlap[0][o.name])} if overlap else {})
                                           for o in group})
-    kept = {key: {o.name: PER_OBJECT[key](named[o.name]) for o in group if o.name in named}
-            for key, named in (per_object or {}).items() if named}
-    kept = {key: named for key, named in kept.items() if named}
-    for key, named in kept.items():
-        attrs["il:" + key] = json.dumps(named)
+    kept = {}
+    for key, named in (per_object or {}).items():
+        mine = {o.name: PER_OBJECT[key](named[o.name]) for o in group if o.name in (named or {})}
+        if mine:
+            kept[key] = mine
+            attrs["il:" + key] = json.dumps(mine)
     path = map_file(out, stems, name, kind)
     exr.write_exr(path, KINDS[kind].exr_channels(np.flipud(values), np.flipud(alpha)), attrs)
     png = map_file(out, stems, name, kind, ".png")

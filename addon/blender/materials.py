@@ -56,6 +56,12 @@ def user_material(mat):
 LAYER_NAMES = {"preview": "light-map preview", "shading": "shading model", "environment": "environment mapping"}
 
 
+def is_preview(mat):
+    """Whether ``mat`` is a light-map preview material (``il_lightmap``, keeping the link it replaced in
+    ``il_lightmap_link``)."""
+    return mat is not None and bool(mat.get("il_lightmap")) and "il_lightmap_link" in mat
+
+
 def layers(mat):
     """([(kind of :data:`LAYER_NAMES`, material)] of the add-on's layers on a slot holding ``mat``, top first;
     :func:`user_material`)."""
@@ -63,7 +69,7 @@ def layers(mat):
     for _ in range(8):
         if mat is None:
             break
-        if "il_lightmap_link" in mat and mat.get("il_lightmap"):
+        if is_preview(mat):
             out.append(("preview", mat))
             mat = mat.get("il_lightmap_original")
         elif mat.get("il_model") or mat.get("il_envmap") is not None:
@@ -93,10 +99,7 @@ def buried(objects, kind):
 def user_link(slot):
     """How the user's own material is linked on ``slot`` ("OBJECT" or "DATA"): a light-map preview shows itself on
     the object and keeps the link it replaced (``il_lightmap_link``); the other layers keep the slot's link."""
-    mat = slot.material
-    if mat is not None and "il_lightmap_link" in mat and mat.get("il_lightmap"):
-        return mat["il_lightmap_link"]
-    return slot.link
+    return slot.material["il_lightmap_link"] if is_preview(slot.material) else slot.link
 
 
 def shows_layers(obj):

@@ -33,6 +33,12 @@ def uv_areas(tri_uv):
     return 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
 
 
+def triangle_areas(tri_co):
+    """Areas of the triangles ``tri_co`` (T, 3, 3), (T,)."""
+    t = np.asarray(tri_co, float)
+    return 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+
+
 def uv_area(tri_uv):
     """Sum of |triangle areas| in UV space; ``tri_uv`` is (T, 3, 2)."""
     return float(uv_areas(tri_uv).sum())
@@ -41,8 +47,7 @@ def uv_area(tri_uv):
 def unmapped_fraction(tri_co, tri_uv):
     """Share of the area of triangles ``tri_co`` (T, 3, 3) on those whose UV area (``tri_uv`` (T, 3, 2)) is below a
     millionth of what the mean density (Σ UV area / Σ area) gives their area: faces a layout leaves without a texel."""
-    t = np.asarray(tri_co, float)
-    area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+    area = triangle_areas(tri_co)
     total = float(area.sum())
     if total <= 0:
         return 0.0
@@ -73,11 +78,8 @@ def density_spread(tri_uv, tri_world, quantile=0.1):
     """Texel density of the surface's lowest ``quantile`` (by area) over its median: densities √(UV area / world
     area) per triangle, area-weighted quantiles; 1 for a layout of uniform density, lower where charts are
     foreshortened (a projection onto a plane at an angle θ to the surface gives √cos θ)."""
-    t = np.asarray(tri_world, float)
-    d = np.asarray(tri_uv, float)
-    world = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
-    e1, e2 = d[:, 1] - d[:, 0], d[:, 2] - d[:, 0]
-    uv = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    world = triangle_areas(tri_world)
+    uv = uv_areas(tri_uv)
     keep = world > 0
     if not keep.any():
         return 1.0

@@ -20,7 +20,7 @@ import bpy
 
 from ..bake.report import REPORT, entry_file, read_objects
 from ..blender import compat
-from ..blender.materials import user_material
+from ..blender.materials import is_preview, user_material
 from ..core.errors import InputError
 from . import source
 from .material import split_shadable
@@ -94,16 +94,10 @@ def _upstream(node):
     return seen
 
 
-def _base_material(mat):
-    """The material whose base colour is shown: the user's own under a shading model or environment mapping
-    (``blender.materials.user_material``)."""
-    return user_material(mat)
-
-
 def build_preview(orig, obj, entry, path, source_id):
     """A new preview material for a slot holding ``orig`` (None: empty) of ``obj``; see the module docstring."""
     kind, strength = SOURCES[source_id]
-    base_mat = _base_material(orig)
+    base_mat = user_material(orig)              # the base colour shown: the user's own under any layer
     surface = source.read_surface(base_mat)
     label = f"IL {kind} {obj.name}: {orig.name if orig is not None else 'empty'}"
     if surface.base_source is not None:
@@ -159,10 +153,6 @@ def build_preview(orig, obj, entry, path, source_id):
     mat[TAG] = kind
     mat["il_lightmap_file"] = path or attr
     return mat
-
-
-def is_preview(mat):
-    return mat is not None and bool(mat.get(TAG)) and "il_lightmap_link" in mat
 
 
 def previewed(objects):

@@ -548,12 +548,6 @@ def assign_shading_model(scene, objects, model, lights="ALL", attenuation="PHYSI
     return mats[0], warnings
 
 
-def _origin(mat):
-    """The user's material under the add-on's layers on a slot (``blender.materials.user_material``: a shading model
-    made over environment mapping is made from the user's material, not from the layer, and replaces it)."""
-    return user_material(mat)
-
-
 def take_off_previews(meshes):
     """Take a light-map preview shown on ``meshes`` off (the slots get back the user's materials and links) before a
     shading model or environment mapping replaces what the slots show."""
@@ -687,7 +681,7 @@ def assign_materials(scene, objects, model, lights="ALL", attenuation="PHYSICAL"
             obj.data["il_added_slot"] = True
     made, replaced = {}, set()
     for owner, index, cur in list(material_slots_of(meshes)):
-        orig = _origin(cur)
+        orig = user_material(cur)           # over environment mapping too: the model replaces it
         key = orig.as_pointer() if orig is not None else None
         if key not in made:
             mat, w = _convert(orig, model, linked, attenuation, coefficients, params, name)
@@ -728,9 +722,9 @@ any material without users). Returns the number of slots restored."""
             if not _restores(mat) or (slot.link != "OBJECT" and not first):
                 continue
             if slot.link == "OBJECT":
-                slot.material = _origin(mat)
+                slot.material = user_material(mat)
             else:
-                data.materials[i] = _origin(mat)
+                data.materials[i] = user_material(mat)
             count += 1
         if first and data.get("il_added_slot") and len(data.materials) == 1 and data.materials[0] is None:
             data.materials.clear()      # (pop leaves the objects' slot count stale)
