@@ -188,6 +188,7 @@ class _Run:
     layers: dict = dataclasses.field(default_factory=dict)
     sides: dict = dataclasses.field(default_factory=dict)
     margins: dict = dataclasses.field(default_factory=dict)
+    measured: set = dataclasses.field(default_factory=set)       # layouts whose margin was measured
     unwraps: dict = dataclasses.field(default_factory=dict)
     windows: dict = dataclasses.field(default_factory=dict)
     caches: dict = dataclasses.field(default_factory=dict)
@@ -250,6 +251,7 @@ class _Run:
         if not targets:
             raise self.errors[0]
         self.check_fill(targets)
+        self.measure_margins(targets)
         if options.texel_density is not None and not options.sizes:
             check_time([t.size for t in targets if t.size], maps, options, "max resolution", speed(scene, options))
         batched, singles = batching.batches(scene, targets, self.layers, self.state, options, maps)
@@ -281,6 +283,25 @@ class _Run:
                 line = uvchecks.low_fill(t.group, t.size, margin, self.options)
                 if line:
                     self.fills.update((o.name, line) for o in t.group)
+
+    def measure_margins(self, targets):
+        """The margin of each image map's layout the bake did not make (no side: a reused "Lightmap" layer, the
+        ``--uv-layer``): measured at the map's size (:func:`uvchecks.layout_margin`) for the report, with a warning
+        below the asked one; the map is still dilated by the asked margin (nearest covered texel: no texel takes
+        another chart's value while it is nearer its own)."""
+        asked = float(self.options.margin)
+        for t in targets:
+            first = t.group[0].name
+            if not t.size or first in self.sides or self.options.target != "image":
+                continue
+            margin = uvchecks.layout_margin(t.group, self.layers, t.size, asked)
+            self.margins[first] = margin
+            self.measured.add(first)
+            if margin < asked:
+                layer = self.layers[first]
+                errors.warn(f"'{t.name}': light-map layer '{layer}' keeps a margin of {margin:g} texel(s) between its "
+                            f"charts at {t.size[0]}x{t.size[1]}, below the asked {asked:g} (filtered and mipmapped "
+                            f"reads mix charts); remove the layer to have one made with the margin")
 
     def uv_progress(self, done, total, seconds, objects):
         """A progress line of the UV step on stderr in batch: groups done, elapsed, ETA (seconds per group so far)."""
@@ -344,8 +365,10 @@ class _Run:
         result.seconds += t_files - t_map     # the header's il:seconds: bakes and checks, not the files
         per_object = {"low_fill": self.fills, "unwrap": self.unwraps, "uv_cache": self.caches,
                       "unmapped": target.unmapped, "inputs": self.inputs.get((name, kind))}
+        grow = int(self.options.margin) if group[0].name in self.measured else None
         entries = write.write_map(name, group, kind, result, self.out, self.options, self.layers, margin,
-                                  target.overlap, self.digests[(name, kind)], self.stems, self.scene, per_object)
+                                  target.overlap, self.digests[(name, kind)], self.stems, self.scene, per_object,
+                                  dilation=grow)
         for o in group:
             entries[o.name]["seconds"] = round(result.seconds + time.perf_counter() - t_files, 4)  # files included
             self.report["objects"].setdefault(o.name, {})[kind] = entries[o.name]

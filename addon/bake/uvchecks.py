@@ -14,10 +14,11 @@ from ..core.memo import FIGURES, digest
 from ..core.errors import InputError
 from ..blender.scene import corner_triangles, corner_vertices, positions
 from . import evaluated
-from .charts import chart_count, side_for_fill
+from ..core.margins import footprint_gap, margin_from_gap
+from .charts import chart_count, first_at_position, side_for_fill
 from .options import article
-from .uv import (LIGHTMAP, group_triangles_uv, mesh_triangles_uv, triangles_uv, window, world_area,
-                 world_triangles)
+from .uv import (LIGHTMAP, corners as uv_corners, group_triangles_uv, mesh_triangles_uv, triangles_uv, window,
+                 world_area, world_triangles)
 
 MIN_COVERAGE = 0.5
 """A map is accepted when its covered texels (texel centres inside a chart) are at least this fraction of
@@ -294,6 +295,24 @@ def fill(group, width, height=None):
     """Covered texels (centre rule) / map texels of the group's "Lightmap" layers in a width x height map (square
     without ``height``)."""
     return float(coverage(group_triangles_uv(group), width, height or width).mean())
+
+
+def layout_margin(group, layers, size, asked):
+    """The margin (texels) the group's layers keep at a map of ``size`` (w, h), at most the ``asked`` one: the
+    largest whose packing rule their charts' footprints keep (:func:`core.margins.footprint_gap`,
+    :func:`core.margins.margin_from_gap`; faces join through corners at one position with equal UVs, as
+    :func:`charts.chart_count` counts charts). For layers the bake did not make (an earlier bake's "Lightmap" layer
+    reused, ``--uv-layer``), whose margin is not known from their making."""
+    tri, vert, offset = [], [], 0
+    for o in group:
+        me = o.data
+        tri.append(triangles_uv(o, layers[o.name]))
+        vert.append(first_at_position(positions(me))[corner_vertices(me)[uv_corners(me)]] + offset)
+        offset += len(me.vertices)
+    asked = float(asked)
+    limit = max(1, math.ceil(2 * asked) - 2)
+    gap = FIGURES.call(footprint_gap, np.concatenate(tri), np.concatenate(vert), int(size[0]), int(size[1]), limit)
+    return min(asked, margin_from_gap(gap))
 
 
 def low_fill(group, size, margin, options):

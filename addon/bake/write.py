@@ -113,10 +113,10 @@ PER_OBJECT = {"low_fill": str, "unwrap": str, "uv_cache": list, "unmapped": str,
 
 
 def write_map(name, group, kind, result, out, options, layers, margin=None, overlap=None, digest=None, stems=None,
-              scene=None, per_object=None):
+              scene=None, per_object=None, dilation=None):
     """Write the files of one baked map; return ``{object: report entry}``. ``margin``: the layout's margin in
-    texels (default the asked one; the map is dilated by :func:`uv.dilation` texels; both in the report and the
-    header). ``overlap`` = ({object: fraction}, group fraction) of covered texels shared by several faces;
+    texels (default the asked one; the map is dilated by ``dilation`` texels, default :func:`uv.dilation`; both in
+    the report and the header). ``overlap`` = ({object: fraction}, group fraction) of covered texels shared by several faces;
     ``stems`` the file stems of :func:`file_stems`; ``per_object`` {:data:`PER_OBJECT` key: {object: value}}: the
     :func:`uvchecks.low_fill` lines ("low_fill"), the unwrapper of a layout made in this run ("unwrap"), the (UV cache
     key, index) of layouts the UV cache holds ("uv_cache": an export finds the layer there), the
@@ -128,7 +128,7 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
     if options.target != "image":
         return _write_vertices(group, kind, result, out, options, digest, stems)
     margin = uvmod.margin_value(options.margin if margin is None else margin)
-    grow = uvmod.dilation(options.margin, margin)
+    grow = uvmod.dilation(options.margin, margin) if dilation is None else int(dilation)
     _finite(name, kind, result.values[result.mask])
     source = lightmap.dilation_source(result.mask, grow)
     values, grown = lightmap.dilate(result.values, result.mask, grow, source)

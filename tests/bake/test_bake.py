@@ -412,6 +412,39 @@ def test_generated_atlas_keeps_texel_density_and_margins_and_dilation_hides_seam
     assert np.array_equal(before, after) and a.data.uv_layers.active.name == "Mine"
 
 
+def _footprint_gap(charts, res):
+    """Empty texels (chessboard) between the nearest two of ``charts`` (UV triangles (T, 3, 2) each): their
+    footprints are the texels a 15 x finer raster of them touches, their gap the least over texel pairs."""
+    f = 15
+    feet = [np.argwhere(lm.coverage_mask(t, f * res, f * res).reshape(res, f, res, f).any(axis=(1, 3)))
+            for t in charts]
+    return min(int(np.abs(a[:, None] - b[None]).max(axis=2).min()) - 1
+               for i, a in enumerate(feet) for b in feet[i + 1:])
+
+
+def test_a_reused_layer_reports_the_margin_it_keeps_not_the_asked_one(tmp_path):
+    """A box baked with margin 1 keeps its "Lightmap" layer; a bake into another folder with margin 4 reuses it and
+    reports the margin its charts keep (core.margins: the largest whose packing rule, footprints max(1, ⌈2m⌉ − 2)
+    texels apart, the layout keeps), from its footprints' gap; the map is still dilated by the asked 4."""
+    from addon.core.margins import margin_from_gap
+    scene = sc.new_scene("T")
+    box = sc.box(scene, "Box", 1.0)
+    first = bake_lightmaps([box], ["ao"], tmp_path / "a", BakeOptions(resolution=32, samples=1, margin=1),
+                           scene=scene)["objects"]["Box"]["ao"]
+    assert first["margin"] == 1 and first["unwrap"]
+    with pytest.warns(UserWarning, match=r"'Box': light-map layer 'Lightmap' keeps a margin of [0-9.]+ texel\(s\) "
+                                         r"between its charts at 32x32, below the asked 4"):
+        rep = bake_lightmaps([box], ["ao"], tmp_path / "b", BakeOptions(resolution=32, samples=1, margin=4),
+                             scene=scene)
+    entry = rep["objects"]["Box"]["ao"]
+    uv = _lightmap_uvs(box)
+    gap = _footprint_gap([uv[list(p.loop_indices)][[[0, 1, 2], [0, 2, 3]]] for p in box.data.polygons], 32)
+    assert "unwrap" not in entry and 1 <= gap < 6
+    assert entry["margin"] == margin_from_gap(gap) and 1 <= entry["margin"] < 4
+    assert entry["dilation"] == 4
+    assert float(read(tmp_path / "b", "Box", "ao")[1]["il:margin"]) == entry["margin"]
+
+
 def _box_faces(lo, hi):
     x0, y0, z0 = lo
     x1, y1, z1 = hi
