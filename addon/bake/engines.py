@@ -80,6 +80,15 @@ def engine_maps(scene, folder, names, godot=True, unity=False):
     return EngineMaps(em, sh, frozenset(em.map_of) | frozenset(every.map_of))
 
 
+def _ancestors(obj):
+    """Names of ``obj``'s parent, its parent's parent, ..."""
+    out = []
+    while obj.parent is not None:
+        obj = obj.parent
+        out.append(obj.name)
+    return out
+
+
 def _rigged(obj):
     while obj is not None:
         if obj.parent is not None and obj.parent_type in ("BONE", "ARMATURE"):
@@ -103,9 +112,11 @@ def write_engine_files(scene, folder, glb, names, godot=True, unity=True, maps=N
             errors.warn(f"not in the {engine} files ({why}; bake irradiance for them too): " + ", ".join(left))
     out, stem = os.path.dirname(glb), os.path.splitext(os.path.basename(glb))[0]
     written = []
+    gltf = engines.read_glb_json(glb)
+    ancestors = {n: _ancestors(scene.objects[n]) for n in found.handed if n in scene.objects}
     if godot:
         taken = sh or em
-        paths = engines.godot_paths(engines.read_glb_json(glb))
+        paths = engines.godot_paths(gltf, ancestors)
         lost = sorted(name for name in taken.map_of if name not in paths)
         if lost:
             raise InputError("--godot: not a node of the .glb: " + ", ".join(lost))
@@ -130,7 +141,10 @@ def write_engine_files(scene, folder, glb, names, godot=True, unity=True, maps=N
                           {"il:quantity": "E/pi (Unity lightmapColor)", "il:units": "W/(m^2 sr)"})
             written.append(os.path.join(out, files[key]))
         path = os.path.join(out, f"{stem}.unity.json")
-        write_json(path, engines.unity_layout(em, files))
+        nodes = gltf.get("nodes", [])
+        paths = {name: [nodes[i].get("name") for i in chain]
+                 for name, chain in engines.own_nodes(gltf, ancestors).items()}
+        write_json(path, engines.unity_layout(em, files, paths))
         written.append(path)
     return written
 

@@ -63,6 +63,9 @@ def test_unity_layout_shares_one_lightmap_per_atlas():
     assert r["Lamp.001"]["lightmapIndex"] == r['Odd "x"']["lightmapIndex"] != r["Floor"]["lightmapIndex"]
     assert [m["lightmapColor"] for m in layout["lightmaps"]] == ["a.exr", "b.exr"]
     assert all(v["lightmapScaleOffset"] == [1.0, 1.0, 0.0, 0.0] for v in r.values())
+    assert "path" not in r["Floor"]
+    r = engines.unity_layout(em, {"a": "a.exr", "b": "b.exr"}, {"Floor": ["Floor"], "Lamp.001": ["Room", "Lamp.001"]})
+    assert r["renderers"]["Lamp.001"]["path"] == "Room/Lamp.001" and r["renderers"]["Floor"]["path"] == "Floor"
 
 
 def test_godot_sh_layers_give_e_over_pi_of_the_l1_model_in_godots_frame():
@@ -113,3 +116,18 @@ def test_godot_paths_are_the_names_godots_import_gives_the_glb_nodes():
             "skins": [{"joints": [5]}]}
     assert engines.godot_paths(gltf) == {"Skeleton3D": ["Skeleton3D2"], "x.y": ["x_y"], "x_y": ["x_y2"],
                                          "x_y2": ["x_y2", "x_y22"], "Rig": ["Rig"], "OnSun": ["OnSun"]}
+
+
+def test_an_object_and_its_collection_instance_copy_are_told_apart_by_their_parents():
+    """Blender 4.5's exporter writes a collection instance's copy of "Cone" (under "Props Instance") before the
+    object itself (a root node; 5.x writes it after): the object's node is the one whose glTF parents are its own
+    parents that the glTF holds (a lamp parent, not exported, counts as none), Godot's "Cone2" here; without the
+    objects' parents the first node is taken. Unity's renderer entry carries the glTF path of the same node."""
+    gltf = {"nodes": [{"name": "Props Instance", "children": [1]}, {"name": "Cone"}, {"name": "Shelf", "children": [3]},
+                      {"name": "Cone"}, {"name": "Cup"}, {"name": "Props Instance 2", "children": [6]}, {"name": "Cup"}]}
+    assert engines.godot_paths(gltf)["Cone"] == ["Props Instance", "Cone"]
+    parents = {"Cone": ["Shelf"], "Cup": ["Sun"]}
+    paths = engines.godot_paths(gltf, parents)
+    assert paths["Cone"] == ["Shelf", "Cone2"] and paths["Cup"] == ["Cup"]
+    nodes = engines.own_nodes(gltf, parents)
+    assert nodes["Cone"] == [2, 3] and nodes["Cup"] == [4]

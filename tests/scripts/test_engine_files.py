@@ -131,3 +131,39 @@ def test_godot_paths_follow_the_glb_and_what_no_engine_file_takes_is_said(tmp_pa
     r = script("export_lightmaps.py", blend, "--lightmaps", mixed, "--out", dest / "s.glb", "--godot", "--unity")
     assert r.returncode == 0, r.stderr
     assert "not in the Godot files (a directional map only" in r.stderr and r.stderr.count(": Cube\n") == 2, r.stderr
+
+
+def test_a_collection_instance_copy_does_not_take_the_objects_light_map(tmp_path, script):
+    """A cube in a collection that an empty instances elsewhere: the .glb holds the cube's own node and the copy under
+    the instance, both named 'Cube' (Blender 4.5's exporter writes the copy first, 5.x after). Godot's path and Unity's
+    renderer path name the cube's own root node (on 4.5 before: the copy's, Godot's 'Cube2' lit by nothing)."""
+    import bpy
+    from addon.bake import bake_lightmaps
+    from addon.bake.options import BakeOptions
+    from tests.scripts.test_export_lightmaps import _scene
+    scene, plane, cube = _scene()
+    props = bpy.data.collections.new("Props")
+    scene.collection.children.link(props)
+    props.objects.link(cube)
+    scene.collection.objects.unlink(cube)
+    copy = bpy.data.objects.new("Props Instance", None)
+    copy.instance_type, copy.instance_collection, copy.location = "COLLECTION", props, (4.0, 0.0, 0.0)
+    scene.collection.objects.link(copy)
+    out = tmp_path / "maps"
+    bake_lightmaps([plane, cube], ["irradiance"], str(out), BakeOptions(resolution=8, samples=1, bounces=1),
+                   scene=scene)
+    blend = tmp_path / "inst.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    r = script("export_lightmaps.py", blend, "--lightmaps", out, "--out", tmp_path / "s.glb", "--godot", "--unity")
+    assert r.returncode == 0, r.stderr
+    gltf, _ = _read_glb(tmp_path / "s.glb")
+    nodes = gltf["nodes"]
+    parent = {c: i for i, n in enumerate(nodes) for c in n.get("children", [])}
+    cubes = [i for i, n in enumerate(nodes) if n["name"] == "Cube"]
+    own = [i for i in cubes if i not in parent]
+    assert len(cubes) == 2 and len(own) == 1 and nodes[parent[(set(cubes) - set(own)).pop()]]["name"] == "Props Instance"
+    godot_name = "Cube" if own[0] < max(cubes) else "Cube2"          # Godot numbers the later one
+    paths = re.findall(r'NodePath\("([^"]+)"\)', (tmp_path / "s.lightmap.tres").read_text())
+    assert sorted(paths) == sorted(["../Plane", f"../{godot_name}"])
+    renderers = json.loads((tmp_path / "s.unity.json").read_text())["renderers"]
+    assert renderers["Cube"]["path"] == "Cube" and renderers["Plane"]["path"] == "Plane"

@@ -72,12 +72,37 @@ def read_glb_json(path):
         return json.loads(f.read(length))
 
 
-def godot_paths(gltf):
-    """{glTF node name: [its node's name and its parents' in Godot's import, scene root first]} of the glTF JSON
-    ``gltf``'s nodes that are neither a skin's joint nor under one. Godot's glTF import names the nodes in their index
-    order, each with :data:`GODOT_INVALID` as "_" and numbered (2, 3, ...) when the name is taken, "Skeleton3D"
-    taken first (GLTFDocument::_parse_scenes, _assign_node_names, _gen_unique_name); a node name the glTF repeats
-    keeps its first node."""
+def own_nodes(gltf, ancestors=None):
+    """{glTF node name: [its node's index and its parents', scene root first]} of the glTF JSON ``gltf``'s nodes that
+    are neither a skin's joint nor under one (the joints are left out, as Godot's import leaves them). A node name
+    the glTF repeats (an object and the copy a collection instance places, written in either order) is the node
+    whose parents' names are the object's ``ancestors`` ({name: [parent, grandparent, ...]}) that are glTF nodes,
+    else its first node."""
+    nodes = gltf.get("nodes", [])
+    joints = {j for skin in gltf.get("skins", []) for j in skin.get("joints", [])}
+    parent = {c: i for i, node in enumerate(nodes) for c in node.get("children", [])}
+    in_gltf = {node.get("name") for node in nodes}
+    out, own = {}, {}
+    for i, node in enumerate(nodes):
+        chain, j = [], i
+        while j is not None and j not in joints:
+            chain.insert(0, j)
+            j = parent.get(j)
+        if j is not None:
+            continue
+        name = node.get("name")
+        mine = [a for a in (ancestors or {}).get(name, ()) if a in in_gltf] == [nodes[k].get("name")
+                                                                                for k in chain[-2::-1]]
+        if name not in out or (mine and not own[name]):
+            out[name], own[name] = chain, mine
+    return out
+
+
+def godot_paths(gltf, ancestors=None):
+    """{glTF node name: [its node's name and its parents' in Godot's import, scene root first]} of :func:`own_nodes`.
+    Godot's glTF import names the nodes in their index order, each with :data:`GODOT_INVALID` as "_" and numbered
+    (2, 3, ...) when the name is taken, "Skeleton3D" taken first (GLTFDocument::_parse_scenes, _assign_node_names,
+    _gen_unique_name)."""
     nodes = gltf.get("nodes", [])
     joints = {j for skin in gltf.get("skins", []) for j in skin.get("joints", [])}
     taken, names = {"Skeleton3D"}, {}
@@ -91,16 +116,7 @@ def godot_paths(gltf):
             name = f"{base}{k}"
         taken.add(name)
         names[i] = name
-    parent = {c: i for i, node in enumerate(nodes) for c in node.get("children", [])}
-    out = {}
-    for i, node in enumerate(nodes):
-        path, j = [], i
-        while j is not None and j in names:
-            path.insert(0, names[j])
-            j = parent.get(j)
-        if j is None and node.get("name") not in out:
-            out[node.get("name")] = path
-    return out
+    return {name: [names[i] for i in chain] for name, chain in own_nodes(gltf, ancestors).items()}
 
 
 def _node_path(parts):
@@ -178,11 +194,15 @@ def godot_resource(em, texture_file, where, sh=False):
             + f"user_data = [{', '.join(users)}]\n")
 
 
-def unity_layout(em, files):
-    """The JSON-ready dict for Unity: ``files`` {map key: file name of its E/π EXR}."""
+def unity_layout(em, files, paths=None):
+    """The JSON-ready dict for Unity: ``files`` {map key: file name of its E/π EXR}; ``paths`` {object: the glTF
+    names of its node and its parents, root first} (:func:`own_nodes`), each renderer's "path" (a collection
+    instance's copy has the object's name under another parent)."""
     keys = em.keys()
     return {"units": "texel = E/pi in W/(m^2 sr), the radiance of a white Lambertian surface",
             "uv": "uv2 (glTF TEXCOORD_1)",
             "lightmaps": [{"index": i, "lightmapColor": files[k]} for i, k in enumerate(keys)],
             "renderers": {name: {"lightmapIndex": keys.index(em.map_of[name]),
-                                 "lightmapScaleOffset": [1.0, 1.0, 0.0, 0.0]} for name in sorted(em.map_of)}}
+                                 "lightmapScaleOffset": [1.0, 1.0, 0.0, 0.0]}
+                          | ({"path": "/".join(paths[name])} if paths and name in paths else {})
+                          for name in sorted(em.map_of)}}
