@@ -292,7 +292,7 @@ def _size_option(options):
 def _map_size(group, layers, sides, options, windows=None):
     """(width, height) of the group's image map (None for the vertex target): ``options.sizes``, else the window
     a generated layout was carried into (``windows``: uv.Layouts.windows), else the fixed resolution or the
-    texel-density side, never below the side a generated layout's margin was made for."""
+    texel-density side, for a generated layout :func:`uv.baked_side` (never below the side it was made for)."""
     if options.target != "image":
         return None
     if options.sizes and group[0].name in options.sizes:
@@ -301,7 +301,10 @@ def _map_size(group, layers, sides, options, windows=None):
     if windows and group[0].name in windows:
         w, h, _ = windows[group[0].name]
         return int(w), int(h)
-    res = max(uvmod.resolution(group, layers, options), sides.get(group[0].name, 0))
+    if group[0].name in sides:
+        res = uvmod.baked_side(group, layers, options, sides[group[0].name])
+    else:
+        res = uvmod.resolution(group, layers, options)
     return res, res
 
 

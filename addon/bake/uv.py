@@ -360,7 +360,7 @@ def _cut_window(group, made, state, names, options):
     from .uvchecks import _disjoint
     if options.texel_density is None or options.sizes:
         return made
-    side = max(resolution(group, names, options), made.side)
+    side = baked_side(group, names, options, made.side)
     cut = window(group_triangles_uv(group), side, made.margin * side / made.side)
     if cut is None:
         return made
@@ -371,6 +371,18 @@ def _cut_window(group, made, state, names, options):
         _disjoint(triangles_uv(o, LIGHTMAP))
     made.window = (int(size[0]), int(size[1]), int(side))
     return made
+
+
+def baked_side(group, names, options, made_side):
+    """The side of the square map (or of the square its window is cut from) of a generated layout made at
+    ``made_side``: the texel density's (:func:`resolution`, at least ``made_side``), or ``made_side`` when that
+    larger side's texel centres miss the charts (uvchecks.MIN_COVERAGE: an object a few texels wide, whose layout
+    was fitted at its side; the density's side may be up to 5 % larger)."""
+    from .uvchecks import MIN_COVERAGE, coverage_ratio
+    side = max(resolution(group, names, options), made_side)
+    if side > made_side and coverage_ratio(group_triangles_uv(group), side, side, stored=True)[0] < MIN_COVERAGE:
+        return made_side
+    return side
 
 
 def _say_enlarged(label, asked, side):

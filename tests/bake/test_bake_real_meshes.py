@@ -429,6 +429,27 @@ def _baked_through(path, obj):
     return (alpha & mask).sum() / max((alpha | mask).sum(), 1)
 
 
+@pytest.mark.parametrize("segments, radius", [(24, 0.05), (32, 0.05), (24, 0.06)])
+def test_an_object_a_few_texels_wide_is_baked_at_the_side_its_layout_was_fitted_at(tmp_path, segments, radius):
+    """An open can of 10-12 cm as a soup of triangles (a downloaded prop) at 8 texels/m: its layout is fitted at a
+    4² map, and the density's side, up to 5 % larger, is 5, where the texel centres miss its charts (before: refused,
+    'covers only 0 % of its charts' area in a 4x5 map'). It is baked at the side it was fitted at, its charts
+    covering at least half of their area in texels."""
+    obj = added(bpy.ops.mesh.primitive_cylinder_add, vertices=segments, radius=radius, depth=0.14,
+                end_fill_type="NOTHING")
+    bm = bmesh.new()
+    bm.from_mesh(obj.data)
+    bmesh.ops.split_edges(bm, edges=bm.edges[:])
+    bmesh.ops.triangulate(bm, faces=bm.faces[:])
+    bm.to_mesh(obj.data)
+    bm.free()
+    rep = bake_lightmaps([obj], ["ao"], str(tmp_path), BakeOptions(texel_density=8.0, samples=1, margin=4),
+                         scene=bpy.context.scene)
+    entry = rep["objects"][obj.name]["ao"]
+    assert entry["resolution"] == [4, 4] and not rep["failed"]
+    assert entry["coverage"] / entry["chart_area"] >= 0.5
+
+
 def test_linked_duplicates_at_other_scales_share_one_layout_in_windows_of_their_own(tmp_path):
     """Two objects sharing an ico sphere's mesh, scaled 1 and 4, at 12 texels/m: the mesh gets one layout (cut to
     a window), each map is baked through it at its own texel density with square texels, the same margin in the
