@@ -299,9 +299,11 @@ class _Run:
             self.measured.add(first)
             if margin < asked:
                 layer = self.layers[first]
+                fix = ("bake without a UV layer of your own to have one made with the margin" if self.options.uv_layer
+                       else "remove the layer to have one made with the margin")
                 errors.warn(f"'{t.name}': light-map layer '{layer}' keeps a margin of {margin:g} texel(s) between its "
                             f"charts at {t.size[0]}x{t.size[1]}, below the asked {asked:g} (filtered and mipmapped "
-                            f"reads mix charts); remove the layer to have one made with the margin")
+                            f"reads mix charts); {fix}")
 
     def uv_progress(self, done, total, seconds, objects):
         """A progress line of the UV step on stderr in batch: groups done, elapsed, ETA (seconds per group so far)."""

@@ -445,6 +445,21 @@ def test_a_reused_layer_reports_the_margin_it_keeps_not_the_asked_one(tmp_path):
     assert float(read(tmp_path / "b", "Box", "ao")[1]["il:margin"]) == entry["margin"]
 
 
+def test_a_users_layer_whose_charts_touch_reports_a_margin_of_zero(tmp_path):
+    """Blender's cone UVMap lays the side's fan and the base's disc as two circles of radius 1/4 that touch at
+    (0.5, 0.5): the layer keeps no margin, which the report says (0, with the warning) instead of the asked 2; the
+    map is dilated by 2 all the same."""
+    scene = sc.new_scene("T")
+    bpy.ops.mesh.primitive_cone_add(vertices=32)
+    cone = bpy.context.object
+    scene.collection.objects.link(cone)
+    with pytest.warns(UserWarning, match="'Cone': light-map layer 'UVMap' keeps a margin of 0 texel.* below the "
+                                         "asked 2 .*bake without a UV layer of your own"):
+        rep = bake(scene, [cone], ["ao"], tmp_path, resolution=64, samples=1, uv_layer="UVMap", margin=2)
+    entry = rep["objects"]["Cone"]["ao"]
+    assert entry["margin"] == 0 and entry["dilation"] == 2
+
+
 def _box_faces(lo, hi):
     x0, y0, z0 = lo
     x1, y1, z1 = hi
