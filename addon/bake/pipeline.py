@@ -287,17 +287,19 @@ class _Run:
     def measure_margins(self, targets):
         """The margin of each image map's layout the bake did not make (no side: a reused "Lightmap" layer, the
         ``--uv-layer``): measured at the map's size (:func:`uvchecks.layout_margin`) for the report, with a warning
-        below the asked one; the map is still dilated by the asked margin (nearest covered texel: no texel takes
-        another chart's value while it is nearer its own)."""
+        below the asked one; 0 without it where faces share texels (the overlap check has said so). The map is still
+        dilated by the asked margin (nearest covered texel: no texel takes another chart's value while it is nearer
+        its own)."""
         asked = float(self.options.margin)
         for t in targets:
             first = t.group[0].name
             if not t.size or first in self.sides or self.options.target != "image":
                 continue
-            margin = uvchecks.layout_margin(t.group, self.layers, t.size, asked)
+            shared = t.overlap is not None and t.overlap[1] > uvchecks.MAX_OVERLAP      # charts share texels
+            margin = 0.0 if shared else uvchecks.layout_margin(t.group, self.layers, t.size, asked)
             self.margins[first] = margin
             self.measured.add(first)
-            if margin < asked:
+            if margin < asked and not shared:
                 layer = self.layers[first]
                 fix = ("bake without a UV layer of your own to have one made with the margin" if self.options.uv_layer
                        else "remove the layer to have one made with the margin")

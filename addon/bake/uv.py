@@ -380,7 +380,7 @@ def baked_side(group, names, options, made_side):
     was fitted at its side; the density's side may be up to 5 % larger)."""
     from .uvchecks import MIN_COVERAGE, coverage_ratio
     side = max(resolution(group, names, options), made_side)
-    if side > made_side and coverage_ratio(group_triangles_uv(group), side, side, stored=True)[0] < MIN_COVERAGE:
+    if side > made_side and coverage_ratio(group_triangles_uv(group), side, side)[0] < MIN_COVERAGE:
         return made_side
     return side
 

@@ -15,6 +15,7 @@ from ..core.errors import InputError
 from ..blender.scene import corner_triangles, corner_vertices, positions
 from . import evaluated
 from ..core.margins import footprint_gap, margin_from_gap
+from ..core.pack import spacing
 from .charts import chart_count, first_at_position, side_for_fill
 from .options import article
 from .uv import (LIGHTMAP, corners as uv_corners, group_triangles_uv, mesh_triangles_uv, triangles_uv, window,
@@ -310,7 +311,7 @@ def layout_margin(group, layers, size, asked):
         vert.append(first_at_position(positions(me))[corner_vertices(me)[uv_corners(me)]] + offset)
         offset += len(me.vertices)
     asked = float(asked)
-    limit = max(1, math.ceil(2 * asked) - 2)
+    limit = spacing(asked)
     gap = FIGURES.call(footprint_gap, np.concatenate(tri), np.concatenate(vert), int(size[0]), int(size[1]), limit)
     return min(asked, margin_from_gap(gap))
 

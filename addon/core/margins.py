@@ -1,9 +1,9 @@
 """The margin a UV layout keeps between its charts, measured: for a layer the bake did not make (an earlier bake's
 "Lightmap" layer reused, the user's own ``--uv-layer``), whose margin is not known from its making.
 
-The unwrappers' rule (``core.pack``): with a margin of m texels, charts' footprints (the texels their faces touch) are
-at least max(1, ⌈2m⌉ − 2) empty texels apart, chessboard distance (Blender's packers leave 2m texels between
-outlines, whose footprints may each reach a texel beyond them; the raster packer keeps exactly that). The measured
+The unwrappers' rule (:func:`core.pack.spacing`): with a margin of m texels, charts' footprints (the texels their
+faces touch) are at least max(1, ⌈2m⌉ − 2) empty texels apart, chessboard distance (Blender's packers leave 2m
+texels between outlines, whose footprints may each reach a texel beyond them; the raster packer keeps exactly that). The measured
 margin is the largest m whose rule the layout keeps: (g + 2) / 2 for footprints g ≥ 1 texels apart, 0 when two
 charts' footprints share or touch a texel. Footprints are traced along the charts' outlines (edges of one face of the
 chart) on a FINE × finer raster, so a chart lying wholly over another one's faces (stacked UVs) is not seen here: the
@@ -11,12 +11,16 @@ overlap figure reports it.
 """
 import numpy as np
 
-from .pack import FINE, chart_labels
+from .pack import FINE, chart_labels, edge_points
 from .rows import unique_rows
+
+POINTS = 1 << 20
+"""Outline points traced at once (a layout of stacked faces, each outlining the whole map, stops at its first)."""
 
 
 def margin_from_gap(gap):
-    """The largest margin (texels) whose packing rule footprints ``gap`` empty texels apart keep."""
+    """The largest margin (texels) whose packing rule (:func:`core.pack.spacing`) footprints ``gap`` empty texels
+    apart keep: (gap + 2) / 2, 0 below one texel."""
     return 0.0 if gap < 1 else (gap + 2) / 2
 
 
@@ -24,7 +28,8 @@ def footprint_gap(tri_uv, tri_vertex, width, height, limit):
     """Empty texels (chessboard distance) between the footprints of the two nearest charts of the layout ``tri_uv``
     (T, 3, 2) UVs on a ``width`` x ``height`` map, or ``limit`` (an int) when none are nearer. Charts join faces
     through corners at one vertex (``tri_vertex`` (T, 3): welded ids) with equal UVs
-    (:func:`core.pack.chart_labels`)."""
+    (:func:`core.pack.chart_labels`). The outlines are traced POINTS at a time, each texel kept once, and the first
+    texel two charts touch ends it (0)."""
     tri_uv = np.ascontiguousarray(tri_uv, np.float32).reshape(-1, 3, 2)
     tri_vertex = np.asarray(tri_vertex, np.int64).reshape(-1, 3)
     limit = int(limit)
@@ -34,11 +39,18 @@ def footprint_gap(tri_uv, tri_vertex, width, height, limit):
     if labels.max() == 0:
         return limit
     seg, seg_label = _outline(tri_uv, tri_vertex, labels)
-    cells, cell_label = _traced(seg * np.array([width, height], np.float64), seg_label, width, height)
-    taken = np.full(width * height, -1, np.int64)
-    taken[cells] = cell_label
-    if (taken[cells] != cell_label).any():                  # a texel two charts touch
-        return 0
+    size = np.array([width, height], np.float64)
+    seg = np.clip(seg * size, -1.0, size + 1.0)             # beyond the map: the texels of its border
+    taken = np.full(width * height, -1, np.int32)
+    cells, cell_label = [], []
+    for flat, label in _traced(seg, seg_label, width, height):
+        before = taken[flat]
+        taken[flat] = label
+        if ((before >= 0) & (before != label)).any() or (taken[flat] != label).any():
+            return 0                                        # a texel two charts touch
+        cells.append(flat[before < 0])
+        cell_label.append(label[before < 0])
+    cells, cell_label = np.concatenate(cells), np.concatenate(cell_label)
     x, y = cells % width, cells // width
     for k in range(1, limit + 1):
         for dx, dy in _ring(k):
@@ -68,13 +80,17 @@ def _outline(tri_uv, tri_vertex, labels):
 
 
 def _traced(seg, seg_label, width, height):
-    """Unique (texel, chart) of the texels that points along the segments ``seg`` (E, 2, 2) texel units fall in,
-    taken a FINE-th of a texel apart at most (both ends included; texels clipped to the map)."""
-    a, b = seg[:, 0] * FINE, seg[:, 1] * FINE
-    n = np.ceil(np.linalg.norm(b - a, axis=1)).astype(np.int64) + 1
-    edge = np.repeat(np.arange(len(n)), n)
-    t = (np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)) / np.repeat(np.maximum(n - 1, 1), n)
-    texel = np.floor((a[edge] + t[:, None] * (b - a)[edge]) / FINE).astype(np.int64)
-    flat = np.clip(texel[:, 1], 0, height - 1) * width + np.clip(texel[:, 0], 0, width - 1)
-    first, _ = unique_rows(np.stack([flat, seg_label[edge]], axis=1), return_index=True)
-    return flat[first], seg_label[edge][first]
+    """Chunks of (texels, charts), each pair once in its chunk: the texels that points along the segments ``seg``
+    (E, 2, 2) in texel units fall in, taken a FINE-th of a texel apart at most (both ends included; texels clipped to
+    the map), about POINTS points a chunk."""
+    cum = np.cumsum(np.ceil(np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) * FINE) + 1)
+    begin = 0
+    while begin < len(seg):
+        end = max(begin + 1, int(np.searchsorted(cum, (cum[begin - 1] if begin else 0) + POINTS, side="right")))
+        pts, edge = edge_points(seg[begin:end, 0] * FINE, seg[begin:end, 1] * FINE)
+        texel = np.floor(pts / FINE).astype(np.int64)
+        flat = np.clip(texel[:, 1], 0, height - 1) * width + np.clip(texel[:, 0], 0, width - 1)
+        label = seg_label[begin:end][edge]
+        first, _ = unique_rows(np.stack([flat, label], axis=1), return_index=True)
+        yield flat[first], label[first].astype(np.int32)
+        begin = end

@@ -142,15 +142,25 @@ def _pooled(fine):
     return out
 
 
-def _traced(tri, width, height):
-    """(height, width) mask of the cells that points along every edge of the triangles ``tri`` (T, 3, 2), in cell
-    units, fall in, taken at most a cell apart (both ends included)."""
-    a = tri.reshape(-1, 2)
-    b = tri[:, [1, 2, 0]].reshape(-1, 2)
+def spacing(margin):
+    """Empty texels (chessboard distance) the unwrappers keep between two charts' footprints with a margin of
+    ``margin`` texels: max(1, ⌈2m⌉ − 2) (see the module's docstring)."""
+    return max(1, int(math.ceil(2 * margin)) - 2)
+
+
+def edge_points(a, b):
+    """(P, 2) points along the segments from ``a`` to ``b`` (N, 2 each), at most a unit apart (both ends included),
+    and (P,) the segment of each."""
     n = np.ceil(np.linalg.norm(b - a, axis=1)).astype(np.int64) + 1
     edge = np.repeat(np.arange(len(n)), n)
     t = (np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)) / np.repeat(np.maximum(n - 1, 1), n)
-    pts = np.floor(a[edge] + t[:, None] * (b - a)[edge]).astype(np.int64)
+    return a[edge] + t[:, None] * (b - a)[edge], edge
+
+
+def _traced(tri, width, height):
+    """(height, width) mask of the cells that points along every edge of the triangles ``tri`` (T, 3, 2), in cell
+    units, fall in, taken at most a cell apart (both ends included)."""
+    pts = np.floor(edge_points(tri.reshape(-1, 2), tri[:, [1, 2, 0]].reshape(-1, 2))[0]).astype(np.int64)
     mask = np.zeros((height, width), bool)
     mask[np.clip(pts[:, 1], 0, height - 1), np.clip(pts[:, 0], 0, width - 1)] = True
     return mask
@@ -262,7 +272,7 @@ def _first_free(occupied, runs, foot, low, best_top):
 def pack(tri, labels, side, margin, scale):
     """:class:`Packing` of the charts (``labels`` of the triangles ``tri`` (T, 3, 2), UVs of a ``side``² map) at
     ``scale`` with a margin of ``margin`` texels, or None when one finds no place."""
-    r = max(1, int(math.ceil(2 * margin)) - 2)
+    r = spacing(margin)
     border = max(0, int(math.ceil(margin)) - 1)
     occupied = np.zeros((side, side), bool)
     if border:

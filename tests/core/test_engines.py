@@ -131,3 +131,5 @@ def test_an_object_and_its_collection_instance_copy_are_told_apart_by_their_pare
     assert paths["Cone"] == ["Shelf", "Cone2"] and paths["Cup"] == ["Cup"]
     nodes = engines.own_nodes(gltf, parents)
     assert nodes["Cone"] == [2, 3] and nodes["Cup"] == [4]
+    assert engines.own_nodes({"nodes": [{"name": "I", "children": [1]}, {"name": "Cone"}, {"name": "Cone"}]}) == {
+        "I": [0], "Cone": [0, 1]}                                           # no parents given: the first node

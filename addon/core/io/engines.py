@@ -72,6 +72,10 @@ def read_glb_json(path):
         return json.loads(f.read(length))
 
 
+def _joints(gltf):
+    return {j for skin in gltf.get("skins", []) for j in skin.get("joints", [])}
+
+
 def own_nodes(gltf, ancestors=None):
     """{glTF node name: [its node's index and its parents', scene root first]} of the glTF JSON ``gltf``'s nodes that
     are neither a skin's joint nor under one (the joints are left out, as Godot's import leaves them). A node name
@@ -79,7 +83,7 @@ def own_nodes(gltf, ancestors=None):
     whose parents' names are the object's ``ancestors`` ({name: [parent, grandparent, ...]}) that are glTF nodes,
     else its first node."""
     nodes = gltf.get("nodes", [])
-    joints = {j for skin in gltf.get("skins", []) for j in skin.get("joints", [])}
+    joints = _joints(gltf)
     parent = {c: i for i, node in enumerate(nodes) for c in node.get("children", [])}
     in_gltf = {node.get("name") for node in nodes}
     out, own = {}, {}
@@ -91,8 +95,8 @@ def own_nodes(gltf, ancestors=None):
         if j is not None:
             continue
         name = node.get("name")
-        mine = [a for a in (ancestors or {}).get(name, ()) if a in in_gltf] == [nodes[k].get("name")
-                                                                                for k in chain[-2::-1]]
+        mine = name in (ancestors or {}) and [a for a in ancestors[name] if a in in_gltf] == [
+            nodes[k].get("name") for k in chain[-2::-1]]
         if name not in out or (mine and not own[name]):
             out[name], own[name] = chain, mine
     return out
@@ -104,7 +108,7 @@ def godot_paths(gltf, ancestors=None):
     (2, 3, ...) when the name is taken, "Skeleton3D" taken first (GLTFDocument::_parse_scenes, _assign_node_names,
     _gen_unique_name)."""
     nodes = gltf.get("nodes", [])
-    joints = {j for skin in gltf.get("skins", []) for j in skin.get("joints", [])}
+    joints = _joints(gltf)
     taken, names = {"Skeleton3D"}, {}
     for i, node in enumerate(nodes):
         if i in joints:
