@@ -674,24 +674,37 @@ def assign_materials(scene, objects, model, lights="ALL", attenuation="PHYSICAL"
         warnings.append("no lights to link: the material shows ambient and emission only "
                         "(add lights, then Relink Lights)")
     warnings += light_warnings(linked)
-    take_off_previews(meshes)
-    for obj in meshes:
-        if len(obj.material_slots) == 0:
-            obj.data.materials.append(None)
-            obj.data["il_added_slot"] = True
-    made, replaced = {}, set()
-    for owner, index, cur in list(material_slots_of(meshes)):
-        orig = user_material(cur)           # over environment mapping too: the model replaces it
+    made = {}
+
+    def convert(orig):
         key = orig.as_pointer() if orig is not None else None
         if key not in made:
             mat, w = _convert(orig, model, linked, attenuation, coefficients, params, name)
             mat["il_lights_mode"] = lights
             mat["il_light_names"] = [o.name for o in linked]
             made[key] = mat
-            warnings += w
-        if cur is not None and (cur.get("il_model") or cur.get("il_envmap") is not None) and cur != made[key]:
+            warnings.extend(w)
+        return made[key]
+
+    try:                                    # every material made before a slot changes: a failure changes nothing
+        for orig in [user_material(cur) for _, _, cur in material_slots_of(meshes)] + [None] * any(
+                len(obj.material_slots) == 0 for obj in meshes):
+            convert(orig)                   # the user's, under a preview or environment mapping too
+    except BaseException:
+        for mat in made.values():
+            bpy.data.materials.remove(mat)
+        raise
+    take_off_previews(meshes)
+    for obj in meshes:
+        if len(obj.material_slots) == 0:
+            obj.data.materials.append(None)
+            obj.data["il_added_slot"] = True
+    replaced = set()
+    for owner, index, cur in list(material_slots_of(meshes)):
+        mat = convert(user_material(cur))
+        if cur is not None and (cur.get("il_model") or cur.get("il_envmap") is not None) and cur != mat:
             replaced.add(cur)
-        put_material(owner, index, made[key])
+        put_material(owner, index, mat)
     for old in replaced:
         if old.users == 0 and (old.get("il_original") is not None or old.get("il_empty")):
             bpy.data.materials.remove(old)      # an IL material of an earlier assignment nothing uses

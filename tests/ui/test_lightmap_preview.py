@@ -350,3 +350,32 @@ def test_layers_are_made_from_the_users_material_and_come_off_top_down(tmp_path)
     environment.remove_environment_mapping([ico])
     material.restore_materials([ico])
     assert len(ico.material_slots) == 0 and [(s.link, s.material) for s in plane.material_slots] == before[:1]
+
+
+def test_a_shading_model_that_fails_midway_leaves_the_preview_and_the_slots_as_they_were(tmp_path, monkeypatch):
+    """The preview shown on a plane and a cube (object-linked slot); building the shading model's material fails on
+    the second material: the preview is still shown (it was taken off before the first material was made, and not
+    put back), the slots and links are those of before, and no material of the failed call is left."""
+    from addon.nodes import material
+    scene, plane, cube, _ = _scene(tmp_path)
+    out = tmp_path / "maps"
+    bake_lightmaps([plane, cube], ["irradiance"], str(out), BakeOptions(resolution=16, samples=1, bounces=1))
+    lp.apply_lightmaps([plane, cube], str(out), "IRRADIANCE")
+    shown = [(s.link, s.material) for o in (plane, cube) for s in o.material_slots]
+    data = [list(o.data.materials) for o in (plane, cube)]
+    names = {m.name for m in bpy.data.materials}
+    real, calls = material._convert, []
+
+    def failing(orig, *args):
+        calls.append(orig)
+        if len(calls) == 2:
+            raise RuntimeError("node building failed")
+        return real(orig, *args)
+
+    monkeypatch.setattr(material, "_convert", failing)
+    with pytest.raises(RuntimeError, match="node building failed"):
+        material.assign_shading_model(scene, [plane, cube], "PHONG")
+    assert len(calls) == 2 and lp.previewed([plane]) and lp.previewed([cube])
+    assert [(s.link, s.material) for o in (plane, cube) for s in o.material_slots] == shown
+    assert [list(o.data.materials) for o in (plane, cube)] == data
+    assert {m.name for m in bpy.data.materials} == names
