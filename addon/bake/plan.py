@@ -302,7 +302,7 @@ def _map_size(group, layers, sides, options, windows=None):
         w, h, _ = windows[group[0].name]
         return int(w), int(h)
     if group[0].name in sides:
-        res = uvmod.baked_side(group, layers, options, sides[group[0].name])
+        res = uvmod.baked_side(group, layers, options, sides[group[0].name], stored=True)
     else:
         res = uvmod.resolution(group, layers, options)
     return res, res

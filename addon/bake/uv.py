@@ -373,14 +373,15 @@ def _cut_window(group, made, state, names, options):
     return made
 
 
-def baked_side(group, names, options, made_side):
+def baked_side(group, names, options, made_side, stored=False):
     """The side of the square map (or of the square its window is cut from) of a generated layout made at
     ``made_side``: the texel density's (:func:`resolution`, at least ``made_side``), or ``made_side`` when that
     larger side's texel centres miss the charts (uvchecks.MIN_COVERAGE: an object a few texels wide, whose layout
-    was fitted at its side; the density's side may be up to 5 % larger)."""
+    was fitted at its side; the density's side may be up to 5 % larger). ``stored``: the coverage measured is kept in
+    the figure store (the plan's, which the coverage check reads again; not a window's trial)."""
     from .uvchecks import MIN_COVERAGE, coverage_ratio
     side = max(resolution(group, names, options), made_side)
-    if side > made_side and coverage_ratio(group_triangles_uv(group), side, side)[0] < MIN_COVERAGE:
+    if side > made_side and coverage_ratio(group_triangles_uv(group), side, side, stored)[0] < MIN_COVERAGE:
         return made_side
     return side
 
