@@ -20,12 +20,13 @@ import bpy
 import numpy as np
 
 from ..blender import compat
+from ..blender.materials import is_preview
 from ..core.envmap import maps
 from ..core.errors import InputError
 from ..core.options import Options, option
 from .builder import Graph
 from .groups import sync_interface
-from .material import material_slots_of, put_material, split_shadable, take_off_previews
+from .material import make_before_slots_change, material_slots_of, put_material, split_shadable
 
 GROUP = "IL Environment Map"
 GROUP_VERSION = 3
@@ -244,26 +245,35 @@ def assign_environment_mapping(scene, objects, options=None):
     image = map_image(node.image, options.projection, options.map_size)
     interp = node.interpolation if options.projection == "LATLONG" else "Linear"
     warnings = [f"skipped {'; '.join(skipped)}"] if skipped else []
-    take_off_previews(meshes)
-    for obj in meshes:
-        if len(obj.material_slots) == 0:
-            obj.data.materials.append(None)
-            obj.data["il_added_slot"] = True
     made = {}
-    for owner, index, cur in list(material_slots_of(meshes)):
-        orig = cur.get("il_original") if cur is not None and cur.get("il_envmap") is not None else cur
+
+    def environment_of(orig):
         key = orig.as_pointer() if orig is not None else None
         if key not in made:
             label = f"IL Environment {options.mode.title()}"
-            mat = bpy.data.materials.new(f"{label}: {orig.name}" if orig is not None else label)
+            mat = made[key] = bpy.data.materials.new(f"{label}: {orig.name}" if orig is not None else label)
             build_material(mat, options, image, strength, interp)
             if orig is None:
                 mat["il_empty"] = True
             else:
                 mat["il_original"] = orig
-            made[key] = mat
-        put_material(owner, index, made[key])
+        return made[key]
+
+    make_before_slots_change(meshes, [_original(_under_preview(cur)) for _, _, cur in material_slots_of(meshes)],
+                             environment_of, made)
+    for owner, index, cur in list(material_slots_of(meshes)):
+        put_material(owner, index, environment_of(_original(cur)))
     return list(made.values()), warnings
+
+
+def _under_preview(mat):
+    """What a slot showing ``mat`` shows once a light-map preview is taken off (:func:`.material.take_off_previews`)."""
+    return mat.get("il_lightmap_original") if is_preview(mat) else mat
+
+
+def _original(mat):
+    """The material an environment-mapping material replaced, else ``mat`` itself."""
+    return mat.get("il_original") if mat is not None and mat.get("il_envmap") is not None else mat
 
 
 def _restores(mat):

@@ -548,6 +548,25 @@ def assign_shading_model(scene, objects, model, lights="ALL", attenuation="PHYSI
     return mats[0], warnings
 
 
+def make_before_slots_change(meshes, originals, make, made):
+    """``make(original)`` for each of ``originals`` (what the slots' new materials are made from, and None for the
+    meshes without slots) before any slot changes; when one fails, the materials in ``made`` (which ``make`` fills)
+    are removed and nothing else has changed. Then the light-map previews come off ``meshes`` and each mesh without
+    slots gets an empty one (marked ``il_added_slot``)."""
+    try:
+        for orig in list(originals) + [None] * any(len(obj.material_slots) == 0 for obj in meshes):
+            make(orig)
+    except BaseException:
+        for mat in made.values():
+            bpy.data.materials.remove(mat)
+        raise
+    take_off_previews(meshes)
+    for obj in meshes:
+        if len(obj.material_slots) == 0:
+            obj.data.materials.append(None)
+            obj.data["il_added_slot"] = True
+
+
 def take_off_previews(meshes):
     """Take a light-map preview shown on ``meshes`` off (the slots get back the user's materials and links) before a
     shading model or environment mapping replaces what the slots show."""
@@ -686,19 +705,7 @@ def assign_materials(scene, objects, model, lights="ALL", attenuation="PHYSICAL"
             warnings.extend(w)
         return made[key]
 
-    try:                                    # every material made before a slot changes: a failure changes nothing
-        for orig in [user_material(cur) for _, _, cur in material_slots_of(meshes)] + [None] * any(
-                len(obj.material_slots) == 0 for obj in meshes):
-            convert(orig)                   # the user's, under a preview or environment mapping too
-    except BaseException:
-        for mat in made.values():
-            bpy.data.materials.remove(mat)
-        raise
-    take_off_previews(meshes)
-    for obj in meshes:
-        if len(obj.material_slots) == 0:
-            obj.data.materials.append(None)
-            obj.data["il_added_slot"] = True
+    make_before_slots_change(meshes, [user_material(cur) for _, _, cur in material_slots_of(meshes)], convert, made)
     replaced = set()
     for owner, index, cur in list(material_slots_of(meshes)):
         mat = convert(user_material(cur))

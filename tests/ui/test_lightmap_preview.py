@@ -379,3 +379,37 @@ def test_a_shading_model_that_fails_midway_leaves_the_preview_and_the_slots_as_t
     assert [(s.link, s.material) for o in (plane, cube) for s in o.material_slots] == shown
     assert [list(o.data.materials) for o in (plane, cube)] == data
     assert {m.name for m in bpy.data.materials} == names
+
+
+def test_environment_mapping_that_fails_midway_leaves_the_preview_and_the_slots_as_they_were(tmp_path, monkeypatch):
+    """As for a shading model: the preview on a plane and a cube, environment mapping whose second material fails to
+    build: the preview is still shown, the slots and links are those of before, no material of the call is left."""
+    from addon.lab import envmap as lab_envmap
+    from addon.nodes import environment
+    scene, plane, cube, _ = _scene(tmp_path)
+    out = tmp_path / "maps"
+    bake_lightmaps([plane, cube], ["irradiance"], str(out), BakeOptions(resolution=16, samples=1, bounces=1))
+    sky = bpy.data.images.new("sky", 8, 4, float_buffer=True)
+    lab_envmap.set_world_environment(scene, sky, strength=1.0)
+    lp.apply_lightmaps([plane, cube], str(out), "IRRADIANCE")
+    shown = [(s.link, s.material) for o in (plane, cube) for s in o.material_slots]
+    names = {m.name for m in bpy.data.materials}
+    real, calls = environment.build_material, []
+
+    def failing(mat, *args):
+        calls.append(mat.name)
+        if len(calls) == 2:
+            raise RuntimeError("node building failed")
+        return real(mat, *args)
+
+    monkeypatch.setattr(environment, "build_material", failing)
+    with pytest.raises(RuntimeError, match="node building failed"):
+        environment.assign_environment_mapping(scene, [plane, cube])
+    assert len(calls) == 2 and lp.previewed([plane]) and lp.previewed([cube])
+    assert [(s.link, s.material) for o in (plane, cube) for s in o.material_slots] == shown
+    assert {m.name for m in bpy.data.materials} == names
+    monkeypatch.setattr(environment, "build_material", real)
+    environment.assign_environment_mapping(scene, [plane, cube])       # then it takes the preview off, as before
+    assert not lp.previewed([plane, cube]) and environment.restorable([plane, cube])
+    environment.remove_environment_mapping([plane, cube])
+    assert [s.material.name for o in (plane, cube) for s in o.material_slots] == ["Paint", "Label"]
