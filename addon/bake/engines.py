@@ -81,12 +81,8 @@ def engine_maps(scene, folder, names, godot=True, unity=False):
 
 
 def _ancestors(obj):
-    """Names of ``obj``'s parent, its parent's parent, ..."""
-    out = []
-    while obj.parent is not None:
-        obj = obj.parent
-        out.append(obj.name)
-    return out
+    """Names of ``obj``'s parent, its parent's parent, ... (:func:`_node_parts` the other way, without ``obj``)."""
+    return _node_parts(obj)[-2::-1]
 
 
 def _rigged(obj):

@@ -62,6 +62,11 @@ def is_preview(mat):
     return mat is not None and bool(mat.get("il_lightmap")) and "il_lightmap_link" in mat
 
 
+def under_preview(mat):
+    """What a slot showing ``mat`` shows once a light-map preview on it is taken off."""
+    return mat.get("il_lightmap_original") if is_preview(mat) else mat
+
+
 def layers(mat):
     """([(kind of :data:`LAYER_NAMES`, material)] of the add-on's layers on a slot holding ``mat``, top first;
     :func:`user_material`)."""
@@ -71,7 +76,7 @@ def layers(mat):
             break
         if is_preview(mat):
             out.append(("preview", mat))
-            mat = mat.get("il_lightmap_original")
+            mat = under_preview(mat)
         elif mat.get("il_model") or mat.get("il_envmap") is not None:
             if mat.get("il_empty"):
                 out.append(("shading" if mat.get("il_model") else "environment", mat))

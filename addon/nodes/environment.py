@@ -20,7 +20,7 @@ import bpy
 import numpy as np
 
 from ..blender import compat
-from ..blender.materials import is_preview
+from ..blender.materials import under_preview
 from ..core.envmap import maps
 from ..core.errors import InputError
 from ..core.options import Options, option
@@ -259,16 +259,11 @@ def assign_environment_mapping(scene, objects, options=None):
                 mat["il_original"] = orig
         return made[key]
 
-    make_before_slots_change(meshes, [_original(_under_preview(cur)) for _, _, cur in material_slots_of(meshes)],
+    make_before_slots_change(meshes, [_original(under_preview(cur)) for _, _, cur in material_slots_of(meshes)],
                              environment_of, made)
     for owner, index, cur in list(material_slots_of(meshes)):
         put_material(owner, index, environment_of(_original(cur)))
     return list(made.values()), warnings
-
-
-def _under_preview(mat):
-    """What a slot showing ``mat`` shows once a light-map preview is taken off (:func:`.material.take_off_previews`)."""
-    return mat.get("il_lightmap_original") if is_preview(mat) else mat
 
 
 def _original(mat):
