@@ -366,7 +366,7 @@ class _Run:
         write.check_lit(self.scene, name, kind, result, self.world)
         margin = self.margins.get(group[0].name, float(self.options.margin))
         t_files = time.perf_counter()
-        result.seconds += t_files - t_map     # the header's il:seconds: bakes and checks, not the files
+        result.seconds += t_files - t_map
         per_object = {"low_fill": self.fills, "unwrap": self.unwraps, "uv_cache": self.caches,
                       "unmapped": target.unmapped, "inputs": self.inputs.get((name, kind))}
         grow = int(self.options.margin) if group[0].name in self.measured else None

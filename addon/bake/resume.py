@@ -38,15 +38,15 @@ def unchanged_maps(groups, maps, digests, out, options, stems, report_path):
 def _kept_entries(name, group, kind, out, options, stems, stored, old_reports):
     """``{object: report entry}`` of an unchanged map on disk (``stored``: :func:`stored_map` of its file): the entry
     of the first of ``old_reports`` ("objects" of reports) that agrees with the file (name, resolution, samples,
-    estimated error and its kind, UV layer), else one rebuilt from the header's il:* attributes ("seconds" the
-    bake's without the files; figures a file written before they were kept lacks are 0, the margin the
-    option's). Writes the PNG preview of an image map when it is missing."""
+    estimated error and its kind, UV layer), else one rebuilt from the header's il:* attributes ("seconds" and
+    "cycles_seconds" 0, as the file holds no timings; figures a file written before they were kept lacks are 0, the
+    margin the option's). Writes the PNG preview of an image map when it is missing."""
     header, res = stored
     number = functools.partial(_number, header)
     path = group_map_file(name, kind, out, options, group, stems)
-    result = BakeResult(None, None, int(number("il:samples")), number("il:seconds"),
+    result = BakeResult(None, None, int(number("il:samples")), 0.0,
                         number("il:estimated_error", float("nan")), header_text(header.get("il:error_estimate")) or "",
-                        int(number("il:pilot_samples")), number("il:cycles_seconds"),
+                        int(number("il:pilot_samples")), 0.0,
                         unlit=header_text(header.get("il:unlit")) or "")
     extras, png = {group[0].name: {"attribute": KINDS[kind].attribute}}, None
     if options.target == "image":

@@ -66,15 +66,14 @@ def check_covered(name, group, kind, result, layers, areas):
 
 def _attributes(kind, result, options, uv_name):
     """The il:* header attributes of a map file that every target writes (the kind's quantity, units and, for
-    a kind following the bounces, il:bounces)."""
+    a kind following the bounces, il:bounces); no timings, so the same inputs give the same file bytes."""
     record = KINDS[kind]
     return {"il:quantity": record.quantity, "il:units": record.units, "il:samples": result.samples,
             "il:ao_distance": options.ao_distance, "il:uv_layer": uv_name or "",
             "il:blender_version": bpy.app.version_string, "il:bounces": options.bounces if record.bounces else "",
             "il:denoised": int(bool(options.denoise and options.target == "image" and record.denoise)),
             "il:estimated_error": result.estimated_error, "il:error_estimate": result.estimate,
-            "il:pilot_samples": int(result.pilot_samples), "il:seconds": round(result.seconds, 4),
-            "il:cycles_seconds": round(result.cycles_seconds, 4)} | ({"il:unlit": result.unlit} if result.unlit else {})
+            "il:pilot_samples": int(result.pilot_samples)} | ({"il:unlit": result.unlit} if result.unlit else {})
 
 
 def preview(kind, values, mask):

@@ -835,6 +835,21 @@ def test_public_soup_margin_is_the_same_wherever_it_is_read(corpus, tmp_path, sc
     assert int(said.group(2)) == rep["dilation"] == int(header["il:dilation"])
 
 
+def test_public_bake_writes_byte_identical_maps_in_every_run(corpus, tmp_path, script):
+    """Issue 27.4: public_like.blend baked twice into two folders with the same options, each run a new process,
+    gives byte-identical EXR and PNG files (the header holds no timings; the report has them)."""
+    entry = corpus["files"]["public_like"]
+    names = [m["name"] for m in entry["meshes"] if not m["hidden_render"]]
+    files = []
+    for run in ("a", "b"):
+        proc = bake(script, entry, names, tmp_path / run, "--resolution", RES)
+        assert proc.returncode == 0, failure("bake.py", "public_like", proc, f"(run {run})")
+        files.append({p.name: p.read_bytes() for p in (tmp_path / run).iterdir() if p.suffix in (".exr", ".png")})
+    assert len(files[0]) == 4 * len(names) and files[0].keys() == files[1].keys()
+    assert [n for n in files[0] if files[0][n] != files[1][n]] == []
+    assert not [k for k in exr.read_header(str(next(tmp_path.glob("a/*.exr")))) if "seconds" in k]
+
+
 def test_public_ssao_radius_comes_from_the_scene(corpus, tmp_path, script):
     """25.6: without --radius on a scene of ~0.2 m objects, the radius is 0.1 x the frame width at the median view
     depth of the visible geometry -- recomputed here by casting the camera's pixel rays into the file (within 2 %),
