@@ -142,7 +142,8 @@ def _search_copies(copies, group, options, names, label, fixed):
             hint = (f"use a resolution of at least {need}" if need else
                     "the charts do not fit even the largest map: bake the parts separately")
             raise InputError(f"{label}: the light-map charts do not fit {article(f'{fixed}x{fixed}')} map (they would "
-                             f"cover under {100 * MIN_COVERAGE:.0f} % of their UV area): {hint}")
+                             f"cover under {100 * MIN_COVERAGE:.0f} % of their UV area; {copies.per_texel(fixed)}): "
+                             f"{hint}")
         copies.try_raster_pack(fixed, margin, cut=False)
         return _Made(fixed, _dilation(label, options.margin, margin, fixed), copies.unwrapper)
     side = resolution(group, names, options, coverage=1.0)
@@ -170,7 +171,8 @@ def _search_copies(copies, group, options, names, label, fixed):
         if margin is None:
             raise InputError(f"{label}: the light-map charts do not fit a map of the maximum resolution "
                              f"{options.max_resolution} (they would cover under {100 * MIN_COVERAGE:.0f} % "
-                             f"of their UV area): raise the maximum resolution or the texel density")
+                             f"of their UV area; {copies.per_texel(side)}): raise the maximum resolution or the "
+                             f"texel density")
         _say_enlarged(label, asked, side)
         made = side
     else:
@@ -297,6 +299,11 @@ class _Copies:
     def __exit__(self, *exc):
         self._remove()
         return False
+
+    def per_texel(self, side):
+        """'N triangles, t texels each' of the copies in a side² map: the cause a refusal names."""
+        tris = sum(len(obj.data.loops) - 2 * len(obj.data.polygons) for _, obj in self.copies)
+        return f"{tris:,} triangles, {side * side / max(tris, 1):.2g} texels each"
 
     def use_smoothed(self, smoothed):
         """Put the dense copies' smoothed (or own) positions in place (``placed``: per copy, smoothed ones)."""

@@ -163,6 +163,7 @@ def test_suzanne_maps_cover_their_faces_or_are_refused(tmp_path, script):
     # too small to hold its charts: refused, naming a resolution that fits
     r = script("bake.py", blend, "--objects", "Suzanne", "--resolution", "4", "--samples", "4", "--out", tmp_path / "b")
     assert r.returncode == 2 and "use a resolution of at least" in last_line(r), r.stderr
+    assert "968 triangles, 0.017 texels each" in last_line(r)           # Blender's monkey: 500 faces, 968 triangles
     assert not (tmp_path / "b").exists()
     # texel density: a map of the density asked (not an empty 4096² one)
     r = script("bake.py", blend, "--objects", "Suzanne", "--texel-density", "4", "--samples", "4", "--out",
