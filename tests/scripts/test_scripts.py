@@ -81,3 +81,16 @@ def test_demo_writes_render_exr_png_and_report(script, tmp_path):
     assert sweep[-1] > sweep[0], sweep          # the notes' limit: the map is right only at its capture point
     rt = report["steps"]["raytrace"]
     assert rt["rays"] > 0 and np.isfinite(rt["rmse_vs_cycles"])
+
+
+def test_bench_level_prints_only_its_own_lines(script, tmp_path):
+    """Its bare bakes, the saved rerun level and the rerun's own process printed Blender's "Info: Baking map saved",
+    "Info: Saved copy" and two-line Python warnings: stdout now holds its figures only, stderr its progress and
+    one-line warnings."""
+    import re
+    proc = script("bench_level.py", "--quick", "--props", "2", "--reruns", "1", "--out", tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    ours = re.compile(r'^(level: |run=|figures: \{$| "\w+": |\}$)')
+    assert [ln for ln in proc.stdout.splitlines() if not ours.match(ln)] == []
+    assert [ln for ln in proc.stderr.splitlines() if not ln.startswith(("[", "bench_level.py: warning: "))] == []
+    assert any(ln.startswith("run=per object, light changed, 64 spp") for ln in proc.stdout.splitlines())

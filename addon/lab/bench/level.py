@@ -33,7 +33,7 @@ import numpy as np
 from ...bake import unwrap, unwrap_copy, uv as uvmod
 from ...bake.options import BakeOptions
 from ...bake.pipeline import bake_lightmaps
-from ...blender import compat, render
+from ...blender import chatter, compat, render
 from ...blender.scene import remove_scene
 from ...core import lightmap
 from ...core.memo import FIGURES
@@ -217,11 +217,12 @@ def bare_bakes(scene, objects, report, options):
         ctx = dict(scene=scene, view_layer=vl, active_object=objects[0], object=objects[0],
                    selected_objects=list(objects), selected_editable_objects=list(objects))
         kw = {"type": "AO"} if kind == "ao" else {"type": "DIFFUSE", "pass_filter": {"DIRECT", "INDIRECT"}}
-        t = time.perf_counter()
-        with bpy.context.temp_override(**ctx):
-            bpy.ops.object.bake(margin=0, use_clear=False, save_mode="INTERNAL", target="IMAGE_TEXTURES",
-                                uv_layer=uvmod.LIGHTMAP, **kw)
-        seconds[kind] = time.perf_counter() - t
+        with chatter.captured():
+            t = time.perf_counter()
+            with bpy.context.temp_override(**ctx):
+                bpy.ops.object.bake(margin=0, use_clear=False, save_mode="INTERNAL", target="IMAGE_TEXTURES",
+                                    uv_layer=uvmod.LIGHTMAP, **kw)
+            seconds[kind] = time.perf_counter() - t
         for img in images:
             bpy.data.images.remove(img)
         images.clear()
@@ -323,14 +324,15 @@ def _changed_light_rerun(scene, objects, out, options):
     folder = os.path.dirname(os.path.abspath(out))
     blend, job_file = os.path.join(folder, "rerun_level.blend"), os.path.join(folder, "rerun_job.json")
     try:
-        bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True, check_existing=False)
+        with chatter.captured():
+            bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True, check_existing=False)
         with open(job_file, "w") as f:
             json.dump({"blend": blend, "scene": scene.name, "out": os.path.abspath(out),
                        "objects": [o.name for o in objects], "options": dataclasses.asdict(options)}, f)
         code = f"import sys; sys.path.insert(0, {ROOT!r}); from addon.lab.bench import level; level.rerun_job()"
         cmd = ([bpy.app.binary_path, "-b", "--factory-startup", "--python-exit-code", "1", "--python-expr", code]
                if bpy.app.binary_path else [sys.executable, "-c", code])
-        proc = subprocess.run(cmd, stdout=subprocess.PIPE, text=True, errors="replace",
+        proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, errors="replace",
                               env={**os.environ, "IL_RERUN_JOB": job_file})
     finally:
         for me, uv in saved.items():
@@ -340,8 +342,8 @@ def _changed_light_rerun(scene, objects, out, options):
             with contextlib.suppress(OSError):
                 os.remove(path)
     rows = [line[len(_ROW):] for line in proc.stdout.splitlines() if line.startswith(_ROW)]
-    if proc.returncode or not rows:
-        tail = " | ".join(proc.stdout.strip().splitlines()[-3:])
+    if proc.returncode or not rows:          # its warnings repeat this process's own; its last lines say why it failed
+        tail = " | ".join((proc.stdout.strip().splitlines() + proc.stderr.strip().splitlines())[-3:])
         raise RuntimeError(f"the rerun in a new process failed (exit {proc.returncode}): {tail}")
     return json.loads(rows[-1])
 

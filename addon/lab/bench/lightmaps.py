@@ -16,7 +16,7 @@ from ...core import charts
 from ...core.io import exr
 from ...core import lightmap as lm
 from ..demo import scene as demo
-from ...blender import render
+from ...blender import chatter, render
 from ...blender.materials import no_closure
 from ...blender.state import SavedState
 from ...blender.scene import remove_scene
@@ -109,12 +109,13 @@ def _bare_bake(scene, floor, res, samples):
         for o in vl.objects:
             o.select_set(o == floor, view_layer=vl)
         vl.objects.active = floor
-        t = time.perf_counter()
-        with bpy.context.temp_override(scene=scene, view_layer=vl, active_object=floor, object=floor,
-                                       selected_objects=[floor], selected_editable_objects=[floor]):
-            bpy.ops.object.bake(type="AO", margin=4, target="IMAGE_TEXTURES", uv_layer=PLANAR,
-                                save_mode="INTERNAL")
-        return time.perf_counter() - t
+        with chatter.captured():
+            t = time.perf_counter()
+            with bpy.context.temp_override(scene=scene, view_layer=vl, active_object=floor, object=floor,
+                                           selected_objects=[floor], selected_editable_objects=[floor]):
+                bpy.ops.object.bake(type="AO", margin=4, target="IMAGE_TEXTURES", uv_layer=PLANAR,
+                                    save_mode="INTERNAL")
+            return time.perf_counter() - t
 
 
 def _pipeline(scene, floor, out, kind="ao", **kw):
