@@ -11,7 +11,7 @@ from .kinds import KINDS
 
 
 ESTIMATES = {
-    "binomial": "binomial bound: sqrt(mean k_A(1 - k_A)/N) (REFERENCE.md section 3); Cycles' stratified sampler "
+    "binomial": "binomial bound: sqrt(mean k_A(1 - k_A)/N) per texel; Cycles' stratified sampler "
                 "stays below it",
     "halves": "measured: RMS of the difference of two independent half bakes, halved",
     "pilots": "measured: pairs of independent bakes (a pilot first), each pair's error from its halves' "
