@@ -4,7 +4,7 @@ const JOB_TYPE = {
     label: "Illumination Lab light maps",
     settings: [
         { key: "blendfile", type: "string", subtype: "file_path", required: true, description: "scene .blend" },
-        { key: "objects", type: "string", required: true, description: "mesh objects, space separated" },
+        { key: "objects", type: "string", required: true, description: "mesh objects, separated by ; (names may hold spaces)" },
         { key: "out", type: "string", subtype: "dir_path", required: true, description: "output folder" },
         { key: "args", type: "string", default: "--maps ao irradiance --texel-density 32 --samples 64",
           description: "other scripts/bake.py options" },
@@ -20,7 +20,8 @@ function compileJob(job) {
         const task = author.Task(`bake ${k}/${s.shards}`, "blender");
         task.addCommand(author.Command("blender-render", {
             exe: "{blender}", exeArgs: "{blenderArgs}", blendfile: s.blendfile,
-            args: ["-P", s.script, "--", "--objects", ...s.objects.split(" "), ...s.args.split(" "),
+            args: ["-P", s.script, "--", "--objects", ...s.objects.split(";").map((n) => n.trim()).filter(Boolean),
+                   ...s.args.split(/\s+/).filter(Boolean),
                    "--out", s.out, "--overwrite", "--shard", `${k}/${s.shards}`],
         }));
         job.addTask(task);

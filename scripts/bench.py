@@ -18,7 +18,7 @@ def main(args):
 
 def build_parser():
     p = _cli.bench_parser("bench.py", "Run the sweeps of all labs and write report.md with charts and CSV tables.",
-                          "out/bench", "small sizes and sample counts (a few minutes)")
+                          "out/bench", "small sizes and sample counts (under a minute)")
     p.add_argument("--areas", nargs="+", metavar="KEY",
                    help="only these areas, by key (default: all; the keys are those of addon.lab.report.AREAS: "
                         "an unknown one is refused with the list)")

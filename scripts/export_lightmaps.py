@@ -74,7 +74,7 @@ def main(args):
 
 
 if __name__ == "__main__":
-    p = _cli.parser("export_lightmaps.py", __doc__.splitlines()[0])
+    p = _cli.parser("export_lightmaps.py", " ".join(__doc__.split("\n\n")[0].split()))
     p.add_argument("--lightmaps", required=True, metavar="DIR", help="the bake's output folder (bake_report.json)")
     p.add_argument("--out", dest="glb", required=True, metavar="FILE.glb", help="the glTF binary to write")
     p.add_argument("--ao-with-irradiance", action="store_true",
