@@ -6,7 +6,10 @@ the radiance ρ k_A of the surface under a white sky of radiance 1), so EEVEE an
 without scene lights (world black: nothing else is added). The base colour ρ is the material's Principled (or
 Diffuse) Base Color, value or the nodes that feed it (:mod:`.source`); the map is the EXR named in the folder's
 bake_report.json, read through the object's light-map UV layer (the report's "uv_layer"; a vertex-target map
-through its colour attribute). Metallic, specular, normal maps and alpha are not shown.
+through its colour attribute). A batch bake leaves the file without its generated layer: the layer is then added
+from the bake folder's UV cache (the layout the map was baked on, as the export reads it; ``il_lightmap_added_uv``
+on the mesh) and taken away again with the last preview of the mesh. Metallic, specular, normal maps and alpha are
+not shown.
 
 The preview goes into the object's own slot (the slot is switched to link to the object, so meshes that share data
 show their own maps; the mesh's materials are not touched); the preview material keeps what the slot had
@@ -18,7 +21,9 @@ import os
 
 import bpy
 
+from ..bake import uvcache
 from ..bake.report import REPORT, entry_file, read_objects
+from ..bake.uv import MAX_UV_LAYERS
 from ..blender import compat
 from ..blender.materials import is_preview, user_material
 from ..core.errors import InputError
@@ -29,6 +34,7 @@ from .material import split_shadable
 SOURCES = {"IRRADIANCE": ("irradiance", 1.0 / math.pi), "AO": ("ao", 1.0)}
 TAG = "il_lightmap"
 ADDED_SLOT = "il_lightmap_added_slot"
+ADDED_UV = "il_lightmap_added_uv"
 
 
 def read_report(folder):
@@ -44,8 +50,18 @@ def read_report(folder):
 map_file = entry_file
 
 
+def _cached_layout(obj, entry, folder):
+    """The UVs (flat, 2 per loop) ``entry``'s map was baked through, from ``folder``'s UV cache, when the layer can
+    be added to ``obj``'s mesh as it is now (the same corners, room for a layer, not linked); else None."""
+    me, ref = obj.data, entry.get("uv_cache")
+    if not ref or len(me.uv_layers) >= MAX_UV_LAYERS or me.library is not None:
+        return None
+    return uvcache.layout_of(folder, ref, len(me.loops))
+
+
 def _plan(meshes, maps, kind, folder):
-    """([(object, entry, file)], warnings) of ``meshes`` that can show their ``kind`` map."""
+    """([(object, entry, file, UVs of the layer to add or None)], warnings) of ``meshes`` that can show their
+    ``kind`` map."""
     todo, none, missing = [], [], []
     for obj in meshes:
         entry = maps.get(obj.name, {}).get(kind)
@@ -54,16 +70,20 @@ def _plan(meshes, maps, kind, folder):
             continue
         uv, attr = entry.get("uv_layer"), entry.get("attribute")
         path = map_file(folder, entry) if attr is None else None
+        layout = None
+        if attr is None and path is not None and uv and obj.data.uv_layers.get(uv) is None:
+            layout = _cached_layout(obj, entry, folder)
         if attr is not None and obj.data.color_attributes.get(attr) is None:
             missing.append(f"'{obj.name}': no colour attribute '{attr}' (its vertex {kind} map); a batch bake does "
                            "not save the .blend: bake in this file or open the copy the bake saved")
-        elif attr is None and (not uv or obj.data.uv_layers.get(uv) is None):
-            missing.append(f"'{obj.name}': no UV layer '{uv}' (the layout of its {kind} map); a batch bake does not "
-                           "save the .blend: bake in this file or open the copy the bake saved (--save-as)")
+        elif attr is None and (not uv or obj.data.uv_layers.get(uv) is None) and layout is None:
+            missing.append(f"'{obj.name}': no UV layer '{uv}' (the layout of its {kind} map), nor its layout for the "
+                           "mesh as it is now in the bake folder's UV cache: bake in this file or open the copy the "
+                           "bake saved (--save-as)")
         elif attr is None and path is None:
             missing.append(f"'{obj.name}': its {kind} map {entry.get('file')} is missing")
         else:
-            todo.append((obj, entry, path))
+            todo.append((obj, entry, path, layout))
     warnings = [f"no {kind} map in {os.path.join(folder, REPORT)} for: {', '.join(none)}"] if none else []
     return todo, warnings + [f"{m}; skipped" for m in missing]
 
@@ -200,7 +220,26 @@ def _restore_object(obj):
         if len(data.materials) == 1 and data.materials[0] is None:
             data.materials.clear()
         del data[ADDED_SLOT]
+    if data is not None and ADDED_UV in data and not previewed([o for o in bpy.data.objects if o.data == data]):
+        _remove_added_layer(data)
     return count
+
+
+def _add_layer(me, name, uvs):
+    """Give ``me`` the light-map layer ``name`` with ``uvs`` (tagged, for :func:`_remove_added_layer`); True when it
+    was added here (a mesh that two previewed objects share gets it once)."""
+    if me.uv_layers.get(name) is not None:
+        return False
+    me.uv_layers.new(name=name, do_init=False).data.foreach_set("uv", uvs)
+    me[ADDED_UV] = name
+    return True
+
+
+def _remove_added_layer(me):
+    layer = me.uv_layers.get(me[ADDED_UV])
+    if layer is not None:
+        me.uv_layers.remove(layer)
+    del me[ADDED_UV]
 
 
 def _drop_unused(mats):
@@ -233,20 +272,26 @@ def apply_lightmaps(objects, folder, source_id="IRRADIANCE"):
     warnings += why
     if not todo:
         raise InputError(f"no {kind} map to show: {'; '.join(why)}")
-    made, done, replaced = [], [], []
+    made, done, replaced, added = [], [], [], []
     try:
-        for obj, entry, path in todo:
+        for obj, entry, path, layout in todo:
             replaced += [s.material for s in obj.material_slots if is_preview(s.material)]
             done.append(obj)
+            if layout is not None and _add_layer(obj.data, entry["uv_layer"], layout):
+                added.append(obj.data)
             _apply_object(obj, entry, path, source_id, made)
     except Exception:
         for obj in done:
             _restore_object(obj)
+        for me in added:
+            if ADDED_UV in me:
+                _remove_added_layer(me)
         _drop_unused(made)
         raise
     _drop_unused(set(replaced))
     report = {"objects": {o.name: {"map": kind, "file": p or e.get("attribute"), "uv_layer": e.get("uv_layer"),
-                                   "slots": len(o.material_slots)} for o, e, p in todo},
+                                   "uv_from_cache": lay is not None, "slots": len(o.material_slots)}
+                          for o, e, p, lay in todo},
               "source": source_id, "folder": folder}
     return report, warnings
 

@@ -413,3 +413,44 @@ def test_environment_mapping_that_fails_midway_leaves_the_preview_and_the_slots_
     assert not lp.previewed([plane, cube]) and environment.restorable([plane, cube])
     environment.remove_environment_mapping([plane, cube])
     assert [s.material.name for o in (plane, cube) for s in o.material_slots] == ["Paint", "Label"]
+
+
+@pytest.mark.both_versions
+def test_a_batch_bakes_folder_is_previewed_through_the_layout_its_maps_were_baked_on(tmp_path):
+    """A batch bake leaves the opened file without its generated 'Lightmap' layer (bake.py saves no .blend; here
+    the layer is taken off after the bake): Preview adds it from the bake folder's UV cache, UV for UV the layer
+    the bake used, shows base colour x map as after an in-file bake, and Remove Preview takes it away again. A
+    mesh edited since the bake is refused with its line, nothing added."""
+    import bmesh
+    scene, plane, cube, sphere = _scene(tmp_path)
+    out = str(tmp_path / "maps")
+    report = dict(bake_lightmaps([plane, cube], ["irradiance"], out, BakeOptions(resolution=32, samples=8, bounces=1,
+                                                                                 margin=2), scene=scene)["objects"])
+    baked = {}
+    for o in (plane, cube):
+        baked[o.name] = np.zeros(2 * len(o.data.loops), np.float32)
+        o.data.uv_layers["Lightmap"].data.foreach_get("uv", baked[o.name])
+        o.data.uv_layers.remove(o.data.uv_layers["Lightmap"])
+    layers, slots = {o.name: [la.name for la in o.data.uv_layers] for o in (plane, cube)}, _slots([plane, cube])
+
+    shown, warnings = lp.apply_lightmaps([plane, cube], out, "IRRADIANCE")
+    assert warnings == [] and all(shown["objects"][o.name]["uv_from_cache"] for o in (plane, cube))
+    for o in (plane, cube):
+        uv = np.zeros(2 * len(o.data.loops), np.float32)
+        o.data.uv_layers["Lightmap"].data.foreach_get("uv", uv)
+        assert np.array_equal(uv, baked[o.name]) and o.data[lp.ADDED_UV] == "Lightmap"
+    err, _ = _render_errors(scene, [plane, cube], report, "irradiance", {plane.name: PAINT, cube.name: LABEL},
+                            1 / math.pi)
+    assert err.max() < 2e-3, err.max()          # the tolerance of the in-file preview's test above
+    assert lp.remove_lightmaps([plane, cube]) == 2
+    assert {o.name: [la.name for la in o.data.uv_layers] for o in (plane, cube)} == layers
+    assert _slots([plane, cube]) == slots and not any(lp.ADDED_UV in o.data for o in (plane, cube))
+
+    bm = bmesh.new()
+    bm.from_mesh(cube.data)
+    bmesh.ops.subdivide_edges(bm, edges=bm.edges[:1], cuts=1)
+    bm.to_mesh(cube.data)
+    bm.free()
+    with pytest.raises(InputError, match="no UV layer 'Lightmap'.*nor its layout"):
+        lp.apply_lightmaps([cube], out, "IRRADIANCE")
+    assert [la.name for la in cube.data.uv_layers] == layers[cube.name] and _slots([cube]) == slots[-1:]
