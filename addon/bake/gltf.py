@@ -106,7 +106,7 @@ def encoding_error(intensity):
 class Plan:
     """What the export carries: {object name: {kind: (entry, file)}} of the baked meshes that can carry it, the
     light-map UV layer of each, the UVs of the layers the file lacks (``restore``: read from the bake folder's UV
-    cache by the entries' "uv_cache", :func:`uvcache.layout_of`; a batch bake does not save the .blend) and the
+    cache by the entries' "uv_cache", :func:`uvcache.file_layout`; a batch bake does not save the .blend) and the
     lines naming objects left out."""
 
     def __init__(self, folder, scene):
@@ -144,7 +144,7 @@ class Plan:
                     no_file.append(f"{name} ({kind}: {entry.get('file')})")
                     continue
                 if not found:
-                    uv = uvcache.layout_of(folder, ref, len(obj.data.loops))
+                    uv = uvcache.file_layout(folder, ref, obj, scene)
                     if uv is None and uvcache.cached_entry(folder, ref):
                         changed.append(name)
                         break

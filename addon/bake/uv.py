@@ -252,7 +252,8 @@ def _prepare_groups(scene, objects, state, options, together, cache, made):
                 if cache is not None:           # a rerun that bakes only this object finds the layout
                     digest = uvcache.key(group, scene.view_layers[0].depsgraph, options, together)
                     if digest not in cache.memory:  # else its mesh's own key (moved, turned): that entry stays
-                        cache.put(digest, uvcache.Entry([corner_uv(first.data, LIGHTMAP).ravel()],
+                        cache.put(digest, uvcache.Entry([_as_baked(state, first.data,
+                                                                   corner_uv(first.data, LIGHTMAP).ravel())],
                                                         layout.side, layout.margin, layout.unwrap, 0, layout.window))
                     layout.key = digest
         else:
@@ -300,15 +301,26 @@ def _layout(scene, group, state, options, names, together, cache):
         digest = uvcache.key(group, scene.view_layers[0].depsgraph, options, together)
         entry = cache.get(digest, [o.data for o in group])
     if entry is not None:
+        if not entry.file_order:        # an entry in the order the bake held the corners in: kept in the file's
+            entry = dataclasses.replace(entry, uvs=[_as_baked(state, o.data, uv) for o, uv in zip(group, entry.uvs)],
+                                        file_order=True)
+            cache.put(digest, entry)
         return dataclasses.replace(_from_entry(group, entry, state, options), key=digest)
     if not together and LIGHTMAP in group[0].data.uv_layers and _reusable(group[0], options):
         return None
     made = _cut_window(group, _unwrap_with_margin(group, state, options, names), state, names, options)
     if cache is not None:
-        uvs = [corner_uv(o.data, LIGHTMAP).ravel() for o in group]
+        uvs = [_as_baked(state, o.data, corner_uv(o.data, LIGHTMAP).ravel()) for o in group]
         cache.put(digest, uvcache.Entry(uvs, made.side, made.margin, made.unwrap, made.enlarged_from, made.window))
         made = dataclasses.replace(made, key=digest)
     return made
+
+
+def _as_baked(state, me, uv):
+    """``uv`` of mesh ``me``'s corners (flat) between the order the file holds them in, which the UV cache keeps, and
+    the order they have while the bake flips the mesh's normals (``state.flipped``): the same permutation both ways
+    (:func:`uvcache.flip_corners`)."""
+    return uvcache.flip_corners(me, uv) if me in getattr(state, "flipped", ()) else uv
 
 
 def _from_entry(group, entry, state, options):
@@ -318,6 +330,7 @@ def _from_entry(group, entry, state, options):
     label = ", ".join(f"'{o.name}'" for o in group)
     for o, uv in zip(group, entry.uvs):
         me = o.data
+        uv = _as_baked(state, me, uv)
         if LIGHTMAP not in me.uv_layers or not np.array_equal(corner_uv(me, LIGHTMAP).ravel(),
                                                               uv):
             _write_layer(state, me, uv)

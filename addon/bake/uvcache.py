@@ -53,6 +53,20 @@ class Entry:
     unwrap: str
     enlarged_from: int = 0
     window: tuple = None
+    file_order: bool = True
+    """The UVs follow each face's corners as the file holds them. A mesh whose normals the bake flips
+    (``SavedState.flip_normals``) has them in another order while it is baked (:func:`flip_corners`); entries
+    written before this field held that order and read False."""
+
+
+def flip_corners(me, uv):
+    """``uv`` (flat, 2 per corner of mesh ``me``) with each face's corners in the order ``mesh.flip_normals()`` gives
+    them: the first kept, the rest reversed. The same call turns them back."""
+    starts, sizes = face_starts(me), face_sizes(me, face_starts(me))
+    first = np.repeat(starts, sizes)
+    k = np.arange(len(first)) - first
+    order = np.where(k == 0, first, first + np.repeat(sizes, sizes) - k)
+    return np.asarray(uv).reshape(-1, 2)[order].ravel()
 
 
 def _arrays(me):
@@ -146,7 +160,7 @@ class UVCache:
             digest, entry = self.pending.popitem()
             head = {"side": int(entry.side), "margin": float(entry.margin), "unwrap": entry.unwrap,
                     "enlarged_from": int(entry.enlarged_from), "window": list(entry.window or (0, 0, 0)),
-                    "loops": [len(uv) // 2 for uv in entry.uvs]}
+                    "loops": [len(uv) // 2 for uv in entry.uvs], "file_order": bool(entry.file_order)}
             uv = np.concatenate([np.asarray(uv, "<f4") for uv in entry.uvs] or [np.zeros(0, "<f4")])
             try:
                 write_bytes(self.path(digest), MAGIC + json.dumps(head).encode() + b"\n" + uv.tobytes())
@@ -180,13 +194,27 @@ def cached_entry(folder, ref):
 def layout_of(folder, ref, loops):
     """The UVs (flat float32, 2 per loop) of one object of a layout in the UV cache of output folder ``folder``: the
     entry :func:`cached_entry` finds, holding ``loops`` finite UVs in the unit square for object ``ref[1]``; None
-    otherwise."""
+    otherwise. In the order the entry keeps them (:attr:`Entry.file_order`): :func:`file_layout` for a mesh."""
+    return _entry_uv(folder, ref, loops)[0]
+
+
+def file_layout(folder, ref, obj, scene):
+    """:func:`layout_of` for ``obj`` with its mesh's corners as the file holds them (what Export and Preview write
+    into the file's mesh): an entry written before :attr:`Entry.file_order` holds the order the bake held them in,
+    turned back when the bake flips this mesh (``orientation.check``: every closed part inside out)."""
+    from .orientation import empty_inward_shells
+    uv, file_order = _entry_uv(folder, ref, len(obj.data.loops))
+    if uv is None or file_order or empty_inward_shells(scene, obj)[0] != 1.0:
+        return uv
+    return flip_corners(obj.data, uv)
+
+
+def _entry_uv(folder, ref, loops):
     path = cached_entry(folder, ref)
     entry = _read(path) if path else None
-    if entry is None or not 0 <= ref[1] < len(entry.uvs):
-        return None
-    uv = entry.uvs[ref[1]]
-    return uv if _uv_fits(uv, loops) else None
+    if entry is None or not 0 <= ref[1] < len(entry.uvs) or not _uv_fits(entry.uvs[ref[1]], loops):
+        return None, None
+    return entry.uvs[ref[1]], entry.file_order
 
 
 def _read(path):
@@ -203,7 +231,8 @@ def _read(path):
             return None
         window = tuple(int(x) for x in head["window"])
         return Entry(np.split(flat, ends[:-1]) if len(ends) else [], int(head["side"]), float(head["margin"]),
-                     str(head["unwrap"]), int(head["enlarged_from"]), window if all(window) else None)
+                     str(head["unwrap"]), int(head["enlarged_from"]), window if all(window) else None,
+                     head.get("file_order") is True)
     except Exception:      # missing, truncated, not an entry, a field missing or of another kind: rebuilt
         return None
 
@@ -212,7 +241,7 @@ def _same(a, b):
     """Entries ``a`` and ``b`` hold the same layout (fields and UVs); False for None."""
     if a is None or b is None:
         return False
-    fields = lambda e: (e.side, e.margin, e.unwrap, e.enlarged_from, tuple(e.window or ()))
+    fields = lambda e: (e.side, e.margin, e.unwrap, e.enlarged_from, tuple(e.window or ()), e.file_order)
     return (fields(a) == fields(b) and len(a.uvs) == len(b.uvs)
             and all(np.array_equal(x, y) for x, y in zip(a.uvs, b.uvs)))
 

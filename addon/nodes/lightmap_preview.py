@@ -56,7 +56,7 @@ def _cached_layout(obj, entry, folder):
     me, ref = obj.data, entry.get("uv_cache")
     if not ref or len(me.uv_layers) >= MAX_UV_LAYERS or me.library is not None:
         return None
-    return uvcache.layout_of(folder, ref, len(me.loops))
+    return uvcache.file_layout(folder, ref, obj, bpy.context.scene)
 
 
 def _plan(meshes, maps, kind, folder):

@@ -609,3 +609,60 @@ def test_an_entry_is_written_only_when_the_folder_does_not_hold_it(tmp_path, mon
     twice.put("b" * 40, entry(side=24))
     twice.flush()
     assert written == [twice.path("b" * 40)] and uvcache._read(twice.path("b" * 40)).side == 24
+
+
+@pytest.mark.both_versions
+def test_flip_corners_is_the_order_blenders_flip_normals_gives_a_faces_corners():
+    """A triangle, a quad and a pentagon: flip_corners of each corner's vertex index is Blender's own order after
+    mesh.flip_normals(), and applied twice it is the identity."""
+    me = bpy.data.meshes.new("faces")
+    me.from_pydata([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (2, 0, 0), (3, 0, 0), (3, 1, 0), (2.5, 1.5, 0),
+                    (2, 1, 0), (4, 0, 0), (5, 0, 0), (4, 1, 0)], [], [(0, 1, 2, 3), (4, 5, 6, 7, 8), (9, 10, 11)])
+    before = np.zeros(len(me.loops), np.int64)
+    me.loops.foreach_get("vertex_index", before)
+    as_uv = np.repeat(before, 2).astype(np.float32)
+    me.flip_normals()
+    after = np.zeros(len(me.loops), np.int64)
+    me.loops.foreach_get("vertex_index", after)
+    assert not np.array_equal(before, after)
+    assert np.array_equal(uvcache.flip_corners(me, as_uv)[::2], after)
+    assert np.array_equal(uvcache.flip_corners(me, uvcache.flip_corners(me, as_uv)), as_uv)
+
+
+@pytest.mark.both_versions
+def test_the_cache_keeps_an_inside_out_meshs_layout_in_the_files_corner_order(tmp_path, unwraps):
+    """The bake flips an inside-out mesh's normals (its corners reversed) before the UV step: its cached layout was
+    kept in that order, so Export and Preview, reading the cache onto the file's mesh, gave its corners other
+    UVs (modifiers.blend's 'Negative Scale': 0.35 apart). Now the entry holds the layer the file keeps, UV for UV;
+    a rerun reads it back without unwrapping and bakes the same pixels; an entry written in the bake's order
+    (before the field) is read as such and written again in the file's order."""
+    bpy.ops.mesh.primitive_plane_add(size=4)
+    bpy.ops.mesh.primitive_cube_add(size=0.6, location=(0, 0, 0.3))
+    cube = bpy.context.object
+    cube.data.flip_normals()
+    objects = [bpy.data.objects["Plane"], cube]
+    opts = BakeOptions(**OPTIONS)
+    with pytest.warns(ILWarning, match="normals point into"):
+        rep = bake_lightmaps(objects, ["ao"], str(tmp_path), opts, scene=bpy.context.scene)
+    kept = uvmod.corner_uv(cube.data, uvmod.LIGHTMAP).ravel().copy()
+    ref = rep["objects"]["Cube"]["ao"]["uv_cache"]
+    assert np.array_equal(uvcache.layout_of(str(tmp_path), ref, len(cube.data.loops)), kept)
+    pixels = exr.read_exr(rep["objects"]["Cube"]["ao"]["file"])[0]["Y"]
+
+    path = uvcache.cached_entry(str(tmp_path), ref)       # as the code before wrote it: the bake's order, no field
+    entry = uvcache._read(path)
+    head = {"side": entry.side, "margin": entry.margin, "unwrap": entry.unwrap, "enlarged_from": entry.enlarged_from,
+            "window": list(entry.window or (0, 0, 0)), "loops": [len(u) // 2 for u in entry.uvs]}
+    pathlib.Path(path).write_bytes(_entry_bytes(head, uvcache.flip_corners(cube.data, entry.uvs[0])))
+    assert not uvcache._read(path).file_order
+    assert np.array_equal(uvcache.file_layout(str(tmp_path), ref, cube, bpy.context.scene), kept)  # Export's read
+    unwraps.clear()
+    for o in objects:
+        o.data.uv_layers.remove(o.data.uv_layers[uvmod.LIGHTMAP])
+    with pytest.warns(ILWarning, match="normals point into"):
+        again = bake_lightmaps(objects, ["ao"], str(tmp_path), opts, scene=bpy.context.scene)
+    assert unwraps == []
+    assert np.array_equal(uvmod.corner_uv(cube.data, uvmod.LIGHTMAP).ravel(), kept)
+    assert np.array_equal(exr.read_exr(again["objects"]["Cube"]["ao"]["file"])[0]["Y"], pixels)
+    assert uvcache._read(path).file_order and np.array_equal(uvcache.layout_of(str(tmp_path), ref,
+                                                                                len(cube.data.loops)), kept)
