@@ -25,6 +25,9 @@ from .options import article
 
 LIGHTMAP = "Lightmap"
 MAX_UV_LAYERS = 8
+ADDED_BY_PREVIEW = "il_lightmap_added_uv"
+"""ID property of a mesh whose light-map layer (the value: its name) a Preview added from a bake folder's UV cache:
+Remove Preview takes the layer away again; a bake that keeps the layer as its product makes it its own."""
 
 
 # ------------------------------------------------------------------ reading layers
@@ -252,9 +255,9 @@ def _prepare_groups(scene, objects, state, options, together, cache, made):
                 if cache is not None:           # a rerun that bakes only this object finds the layout
                     digest = uvcache.key(group, scene.view_layers[0].depsgraph, options, together)
                     if digest not in cache.memory:  # else its mesh's own key (moved, turned): that entry stays
-                        cache.put(digest, uvcache.Entry([_as_baked(state, first.data,
-                                                                   corner_uv(first.data, LIGHTMAP).ravel())],
-                                                        layout.side, layout.margin, layout.unwrap, 0, layout.window))
+                        cache.put(digest, uvcache.Entry([corner_uv(first.data, LIGHTMAP).ravel()],
+                                                        layout.side, layout.margin, layout.unwrap, 0, layout.window,
+                                                        uvcache.corners_of([first.data])))
                     layout.key = digest
         else:
             layout = _layout(scene, group, state, options, made.layers, together, cache)
@@ -301,26 +304,19 @@ def _layout(scene, group, state, options, names, together, cache):
         digest = uvcache.key(group, scene.view_layers[0].depsgraph, options, together)
         entry = cache.get(digest, [o.data for o in group])
     if entry is not None:
-        if not entry.file_order:        # an entry in the order the bake held the corners in: kept in the file's
-            entry = dataclasses.replace(entry, uvs=[_as_baked(state, o.data, uv) for o, uv in zip(group, entry.uvs)],
-                                        file_order=True)
+        if entry.corners is None:       # written before the corners were kept: the key holds them as they are now
+            entry = dataclasses.replace(entry, corners=uvcache.corners_of([o.data for o in group]))
             cache.put(digest, entry)
         return dataclasses.replace(_from_entry(group, entry, state, options), key=digest)
     if not together and LIGHTMAP in group[0].data.uv_layers and _reusable(group[0], options):
         return None
     made = _cut_window(group, _unwrap_with_margin(group, state, options, names), state, names, options)
     if cache is not None:
-        uvs = [_as_baked(state, o.data, corner_uv(o.data, LIGHTMAP).ravel()) for o in group]
-        cache.put(digest, uvcache.Entry(uvs, made.side, made.margin, made.unwrap, made.enlarged_from, made.window))
+        uvs = [corner_uv(o.data, LIGHTMAP).ravel() for o in group]
+        cache.put(digest, uvcache.Entry(uvs, made.side, made.margin, made.unwrap, made.enlarged_from, made.window,
+                                        uvcache.corners_of([o.data for o in group])))
         made = dataclasses.replace(made, key=digest)
     return made
-
-
-def _as_baked(state, me, uv):
-    """``uv`` of mesh ``me``'s corners (flat) between the order the file holds them in, which the UV cache keeps, and
-    the order they have while the bake flips the mesh's normals (``state.flipped``): the same permutation both ways
-    (:func:`uvcache.flip_corners`)."""
-    return uvcache.flip_corners(me, uv) if me in getattr(state, "flipped", ()) else uv
 
 
 def _from_entry(group, entry, state, options):
@@ -330,7 +326,6 @@ def _from_entry(group, entry, state, options):
     label = ", ".join(f"'{o.name}'" for o in group)
     for o, uv in zip(group, entry.uvs):
         me = o.data
-        uv = _as_baked(state, me, uv)
         if LIGHTMAP not in me.uv_layers or not np.array_equal(corner_uv(me, LIGHTMAP).ravel(),
                                                               uv):
             _write_layer(state, me, uv)

@@ -53,20 +53,37 @@ class Entry:
     unwrap: str
     enlarged_from: int = 0
     window: tuple = None
-    file_order: bool = True
-    """The UVs follow each face's corners as the file holds them. A mesh whose normals the bake flips
-    (``SavedState.flip_normals``) has them in another order while it is baked (:func:`flip_corners`); entries
-    written before this field held that order and read False."""
+    corners: tuple = None
+    """Per object, :func:`corner_digest` of its mesh's corners in the order the UVs follow: the order the bake held
+    them in, which the key hashes. A mesh whose normals the bake flips (inside out: ``SavedState.flip_normals``) has
+    them reversed then (:func:`flip_order`), so :func:`file_layout` matches the file's mesh against both orders.
+    None in entries written before it."""
+
+
+def flip_order(me):
+    """The corner permutation of ``mesh.flip_normals()`` on mesh ``me``: each face's first corner kept, the rest
+    reversed (its own inverse)."""
+    starts = face_starts(me)
+    sizes = face_sizes(me, starts)
+    first = np.repeat(starts, sizes)
+    k = np.arange(len(first)) - first
+    return np.where(k == 0, first, first + np.repeat(sizes, sizes) - k)
 
 
 def flip_corners(me, uv):
     """``uv`` (flat, 2 per corner of mesh ``me``) with each face's corners in the order ``mesh.flip_normals()`` gives
-    them: the first kept, the rest reversed. The same call turns them back."""
-    starts, sizes = face_starts(me), face_sizes(me, face_starts(me))
-    first = np.repeat(starts, sizes)
-    k = np.arange(len(first)) - first
-    order = np.where(k == 0, first, first + np.repeat(sizes, sizes) - k)
-    return np.asarray(uv).reshape(-1, 2)[order].ravel()
+    them. The same call turns them back."""
+    return np.asarray(uv).reshape(-1, 2)[flip_order(me)].ravel()
+
+
+def corner_digest(vertices):
+    """Hex digest of a mesh's corner vertex indices in the given order."""
+    return hashlib.blake2b(np.asarray(vertices, np.int64).tobytes(), digest_size=16).hexdigest()
+
+
+def corners_of(meshes):
+    """:attr:`Entry.corners` of ``meshes`` as they are now."""
+    return tuple(corner_digest(corner_vertices(me)) for me in meshes)
 
 
 def _arrays(me):
@@ -160,7 +177,9 @@ class UVCache:
             digest, entry = self.pending.popitem()
             head = {"side": int(entry.side), "margin": float(entry.margin), "unwrap": entry.unwrap,
                     "enlarged_from": int(entry.enlarged_from), "window": list(entry.window or (0, 0, 0)),
-                    "loops": [len(uv) // 2 for uv in entry.uvs], "file_order": bool(entry.file_order)}
+                    "loops": [len(uv) // 2 for uv in entry.uvs]}
+            if entry.corners:
+                head["corners"] = list(entry.corners)
             uv = np.concatenate([np.asarray(uv, "<f4") for uv in entry.uvs] or [np.zeros(0, "<f4")])
             try:
                 write_bytes(self.path(digest), MAGIC + json.dumps(head).encode() + b"\n" + uv.tobytes())
@@ -194,19 +213,28 @@ def cached_entry(folder, ref):
 def layout_of(folder, ref, loops):
     """The UVs (flat float32, 2 per loop) of one object of a layout in the UV cache of output folder ``folder``: the
     entry :func:`cached_entry` finds, holding ``loops`` finite UVs in the unit square for object ``ref[1]``; None
-    otherwise. In the order the entry keeps them (:attr:`Entry.file_order`): :func:`file_layout` for a mesh."""
+    otherwise. On the corners in the order the bake held them (:attr:`Entry.corners`): :func:`file_layout` for a
+    mesh of the file."""
     return _entry_uv(folder, ref, loops)[0]
 
 
 def file_layout(folder, ref, obj, scene):
-    """:func:`layout_of` for ``obj`` with its mesh's corners as the file holds them (what Export and Preview write
-    into the file's mesh): an entry written before :attr:`Entry.file_order` holds the order the bake held them in,
-    turned back when the bake flips this mesh (``orientation.check``: every closed part inside out)."""
-    from .orientation import empty_inward_shells
-    uv, file_order = _entry_uv(folder, ref, len(obj.data.loops))
-    if uv is None or file_order or empty_inward_shells(scene, obj)[0] != 1.0:
+    """:func:`layout_of` with its UVs on ``obj``'s corners as the file holds them now (what Export and Preview write
+    into the file's mesh): as stored when the entry's :attr:`Entry.corners` are the mesh's, turned by
+    :func:`flip_corners` when they are the mesh's flipped (the bake turned it outward; the file's is still inside
+    out), None when neither (edited since). An entry written before ``corners`` is turned when the bake would flip
+    the mesh now (``orientation.check``: every closed part inside out)."""
+    uv, corners = _entry_uv(folder, ref, len(obj.data.loops))
+    if uv is None:
+        return None
+    me = obj.data
+    if corners is None:
+        from .orientation import empty_inward_shells
+        return flip_corners(me, uv) if empty_inward_shells(scene, obj)[0] == 1.0 else uv
+    now = corner_vertices(me)
+    if corner_digest(now) == corners[ref[1]]:
         return uv
-    return flip_corners(obj.data, uv)
+    return flip_corners(me, uv) if corner_digest(now[flip_order(me)]) == corners[ref[1]] else None
 
 
 def _entry_uv(folder, ref, loops):
@@ -214,7 +242,7 @@ def _entry_uv(folder, ref, loops):
     entry = _read(path) if path else None
     if entry is None or not 0 <= ref[1] < len(entry.uvs) or not _uv_fits(entry.uvs[ref[1]], loops):
         return None, None
-    return entry.uvs[ref[1]], entry.file_order
+    return entry.uvs[ref[1]], entry.corners
 
 
 def _read(path):
@@ -232,16 +260,23 @@ def _read(path):
         window = tuple(int(x) for x in head["window"])
         return Entry(np.split(flat, ends[:-1]) if len(ends) else [], int(head["side"]), float(head["margin"]),
                      str(head["unwrap"]), int(head["enlarged_from"]), window if all(window) else None,
-                     head.get("file_order") is True)
+                     _corners(head.get("corners"), len(ends)))
     except Exception:      # missing, truncated, not an entry, a field missing or of another kind: rebuilt
         return None
+
+
+def _corners(value, objects):
+    """The head's "corners" (one hex digest per object), or None when absent or not that."""
+    if not isinstance(value, list) or len(value) != objects or not all(isinstance(v, str) for v in value):
+        return None
+    return tuple(value)
 
 
 def _same(a, b):
     """Entries ``a`` and ``b`` hold the same layout (fields and UVs); False for None."""
     if a is None or b is None:
         return False
-    fields = lambda e: (e.side, e.margin, e.unwrap, e.enlarged_from, tuple(e.window or ()), e.file_order)
+    fields = lambda e: (e.side, e.margin, e.unwrap, e.enlarged_from, tuple(e.window or ()), e.corners)
     return (fields(a) == fields(b) and len(a.uvs) == len(b.uvs)
             and all(np.array_equal(x, y) for x, y in zip(a.uvs, b.uvs)))
 

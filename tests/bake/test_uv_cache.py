@@ -630,39 +630,44 @@ def test_flip_corners_is_the_order_blenders_flip_normals_gives_a_faces_corners()
 
 
 @pytest.mark.both_versions
-def test_the_cache_keeps_an_inside_out_meshs_layout_in_the_files_corner_order(tmp_path, unwraps):
-    """The bake flips an inside-out mesh's normals (its corners reversed) before the UV step: its cached layout was
-    kept in that order, so Export and Preview, reading the cache onto the file's mesh, gave its corners other
-    UVs (modifiers.blend's 'Negative Scale': 0.35 apart). Now the entry holds the layer the file keeps, UV for UV;
-    a rerun reads it back without unwrapping and bakes the same pixels; an entry written in the bake's order
-    (before the field) is read as such and written again in the file's order."""
+def test_an_inside_out_meshs_cached_layout_reaches_the_files_corners_and_survives_fixing_its_normals(tmp_path,
+                                                                                                     unwraps):
+    """The bake flips an inside-out mesh's normals (its corners reversed) before the UV step, so its cached layout
+    follows the flipped corners: Export and Preview, writing it onto the file's mesh as it was, gave its corners
+    other UVs (modifiers.blend's 'Negative Scale': 0.35 apart). file_layout now turns it onto the file's corners,
+    UV for UV the layer the bake kept, also for an entry written before the corners were recorded. Once the user
+    fixes the normals (the corners now in the bake's order, the same key), a rerun takes the layout as it is,
+    unwraps nothing and bakes the same pixels, and file_layout takes it as it is too."""
     bpy.ops.mesh.primitive_plane_add(size=4)
     bpy.ops.mesh.primitive_cube_add(size=0.6, location=(0, 0, 0.3))
     cube = bpy.context.object
     cube.data.flip_normals()
     objects = [bpy.data.objects["Plane"], cube]
     opts = BakeOptions(**OPTIONS)
+    scene = bpy.context.scene
     with pytest.warns(ILWarning, match="normals point into"):
-        rep = bake_lightmaps(objects, ["ao"], str(tmp_path), opts, scene=bpy.context.scene)
+        rep = bake_lightmaps(objects, ["ao"], str(tmp_path), opts, scene=scene)
     kept = uvmod.corner_uv(cube.data, uvmod.LIGHTMAP).ravel().copy()
     ref = rep["objects"]["Cube"]["ao"]["uv_cache"]
-    assert np.array_equal(uvcache.layout_of(str(tmp_path), ref, len(cube.data.loops)), kept)
+    assert np.array_equal(uvcache.file_layout(str(tmp_path), ref, cube, scene), kept)
     pixels = exr.read_exr(rep["objects"]["Cube"]["ao"]["file"])[0]["Y"]
 
-    path = uvcache.cached_entry(str(tmp_path), ref)       # as the code before wrote it: the bake's order, no field
+    path = uvcache.cached_entry(str(tmp_path), ref)       # as the code before wrote it: no corners
     entry = uvcache._read(path)
     head = {"side": entry.side, "margin": entry.margin, "unwrap": entry.unwrap, "enlarged_from": entry.enlarged_from,
             "window": list(entry.window or (0, 0, 0)), "loops": [len(u) // 2 for u in entry.uvs]}
-    pathlib.Path(path).write_bytes(_entry_bytes(head, uvcache.flip_corners(cube.data, entry.uvs[0])))
-    assert not uvcache._read(path).file_order
-    assert np.array_equal(uvcache.file_layout(str(tmp_path), ref, cube, bpy.context.scene), kept)  # Export's read
-    unwraps.clear()
+    pathlib.Path(path).write_bytes(_entry_bytes(head, np.concatenate(entry.uvs)))
+    assert uvcache._read(path).corners is None
+    assert np.array_equal(uvcache.file_layout(str(tmp_path), ref, cube, scene), kept)
+
+    cube.data.flip_normals()                               # fixed: facing out, the corners in the bake's order
     for o in objects:
         o.data.uv_layers.remove(o.data.uv_layers[uvmod.LIGHTMAP])
-    with pytest.warns(ILWarning, match="normals point into"):
-        again = bake_lightmaps(objects, ["ao"], str(tmp_path), opts, scene=bpy.context.scene)
-    assert unwraps == []
-    assert np.array_equal(uvmod.corner_uv(cube.data, uvmod.LIGHTMAP).ravel(), kept)
+    unwraps.clear()
+    again = bake_lightmaps(objects, ["ao"], str(tmp_path), opts, scene=scene)
+    assert unwraps == [] and again["objects"]["Cube"]["ao"]["uv_cache"] == ref
+    now = uvmod.corner_uv(cube.data, uvmod.LIGHTMAP).ravel()
+    assert np.array_equal(now, uvcache.flip_corners(cube.data, kept))      # each corner keeps its UV
     assert np.array_equal(exr.read_exr(again["objects"]["Cube"]["ao"]["file"])[0]["Y"], pixels)
-    assert uvcache._read(path).file_order and np.array_equal(uvcache.layout_of(str(tmp_path), ref,
-                                                                                len(cube.data.loops)), kept)
+    assert uvcache._read(path).corners is not None
+    assert np.array_equal(uvcache.file_layout(str(tmp_path), ref, cube, scene), now)
