@@ -20,10 +20,12 @@ import math
 import os
 
 import bpy
+import numpy as np
 
 from ..bake import uvcache
 from ..bake.report import REPORT, entry_file, read_objects
-from ..bake.uv import MAX_UV_LAYERS
+from ..blender.scene import corner_uv
+from ..bake.uv import ADDED_BY_PREVIEW as ADDED_UV, MAX_UV_LAYERS
 from ..blender import compat
 from ..blender.materials import is_preview, user_material
 from ..core.errors import InputError
@@ -34,7 +36,6 @@ from .material import split_shadable
 SOURCES = {"IRRADIANCE": ("irradiance", 1.0 / math.pi), "AO": ("ao", 1.0)}
 TAG = "il_lightmap"
 ADDED_SLOT = "il_lightmap_added_slot"
-ADDED_UV = "il_lightmap_added_uv"
 
 
 def read_report(folder):
@@ -50,13 +51,24 @@ def read_report(folder):
 map_file = entry_file
 
 
-def _cached_layout(obj, entry, folder):
-    """The UVs (flat, 2 per loop) ``entry``'s map was baked through, from ``folder``'s UV cache, when the layer can
-    be added to ``obj``'s mesh as it is now (the same corners, room for a layer, not linked); else None."""
+def _cached_layout(obj, entry, folder, replacing):
+    """(UVs (flat, 2 per loop) ``entry``'s map was baked through, from ``folder``'s UV cache, for ``obj``'s mesh as
+    it is now, None) when the layer can be added (``replacing``: one a preview added is rewritten), else (None, why
+    not)."""
     me, ref = obj.data, entry.get("uv_cache")
-    if not ref or len(me.uv_layers) >= MAX_UV_LAYERS or me.library is not None:
-        return None
-    return uvcache.file_layout(folder, ref, obj, bpy.context.scene)
+    if me.library is not None:
+        return None, "its mesh is linked from a library (no layer can be added)"
+    if not replacing and len(me.uv_layers) >= MAX_UV_LAYERS:
+        return None, f"its mesh has {MAX_UV_LAYERS} UV layers already (no layer can be added)"
+    layout = uvcache.file_layout(folder, ref, obj, bpy.context.scene) if ref else None
+    if layout is None:
+        return None, "nor its layout for the mesh as it is now in the bake folder's UV cache"
+    return layout, None
+
+
+def _other_previews(obj, meshes):
+    """Objects not in ``meshes`` that share ``obj``'s mesh and show a preview."""
+    return [o.name for o in bpy.data.objects if o.data == obj.data and o not in meshes and previewed([o])]
 
 
 def _plan(meshes, maps, kind, folder):
@@ -70,16 +82,25 @@ def _plan(meshes, maps, kind, folder):
             continue
         uv, attr = entry.get("uv_layer"), entry.get("attribute")
         path = map_file(folder, entry) if attr is None else None
-        layout = None
-        if attr is None and path is not None and uv and obj.data.uv_layers.get(uv) is None:
-            layout = _cached_layout(obj, entry, folder)
+        layer = obj.data.uv_layers.get(uv) if uv else None
+        ours = layer is not None and obj.data.get(ADDED_UV) == uv         # added by a preview: maybe another bake's
+        layout = why = None
+        if attr is None and path is not None and uv and (layer is None or ours):
+            layout, why = _cached_layout(obj, entry, folder, ours)
+            if layout is not None and ours and not np.array_equal(corner_uv(obj.data, uv).ravel(), layout):
+                others = _other_previews(obj, meshes)
+                if others:
+                    layout, why = None, (f"shares its mesh with {', '.join(others)}, whose preview shows another "
+                                         "bake's layout: preview them together or remove that preview first")
         if attr is not None and obj.data.color_attributes.get(attr) is None:
             missing.append(f"'{obj.name}': no colour attribute '{attr}' (its vertex {kind} map); a batch bake does "
                            "not save the .blend: bake in this file or open the copy the bake saved")
-        elif attr is None and (not uv or obj.data.uv_layers.get(uv) is None) and layout is None:
-            missing.append(f"'{obj.name}': no UV layer '{uv}' (the layout of its {kind} map), nor its layout for the "
-                           "mesh as it is now in the bake folder's UV cache: bake in this file or open the copy the "
-                           "bake saved (--save-as)")
+        elif attr is None and why is not None and ours:
+            missing.append(f"'{obj.name}': the layer '{uv}' a preview added holds another bake's layout and this "
+                           f"one cannot replace it: {why}")
+        elif attr is None and (not uv or layer is None) and layout is None:
+            missing.append(f"'{obj.name}': no UV layer '{uv}' (the layout of its {kind} map), {why or 'no layout'}: "
+                           "bake in this file or open the copy the bake saved (--save-as)")
         elif attr is None and path is None:
             missing.append(f"'{obj.name}': its {kind} map {entry.get('file')} is missing")
         else:
@@ -226,13 +247,18 @@ def _restore_object(obj):
 
 
 def _add_layer(me, name, uvs):
-    """Give ``me`` the light-map layer ``name`` with ``uvs`` (tagged, for :func:`_remove_added_layer`); True when it
-    was added here (a mesh that two previewed objects share gets it once)."""
-    if me.uv_layers.get(name) is not None:
-        return False
-    me.uv_layers.new(name=name, do_init=False).data.foreach_set("uv", uvs)
-    me[ADDED_UV] = name
-    return True
+    """Give ``me`` the light-map layer ``name`` with ``uvs`` (tagged, for :func:`_remove_added_layer`), or rewrite
+    the one a preview added. Returns what undoes it: None (nothing done), "added", or the UVs it held."""
+    layer = me.uv_layers.get(name)
+    if layer is None:
+        me.uv_layers.new(name=name, do_init=False).data.foreach_set("uv", uvs)
+        me[ADDED_UV] = name
+        return "added"
+    held = corner_uv(me, name).ravel().copy()
+    if np.array_equal(held, uvs):
+        return None
+    layer.data.foreach_set("uv", uvs)
+    return held
 
 
 def _remove_added_layer(me):
@@ -277,15 +303,19 @@ def apply_lightmaps(objects, folder, source_id="IRRADIANCE"):
         for obj, entry, path, layout in todo:
             replaced += [s.material for s in obj.material_slots if is_preview(s.material)]
             done.append(obj)
-            if layout is not None and _add_layer(obj.data, entry["uv_layer"], layout):
-                added.append(obj.data)
+            undo = _add_layer(obj.data, entry["uv_layer"], layout) if layout is not None else None
+            if undo is not None:
+                added.append((obj.data, entry["uv_layer"], undo))
             _apply_object(obj, entry, path, source_id, made)
     except Exception:
         for obj in done:
             _restore_object(obj)
-        for me in added:
-            if ADDED_UV in me:
-                _remove_added_layer(me)
+        for me, name, undo in reversed(added):
+            if isinstance(undo, str):
+                if ADDED_UV in me:
+                    _remove_added_layer(me)
+            elif me.uv_layers.get(name) is not None:
+                me.uv_layers[name].data.foreach_set("uv", undo)
         _drop_unused(made)
         raise
     _drop_unused(set(replaced))

@@ -454,3 +454,31 @@ def test_a_batch_bakes_folder_is_previewed_through_the_layout_its_maps_were_bake
     with pytest.raises(InputError, match="no UV layer 'Lightmap'.*nor its layout"):
         lp.apply_lightmaps([cube], out, "IRRADIANCE")
     assert [la.name for la in cube.data.uv_layers] == layers[cube.name] and _slots([cube]) == slots[-1:]
+
+
+def test_a_previewed_layer_follows_the_bake_shown_and_a_bake_that_keeps_it_makes_it_its_own(tmp_path):
+    """Two batch bakes (32² and 16²: other layouts): previewing the second after the first rewrites the layer the
+    first preview added with the second's layout (it showed the second's maps through the first's layout); a bake
+    in the file while a preview shows keeps the layer as its own, so Remove Preview leaves it (it removed it)."""
+    scene, plane, cube, sphere = _scene(tmp_path)
+    layouts = {}
+    for name, side in (("a", 32), ("b", 16)):
+        bake_lightmaps([plane, cube], ["ao"], str(tmp_path / name), BakeOptions(resolution=side, samples=2,
+                                                                                   margin=2), scene=scene)
+        layouts[name] = {}
+        for o in (plane, cube):
+            layouts[name][o.name] = np.zeros(2 * len(o.data.loops), np.float32)
+            o.data.uv_layers["Lightmap"].data.foreach_get("uv", layouts[name][o.name])
+            o.data.uv_layers.remove(o.data.uv_layers["Lightmap"])
+    assert not np.array_equal(layouts["a"]["Cube"], layouts["b"]["Cube"])
+    for name in ("a", "b", "a"):
+        shown, warnings = lp.apply_lightmaps([plane, cube], str(tmp_path / name), "AO")
+        assert warnings == []
+        for o in (plane, cube):
+            uv = np.zeros(2 * len(o.data.loops), np.float32)
+            o.data.uv_layers["Lightmap"].data.foreach_get("uv", uv)
+            assert np.array_equal(uv, layouts[name][o.name]), (name, o.name)
+    bake_lightmaps([cube], ["ao"], str(tmp_path / "c"), BakeOptions(resolution=32, samples=2, margin=2), scene=scene)
+    assert lp.ADDED_UV not in cube.data and lp.ADDED_UV in plane.data
+    lp.remove_lightmaps([plane, cube])
+    assert "Lightmap" in cube.data.uv_layers and "Lightmap" not in plane.data.uv_layers
