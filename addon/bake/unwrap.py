@@ -303,7 +303,9 @@ class _Copies:
     def per_texel(self, side):
         """'N triangles, t texels each' of the copies in a side² map: the cause a refusal names."""
         tris = sum(len(obj.data.loops) - 2 * len(obj.data.polygons) for _, obj in self.copies)
-        return f"{tris:,} triangles, {side * side / max(tris, 1):.2g} texels each"
+        each = side * side / max(tris, 1)
+        return f"{tris:,} triangles, {each:,.0f} texels each" if each >= 100 else f"{tris:,} triangles, {each:.2g} " \
+               "texels each"
 
     def use_smoothed(self, smoothed):
         """Put the dense copies' smoothed (or own) positions in place (``placed``: per copy, smoothed ones)."""

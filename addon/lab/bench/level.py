@@ -332,6 +332,7 @@ def _changed_light_rerun(scene, objects, out, options):
         code = f"import sys; sys.path.insert(0, {ROOT!r}); from addon.lab.bench import level; level.rerun_job()"
         cmd = ([bpy.app.binary_path, "-b", "--factory-startup", "--python-exit-code", "1", "--python-expr", code]
                if bpy.app.binary_path else [sys.executable, "-c", code])
+        print("[level] a rerun in a new process", file=sys.stderr, flush=True)
         proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, errors="replace",
                               env={**os.environ, "IL_RERUN_JOB": job_file})
     finally:
