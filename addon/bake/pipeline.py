@@ -133,9 +133,9 @@ def _bake_fixed(objects, maps, out, options, scene, on_step):
             raise run.errors[0]
         if options.keep_products:       # products stay only when the whole bake succeeded (failed objects aside)
             state.keep |= {(o.data.name, uvmod.LIGHTMAP) for o in objects if o.name not in failed}
-            for o in objects:       # a layer a preview added is the bake's now: Remove Preview leaves it
-                if (options.target == "image" and not options.uv_layer and o.name not in failed
-                        and o.data.get(uvmod.ADDED_BY_PREVIEW) == uvmod.LIGHTMAP):
+            generated = options.target == "image" and not options.uv_layer
+            for o in objects if generated else ():      # a layer a preview added is the bake's now: Remove leaves it
+                if o.name not in failed and o.data.get(uvmod.ADDED_BY_PREVIEW) == uvmod.LIGHTMAP:
                     del o.data[uvmod.ADDED_BY_PREVIEW]
             state.keep |= {(o.data.name, KINDS[m].attribute) for o in objects for m in maps if o.name not in failed}
         progress_line = run.tracker.final(report)

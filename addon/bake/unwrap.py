@@ -304,8 +304,7 @@ class _Copies:
         """'N triangles, t texels each' of the copies in a side² map: the cause a refusal names."""
         tris = sum(len(obj.data.loops) - 2 * len(obj.data.polygons) for _, obj in self.copies)
         each = side * side / max(tris, 1)
-        return f"{tris:,} triangles, {each:,.0f} texels each" if each >= 100 else f"{tris:,} triangles, {each:.2g} " \
-               "texels each"
+        return f"{tris:,} triangles, {f'{each:,.0f}' if each >= 100 else f'{each:.2g}'} texels each"
 
     def use_smoothed(self, smoothed):
         """Put the dense copies' smoothed (or own) positions in place (``placed``: per copy, smoothed ones)."""

@@ -24,10 +24,10 @@ import numpy as np
 
 from ..bake import uvcache
 from ..bake.report import REPORT, entry_file, read_objects
-from ..blender.scene import corner_uv
 from ..bake.uv import ADDED_BY_PREVIEW as ADDED_UV, MAX_UV_LAYERS
 from ..blender import compat
 from ..blender.materials import is_preview, user_material
+from ..blender.scene import corner_uv
 from ..core.errors import InputError
 from . import source
 from .material import split_shadable
@@ -66,9 +66,16 @@ def _cached_layout(obj, entry, folder, replacing):
     return layout, None
 
 
+def _mesh_users(obj):
+    """The objects of ``obj``'s mesh: ``obj`` alone unless the mesh has other users (only then is every object looked
+    through)."""
+    me = obj.data
+    return [o for o in bpy.data.objects if o.data == me] if me.users > 1 else [obj]
+
+
 def _other_previews(obj, meshes):
     """Objects not in ``meshes`` that share ``obj``'s mesh and show a preview."""
-    return [o.name for o in bpy.data.objects if o.data == obj.data and o not in meshes and previewed([o])]
+    return [o.name for o in _mesh_users(obj) if o not in meshes and previewed([o])]
 
 
 def _plan(meshes, maps, kind, folder):
@@ -241,7 +248,7 @@ def _restore_object(obj):
         if len(data.materials) == 1 and data.materials[0] is None:
             data.materials.clear()
         del data[ADDED_SLOT]
-    if data is not None and ADDED_UV in data and not previewed([o for o in bpy.data.objects if o.data == data]):
+    if data is not None and ADDED_UV in data and not previewed(_mesh_users(obj)):
         _remove_added_layer(data)
     return count
 
