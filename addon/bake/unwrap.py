@@ -476,13 +476,7 @@ class _Copies:
         margin = margin_uv * side if margin is None else margin
         smart_fill = baked_fill(self.group, side, margin, cut)
         smart = self._uvs([lead])
-        # in object mode it unwraps the selected objects (in edit mode the window's scene's objects in edit mode,
-        # not the context's: a bake of another scene than the window's would find none); it prints its steps
-        with bpy.context.temp_override(**self._context()), contextlib.redirect_stdout(io.StringIO()):
-            # the operator's margin is a percentage p of the square, applied as 1 / int(100 / p): at least p / 100
-            bpy.ops.uv.lightmap_pack(PREF_CONTEXT="ALL_FACES", PREF_PACK_IN_ONE=True, PREF_NEW_UVLAYER=False,
-                                     PREF_BOX_DIV=12, PREF_MARGIN_DIV=float(100.0 * margin_uv))
-        pack = self._uvs([lead])
+        pack = self._lightmap_packed(margin_uv)
         self._write(pack)
         packed = baked_fill(self.group, side, margin, cut) if _fits(self, self.group, side) else None
         if packed is not None and packed > smart_fill:
@@ -495,22 +489,47 @@ class _Copies:
             self._write(smart)
         return smart_fill, packed
 
+    def _lightmap_packed(self, margin_uv):
+        """Blender's Lightmap Pack of the (single) copy with margin ``margin_uv`` (at most _LIGHTMAP_PACK_MAX_MARGIN),
+        left in the copy: [(flat float32 UVs,)]."""
+        # in object mode it unwraps the selected objects (in edit mode the window's scene's objects in edit mode,
+        # not the context's: a bake of another scene than the window's would find none); it prints its steps
+        with bpy.context.temp_override(**self._context()), contextlib.redirect_stdout(io.StringIO()):
+            # the operator's margin is a percentage p of the square, applied as 1 / int(100 / p): at least p / 100
+            bpy.ops.uv.lightmap_pack(PREF_CONTEXT="ALL_FACES", PREF_PACK_IN_ONE=True, PREF_NEW_UVLAYER=False,
+                                     PREF_BOX_DIV=12, PREF_MARGIN_DIV=float(100.0 * margin_uv))
+        return self._uvs([self.copies[0][1]])
+
     def try_raster_pack(self, side, margin, cut):
-        """For an atlas, or one copy whose layout fills under FILL of its map as baked (:func:`baked_fill`), with at
-        most PACK_CHARTS charts and charts × map side within PACK_WORK: the charts of the layout in place (of every copy
-        of an atlas) placed again by their texels (charts as the welded copies join them, the same margin): at a fixed
-        side scaled up as far as they fit (:func:`core.pack.largest`), with a texel density (``cut``) at their size in
-        the fewest rows they fit (:func:`core.pack.lowest`: the map is cut to its window, the density asked, fewer
-        texels). Kept when it fits and fills more of its map as baked. The texel density stays as even (one scale for
-        every chart) and no chart comes nearer another than the unwrappers' margins let it."""
+        """For an atlas, or one copy whose layout fills under FILL of its map as baked (:func:`baked_fill`): the charts
+        of the layout in place (of every copy of an atlas) placed again by their texels (:meth:`_raster_packed`). Kept
+        when it fits and fills more of its map as baked. The texel density stays as even (one scale for every chart)
+        and no chart comes nearer another than the unwrappers' margins let it."""
         if self.unwrapper.endswith(RASTER):
             return
         have = baked_fill(self.group, side, margin, cut)
         if have >= uvchecks.FILL and len(self.copies) == 1:
             return
-        layouts, tri, labels, count = [], [], [], 0
-        for (o, obj), loops in zip(self.copies, self.loops):
-            uv = corner_uv(o.data, LIGHTMAP)[loops]      # the layout kept so far (the copy may hold one not kept)
+        layouts = [corner_uv(o.data, LIGHTMAP)[loops] for (o, _), loops in zip(self.copies, self.loops)]
+        new = self._raster_packed(layouts, side, margin, cut)     # the layout kept so far (a copy may hold another)
+        if new is None:
+            return
+        self._write(new)
+        if _fits(self, self.group, side) and baked_fill(self.group, side, margin, cut) > have:
+            for (_, obj), (uv,) in zip(self.copies, new):
+                obj.data.uv_layers[LIGHTMAP].data.foreach_set("uv", uv)
+            self.unwrapper += RASTER
+            return
+        self._write([(uv.ravel(),) for uv in layouts])
+
+    def _raster_packed(self, layouts, side, margin, cut):
+        """The copies' corner UVs ``layouts`` (per copy (N, 2), in its loop order) with their charts (as the welded
+        copies join them) placed again by their texels with the same margin, [(flat float32 UVs,)] per copy, or None
+        (more than PACK_CHARTS charts, charts × map side over PACK_WORK, or no place): at a fixed side scaled as far
+        as they fit (:func:`core.pack.largest`), with a texel density (``cut``) at their size in the fewest rows they
+        fit (:func:`core.pack.lowest`: the map is cut to its window, the density asked, fewer texels)."""
+        tri, labels, charts, count = [], [], [], 0
+        for (_, obj), uv in zip(self.copies, layouts):
             tris = corner_triangles(obj.data)
             corners = tris.ravel()
             label = pack.chart_labels(np.repeat(np.arange(len(tris)), 3), corner_vertices(obj.data)[corners],
@@ -518,24 +537,17 @@ class _Copies:
             chart = np.full(len(uv), -1)
             chart[corners] = np.repeat(label, 3)
             if (chart < 0).any():
-                return
-            layouts.append((uv, chart + count))
+                return None
+            charts.append(chart + count)
             tri.append(uv[tris])
             labels.append(label + count)
             count += int(label.max()) + 1 if len(label) else 0
         if not count or count > PACK_CHARTS or count * side > PACK_WORK:
-            return
+            return None
         packing = (pack.lowest if cut else pack.largest)(np.concatenate(tri), np.concatenate(labels), side, margin)
         if packing is None:
-            return
-        new = [(pack.moved(uv, chart, packing, side).astype(np.float32).ravel(),) for uv, chart in layouts]
-        self._write(new)
-        if _fits(self, self.group, side) and baked_fill(self.group, side, margin, cut) > have:
-            for (_, obj), (uv,) in zip(self.copies, new):
-                obj.data.uv_layers[LIGHTMAP].data.foreach_set("uv", uv)
-            self.unwrapper += RASTER
-            return
-        self._write([(uv.ravel(),) for uv, _ in layouts])
+            return None
+        return [(pack.moved(uv, chart, packing, side).astype(np.float32).ravel(),) for uv, chart in zip(layouts, charts)]
 
     def _write(self, uvs):
         """The copies' UVs (:meth:`_uvs`) into their meshes' "Lightmap" layers (each copy loop to its original),
