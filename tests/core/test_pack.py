@@ -92,6 +92,23 @@ def test_texel_packing_covers_more_than_the_charts_boxes_side_by_side():
     assert pack.largest(uv[tris] * 40, labels, side, margin) is None     # charts larger than the map: no place
 
 
+def test_charts_that_find_no_place_at_their_size_are_packed_a_little_smaller():
+    """Two rectangles 0.48 x 0.96 of a 32² map side by side, 4-texel margins: at their own size their footprints
+    (16 x 31 texels, 6 apart and 3 from the border) do not fit; the packing steps down (pack.SHRINK) to a scale where
+    they do, keeps every chart inside the map, and grows back by bisection as far as they fit."""
+    quad = np.array([(0, 0), (0.48, 0), (0.48, 0.96), (0, 0.96)])
+    uv = np.concatenate([quad, quad + (0.5, 0)])
+    tris = np.array([(0, 1, 2), (0, 2, 3), (4, 5, 6), (4, 6, 7)])
+    labels = np.array([0, 0, 1, 1])
+    side, margin = 32, 4.0
+    assert pack.pack(uv[tris], labels, side, margin, 1.0) is None
+    packing = pack.largest(uv[tris], labels, side, margin)
+    assert packing is not None and 0.5 <= packing.scale < 1.0
+    moved = pack.moved(uv[tris].reshape(-1, 2), np.repeat(labels, 3), packing, side)
+    assert moved.min() >= 0 and moved.max() <= 1
+    assert pack.largest(uv[tris] * 2.5, labels, side, margin) is None    # under half their size still no place
+
+
 def test_a_chart_thinner_than_a_texel_keeps_its_distance():
     """A 16 x 16 texel square and a 22 x 0.25 texel strip (no texel centre, no fine-raster centre inside it) at 32²:
     the strip's outline is traced into its footprint, so its texel box keeps clear of the square's by the margin's
