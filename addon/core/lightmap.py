@@ -179,7 +179,7 @@ def triangle_counts(tri_uv, width, height, strict=False):
     it and a count ≥ 2 means overlapping charts)."""
     counts = np.zeros(height * width, np.int32)
     for flat in _texels_inside(tri_uv, width, height, strict):
-        np.add.at(counts, flat, 1)
+        counts += np.bincount(flat, minlength=height * width).astype(np.int32)
     return counts.reshape(height, width)
 
 
