@@ -7,7 +7,7 @@ import pytest
 
 from addon.blender import compat
 from addon.bake import BakeOptions, bake_lightmaps
-from addon.core import lightmap as lm
+from addon.core import lightmap as lm, pack
 from addon.core.io import exr
 from addon.blender import scene as sc
 
@@ -438,8 +438,13 @@ def test_a_reused_layer_reports_the_margin_it_keeps_not_the_asked_one(tmp_path):
                              scene=scene)
     entry = rep["objects"]["Box"]["ao"]
     uv = _lightmap_uvs(box)
-    gap = _footprint_gap([uv[list(p.loop_indices)][[[0, 1, 2], [0, 2, 3]]] for p in box.data.polygons], 32)
-    assert "unwrap" not in entry and 1 <= gap < 6
+    faces = [uv[list(p.loop_indices)][[[0, 1, 2], [0, 2, 3]]] for p in box.data.polygons]
+    corners = [list(p.loop_indices) for p in box.data.polygons]
+    chart = pack.chart_labels(np.repeat(np.arange(len(corners)), 4), [box.data.loops[i].vertex_index
+                                                                      for c in corners for i in c],
+                              uv[[i for c in corners for i in c]])
+    gap = _footprint_gap([np.concatenate([f for f, k in zip(faces, chart) if k == c]) for c in set(chart)], 32)
+    assert "unwrap" not in entry and len(set(chart)) > 1 and 1 <= gap < 6
     assert entry["margin"] == margin_from_gap(gap) and 1 <= entry["margin"] < 4
     assert entry["dilation"] == 4
     assert float(read(tmp_path / "b", "Box", "ao")[1]["il:margin"]) == entry["margin"]

@@ -1,0 +1,109 @@
+"""Merging a layout's charts (core.merging): which neighbours are joined, and which joined layouts are kept."""
+import numpy as np
+
+from addon.core import lightmap, merging
+
+
+def grid(nx, ny, skip=(), fold=0.0):
+    """A grid of nx × ny unit quads (the cells in ``skip`` left out), flat or with the columns past x = 1 turned by
+    ``fold`` degrees about that line, as corner arrays: (surface, co, per-face cell (x, y), corner UVs = the flat
+    positions)."""
+    flat = np.array([(x, y, 0.0) for y in range(ny + 1) for x in range(nx + 1)], float)
+    t = np.radians(fold)
+    co = np.where(flat[:, :1] > 1, np.stack([1 + (flat[:, 0] - 1) * np.cos(t), flat[:, 1],
+                                            (flat[:, 0] - 1) * np.sin(t)], axis=1), flat)
+    vid = lambda x, y: y * (nx + 1) + x
+    cells = [(x, y) for y in range(ny) for x in range(nx) if (x, y) not in skip]
+    vertex = np.array([v for x, y in cells for v in (vid(x, y), vid(x + 1, y), vid(x + 1, y + 1), vid(x, y + 1))])
+    owner = np.repeat(np.arange(len(cells)), 4)
+    after = vertex.reshape(-1, 4)[:, [1, 2, 3, 0]].ravel()
+    base = 4 * np.arange(len(cells))[:, None]
+    tri = np.concatenate([base + [0, 1, 2], base + [0, 2, 3]])
+    surf = merging.surface(owner, vertex, after, co, tri, tri[:, 0] // 4)
+    return surf, co, cells, flat[vertex, :2]
+
+
+def test_a_surface_knows_each_edges_two_faces_and_length():
+    surf, co, cells, _ = grid(2, 1)
+    inner = (surf.edge_faces >= 0).all(axis=1)
+    assert inner.sum() == 1 and sorted(surf.edge_faces[inner][0]) == [0, 1]
+    assert len(surf.edge_faces) == 7 and np.allclose(surf.edge_length, 1.0)
+    assert np.isclose(surf.tri_area.sum(), 2.0)
+
+
+def test_the_longest_border_for_its_size_is_joined_first_and_each_chart_once():
+    surf, co, cells, _ = grid(3, 2)
+    # charts: 0 = the left column (2 quads), 1 = the middle-bottom quad, 2 = the middle-top quad, 3 = the right column
+    labels = np.array([{0: 0, 1: 1, 2: 3}[x] if x != 1 else (1 if y == 0 else 2) for x, y in cells])
+    pairs = merging.pairs(surf, labels)
+    # every neighbour pair shares 1 m and its smaller chart is 1 m² (score 1): ties go by chart number
+    assert pairs == [(0, 1), (2, 3)]
+    assert merging.joined(labels, pairs).tolist() == [0, 0, 2, 0, 2, 2]
+
+
+def test_a_join_that_would_close_a_ring_is_never_proposed():
+    surf, co, cells, _ = grid(3, 3, skip={(1, 1)})
+    # two C-shaped charts around the hole: they meet along two separate edges, so joined they would make a ring
+    labels = np.array([0 if x == 0 or (x == 1 and y == 0) else 1 for x, y in cells])
+    assert merging.pairs(surf, labels) == []
+    # without the hole the same charts meet along one path: joined, a disc
+    surf, co, cells, _ = grid(3, 3)
+    labels = np.array([0 if x == 0 or (x == 1 and y == 0) else 1 for x, y in cells])
+    assert merging.pairs(surf, labels) == [(0, 1)]
+
+
+def test_charts_are_never_joined_across_a_hard_edge():
+    """Two quads folded along their shared edge: joined at 60° apart (a bevel), not at 90° (a box's edge: above
+    merging.CREASE, Unity's default hard angle of 88°)."""
+    for fold, want in ((60.0, [(0, 1)]), (87.0, [(0, 1)]), (90.0, []), (180.0, [])):
+        surf, co, cells, _ = grid(2, 1, fold=fold)
+        inner = (surf.edge_faces >= 0).all(axis=1)
+        assert np.isclose(surf.edge_cos[inner][0], np.cos(np.radians(fold)))
+        assert merging.pairs(surf, np.array([0, 1])) == want, fold
+
+
+def test_a_flat_layout_is_kept_and_a_turned_over_folded_or_uneven_one_is_not():
+    surf, co, cells, uv = grid(4, 4)
+    tri = uv[surf.tri]
+    assert merging.chart_ok(tri, surf.tri_area)
+    assert merging.chart_ok(tri * (-1.0, 1.0), surf.tri_area)           # mirrored as a whole: kept (mirrored back)
+    turned = tri.copy()
+    turned[0] = turned[0][:, ::-1]                                     # one triangle mirrored: turned over
+    assert not merging.chart_ok(turned, surf.tri_area)
+    stretched = uv.copy()
+    stretched[:, 0] = np.where(stretched[:, 0] > 2, 2 + 3 * (stretched[:, 0] - 2), stretched[:, 0])
+    assert not merging.chart_ok(stretched[surf.tri], surf.tri_area)   # half the chart at 3 × the density
+    folded = uv.copy()
+    folded[:, 0] = np.where(folded[:, 0] > 2, 4 - folded[:, 0], folded[:, 0])
+    tri_folded = folded[surf.tri]
+    # the right half folded onto the left: the same area twice, its triangles turned over
+    assert not merging.chart_ok(tri_folded, surf.tri_area)
+    assert not merging.chart_ok(np.full_like(tri, np.nan), surf.tri_area)
+    strip, _, _, flat = grid(20, 1)                    # a strip of 40 triangles round a ring of radii 3 and 3.5:
+    radius = 3 + 0.5 * flat[:, 1]                      # no triangle turned over, its density as even (3 / 3.5)
+    for turns, kept in ((0.9, True), (1.5, False)):    # wound 1.5 times it lies over itself
+        angle = flat[:, 0] / 20 * 2 * np.pi * turns
+        ring = np.stack([radius * np.cos(angle), radius * np.sin(angle)], axis=1)
+        assert merging.chart_ok(ring[strip.tri], strip.tri_area) == kept, turns
+
+
+def test_kept_joins_take_the_layouts_density_and_a_place_of_their_own():
+    surf, co, cells, uv = grid(4, 2)
+    labels = np.array([x for x, y in cells])                           # four columns of two quads
+    old = uv * 0.1                                                     # the layout so far: 0.01 UV area per m²
+    k = merging.density(old, surf)
+    assert np.isclose(k, 0.01)
+    pairs = merging.pairs(surf, labels)
+    assert pairs == [(0, 1), (2, 3)]
+    new = uv * 7.0                                                     # the unwrap's scale is its own
+    bad = new.copy()
+    right = np.isin(surf.owner, np.flatnonzero(labels >= 2))
+    bad[right, 0] = np.where(bad[right, 0] > 21, 21 + 4 * (bad[right, 0] - 21), bad[right, 0])   # uneven: refused
+    out, joined, cursor, kept = merging.placed(old, bad, surf, labels, pairs, k, 2.0)
+    assert kept == 1 and sorted(set(joined.tolist())) == [0, 2, 3]
+    left = ~right
+    assert np.allclose(out[right], old[right])                         # refused: as they were
+    placed = out[left]
+    assert placed[:, 0].min() == 2.0 and np.isclose(placed[:, 1].min(), 2.0) and cursor > placed[:, 0].max()
+    tri = out[surf.tri[np.isin(surf.tri_face, np.flatnonzero(left[::4]))]]
+    assert np.isclose(lightmap.uv_areas(tri).sum(), k * 4.0)          # 4 m² at the layout's density
