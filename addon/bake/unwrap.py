@@ -578,8 +578,8 @@ class _Copies:
         Fewer, larger charts pay fewer margins but pack less tightly, and the fill moves from round to round, hence
         the best round, looked for from the last (fewest charts, quickest to pack) back while a round fills more
         than the one after it. Measured at 128² / 256², 4-texel margins (2 for Suzanne at 128²), fill before ->
-        after: Suzanne 0.45 / 0.38 -> 0.58 / 0.52, a torus 0.45 / 0.42 -> 0.54 / 0.48, an ico sphere 0.39 / 0.46 ->
-        0.42 / 0.50; a cube unchanged (its joins would cross hard edges: merging.CREASE)."""
+        after: Suzanne 0.45 / 0.38 -> 0.59 / 0.51, a torus 0.45 / 0.42 -> 0.55 / 0.48, an ico sphere 0.39 / 0.46 ->
+        0.42 / 0.51; a cube unchanged (its joins would cross hard edges: merging.CREASE)."""
         if len(self.copies) != 1 or side < MERGE_SIDE:
             return
         have = baked_fill(self.group, side, margin, cut)
@@ -597,7 +597,7 @@ class _Copies:
         for start, name in starts:
             obj.data.uv_layers[LIGHTMAP].data.foreach_set("uv", start)
             later = -1.0
-            for uv in reversed(unwrap_merge.layouts(obj, lambda: _edit(self._context(), obj))):
+            for uv in reversed(unwrap_merge.layouts(obj, lambda: _edit(self._context(), obj), before[0][0])):
                 new = self._raster_packed([uv], side, margin, cut)
                 if new is None:
                     continue

@@ -1,11 +1,13 @@
 """Merged charts on an unwrap copy (:mod:`core.merging`): each round marks seams between the charts as they will be
 once this round's pairs are joined, unwraps the faces of its pairs with Blender's minimum-stretch unwrap (ABF where
-Blender lacks it), and keeps the joins :func:`core.merging.chart_ok` passes. The copy's layer "Lightmap" holds each
+Blender lacks it; edit mode selects by vertices, so a face whose corners all lie on the pairs' faces is unwrapped too,
+and not read), and keeps the joins :func:`core.merging.chart_ok` passes. The copy's layer "Lightmap" holds each
 round's unwrap; the layouts are returned, the copy's seams cleared and its faces selected again."""
 import bmesh
 import bpy
 import numpy as np
 
+from ..blender import chatter
 from ..blender.scene import corner_triangles, corner_uv, corner_vertices, face_starts, positions
 from ..core import merging
 from ..core.pack import chart_labels
@@ -35,10 +37,11 @@ def surface_of(me):
     return merging.surface(owner, lv, lv[corner_next(start, total)], positions(me), tri, owner[tri[:, 0]])
 
 
-def layouts(obj, edit):
+def layouts(obj, edit, reference):
     """[corner UVs (N, 2) float32] of the copy ``obj`` after each round that joined charts, starting from
-    the layout in its "Lightmap" layer (``edit``: a context manager putting the copy in edit mode, ``unwrap._edit``);
-    the layer holds the last round's unwrap after."""
+    the layout in its "Lightmap" layer, the joined charts at the UV area per 3D area of the corner UVs ``reference``
+    (the layout kept, whose texel density the map is baked at; ``edit``: a context manager putting the copy in edit
+    mode, ``unwrap._edit``); the layer holds the last round's raw unwrap after (the layouts are what is returned)."""
     me = obj.data
     me.calc_loop_triangles()
     if len(me.loop_triangles) > MERGE_TRIANGLES:
@@ -46,7 +49,7 @@ def layouts(obj, edit):
     surf = surface_of(me)
     uv = corner_uv(me, LIGHTMAP).astype(float)
     labels = chart_labels(surf.owner, surf.vertex, uv)
-    k = merging.density(uv, surf)
+    k = merging.density(np.asarray(reference, float).reshape(-1, 2), surf)
     cursor, out = 2.0, []
     edges = _edge_keys(me, surf)
     try:
@@ -55,7 +58,7 @@ def layouts(obj, edit):
             if not pairs or k <= 0:
                 break
             _seams(me, edges, surf, merging.joined(labels, pairs), np.isin(labels, np.array(pairs).ravel()))
-            with edit():
+            with edit(), chatter.captured():        # "Info: Object has non-uniform scale ..." kept off the output
                 bpy.ops.uv.unwrap(method=METHOD, fill_holes=True, correct_aspect=True, margin=0.0, **ITERATIONS)
             uv, labels, cursor, kept = merging.placed(uv, corner_uv(me, LIGHTMAP), surf, labels, pairs, k, cursor)
             if not kept:

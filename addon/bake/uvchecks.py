@@ -291,9 +291,10 @@ FILL = 0.55
 FILL_HINT = 0.5
 """The fill the suggested resolution reaches."""
 HINT_SLACK = 0.05
-"""The suggested side is the one the fill model gives for this much more than the line names: a layout's fill moves
-by a few points from one side to the next (charts joined or not, packed in other places; measured on a cylinder with
-2-texel margins: 0.508 at 6 texels/m with its charts joined, then 0.505, 0.525, 0.552 at 6.84, 7.5, 8)."""
+"""For a layout already above FILL_HINT, the suggested side is the one the fill model gives for FILL and this much
+more (the model's side for FILL itself where that gives none): a layout's fill moves by a few points from one side to
+the next (charts joined or not, packed in other places; measured on a cylinder with 2-texel margins: 0.508 at 6
+texels/m with its charts joined, then 0.505, 0.525, 0.552 at 6.84, 7.5, 8)."""
 
 
 def fill(group, width, height=None):
@@ -324,8 +325,8 @@ def low_fill(group, size, margin, options):
     """The warning line (also warned) when the group's generated layout fills under FILL of its map of ``size``
     (width, height: the map's final size; ``margin`` the charts' margin in its texels), else None:
     its fill, covered texels per triangle or per chart, and the side (and texel density) that reaches FILL_HINT
-    (FILL from above FILL_HINT) by :func:`charts.side_for_fill` (of a square map of as many texels, for HINT_SLACK
-    more). The texel
+    (FILL from above FILL_HINT, for HINT_SLACK more) by :func:`charts.side_for_fill` (of a square map of as many
+    texels). The texel
     density T is the one whose layout covers that fill of such a map: covered texels = T² × world area = goal × side²
     (the layout's chart area at the side it fills, not at this side, where margins take more of it)."""
     w, h = size
@@ -338,7 +339,9 @@ def low_fill(group, size, margin, options):
     charts = sum(chart_count(o.data, LIGHTMAP) for o in group)
     covered = have * w * h
     goal = FILL_HINT if have < FILL_HINT else FILL
-    need = side_for_fill(have, side, covered / max(charts, 1), margin, float(options.margin), goal + HINT_SLACK)
+    per_chart, asked = covered / max(charts, 1), float(options.margin)
+    need = ((side_for_fill(have, side, per_chart, margin, asked, goal + HINT_SLACK) if goal == FILL else None)
+            or side_for_fill(have, side, per_chart, margin, asked, goal))
     cause = (f"{covered / max(tris, 1):.2g} texels per triangle" if covered < 4 * tris else
              f"{covered / max(charts, 1):.3g} texels per chart, {charts} charts with {margin:g}-texel margins")
     if need and need <= lightmap.MAX_RESOLUTION:

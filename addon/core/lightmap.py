@@ -179,7 +179,10 @@ def triangle_counts(tri_uv, width, height, strict=False):
     it and a count ≥ 2 means overlapping charts)."""
     counts = np.zeros(height * width, np.int32)
     for flat in _texels_inside(tri_uv, width, height, strict):
-        counts += np.bincount(flat, minlength=height * width).astype(np.int32)
+        if 8 * len(flat) >= len(counts):                  # a block about the map's size: one pass over it
+            counts += np.bincount(flat, minlength=len(counts)).astype(np.int32)
+        else:
+            np.add.at(counts, flat, 1)
     return counts.reshape(height, width)
 
 
