@@ -17,6 +17,7 @@ import math
 import warnings
 
 import bpy
+from mathutils import Matrix
 import numpy as np
 
 from ..blender.scene import corner_triangles, corner_uv, corner_vertices
@@ -27,7 +28,7 @@ from . import unwrap_merge, uvchecks
 from .options import article
 from .uv import (LIGHTMAP, MAX_UV_LAYERS, _Made, _dilation, _say_enlarged, _write_layer, fixed_side, resolution,
                  triangles_uv, world_area)
-from .unwrap_copy import canonical_copy, smoothed_copy, unwrap_scale
+from .unwrap_copy import canonical_copy, smoothed_copy, stretch, unwrap_scale
 from .uvchecks import (MIN_COVERAGE, _disjoint, _fits, _outside, _overlap, _overlapping, baked_fill, chart_area,
                        density_spread)
 
@@ -297,15 +298,19 @@ class _Copies:
             scale = unwrap_scale(o.data for o in self.group)
             for o in self.group:
                 tmp = self.state.track(bpy.data.meshes, bpy.data.meshes.new(f"IL unwrap {o.data.name}"))
-                loops, welded = canonical_copy(o.data, tmp, scale, self.weld)
-                self.smooth.append(smoothed_copy(tmp, o.matrix_world, scale, self.texel))
+                stretched = stretch(o.matrix_world)
+                loops, welded = canonical_copy(o.data, tmp, scale, self.weld, stretched)
+                matrix = o.matrix_world.copy()
+                if stretched is not None:            # the copy's world is the object's: M S⁻¹ on S-stretched vertices
+                    matrix = Matrix((np.array(matrix, float) @ _affine(np.linalg.inv(stretched))).tolist())
+                self.smooth.append(smoothed_copy(tmp, matrix, scale, self.texel))
                 self.loops.append(loops)
                 if welded:
                     self.welded.append(o)
                 tmp.uv_layers.new(name=LIGHTMAP, do_init=False)
                 tmp.uv_layers.active_index = 0
                 obj = self.state.track(bpy.data.objects, bpy.data.objects.new(f"IL unwrap {o.name}", tmp))
-                obj.matrix_world = o.matrix_world
+                obj.matrix_world = matrix
                 self.scratch.collection.objects.link(obj)
                 self.copies.append((o, obj))
             self.placed = (False,) * len(self.copies)
@@ -627,6 +632,13 @@ class _Copies:
     def _uvs(temps):
         """[(flat float32 "Lightmap" UVs,)] of the copies (the shape :meth:`_write` takes)."""
         return [(corner_uv(obj.data, LIGHTMAP).ravel(),) for obj in temps]
+
+
+def _affine(linear):
+    """The 4 x 4 matrix of the 3 x 3 ``linear``."""
+    out = np.eye(4)
+    out[:3, :3] = linear
+    return out
 
 
 @contextlib.contextmanager

@@ -38,7 +38,29 @@ def unwrap_scale(meshes):
     return 2.0 ** -round(math.log2(size))
 
 
-def canonical_copy(me, tmp, scale, weld=True):
+STRETCH_TOLERANCE = 1e-6
+"""A world matrix whose linear part is a rotation and one scale within this (relative) has no :func:`stretch`."""
+
+
+def stretch(matrix):
+    """The 3 x 3 stretch S of an object's world ``matrix`` M = R c S (R a rotation or a reflection, c > 0 its mean
+    scale, S symmetric positive definite with det S = 1: S = P / ∛det P for P = √(MᵀM), the polar decomposition),
+    or None when M scales alike along every axis (within STRETCH_TOLERANCE) or flattens one. An unwrap copy
+    stretched by S has the object's shape in the world (up to a turn and one scale), so the unwrappers, which work
+    on a mesh as it is, give a box scaled (1, 1, 4) in Object Mode four times the texels along its length instead
+    of square charts, and the joins read its creases and areas as baked."""
+    m = np.array(matrix, float)[:3, :3]
+    lam, vec = np.linalg.eigh(m.T @ m)
+    if not np.isfinite(lam).all() or lam.min() <= 1e-12 * lam.max():
+        return None
+    root = np.sqrt(lam)
+    root /= np.cbrt(root.prod())
+    if np.abs(root - 1.0).max() <= STRETCH_TOLERANCE:
+        return None
+    return (vec * root) @ vec.T
+
+
+def canonical_copy(me, tmp, scale, weld=True, stretched=None):
     """Fill the empty mesh ``tmp`` with ``me``'s vertices (× ``scale``) and faces, every face starting at its
     lowest vertex index and the faces sorted by their first three vertices (then corner count, then their order),
     all revealed and selected; return, for each of ``tmp``'s loops, ``me``'s loop it copies, and whether ``weld``
@@ -79,6 +101,8 @@ def canonical_copy(me, tmp, scale, weld=True):
     f = perm[face]
     loops = start[f] + (rot[f] + k) % total[f]
     tmp.vertices.add(nv)
+    if stretched is not None:
+        co = (co.reshape(-1, 3).astype(np.float64) @ stretched.T).astype(np.float32).ravel()
     tmp.vertices.foreach_set("co", co * np.float32(scale))
     tmp.loops.add(nl)
     tmp.loops.foreach_set("vertex_index", lv[loops])

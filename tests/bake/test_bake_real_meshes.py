@@ -597,6 +597,56 @@ def test_a_wider_angle_layout_is_kept_when_it_fills_more_with_even_texels(tmp_pa
     assert wide_spread >= narrow_spread - 0.05 and wide_texels == pytest.approx(narrow_texels, rel=0.08)
 
 
+def _texel_shape(tri_uv, tri_world):
+    """Per triangle, the texel density √(UV area / world area) and the anisotropy σ₁ / σ₂ of the map from the
+    surface to the UVs (1: square texels on the surface)."""
+    e1, e2 = tri_world[:, 1] - tri_world[:, 0], tri_world[:, 2] - tri_world[:, 0]
+    u = e1 / np.linalg.norm(e1, axis=1)[:, None]
+    n = np.cross(e1, e2)
+    v = np.cross(n / np.linalg.norm(n, axis=1)[:, None], u)
+    world = np.stack([np.stack([(e1 * u).sum(1), (e1 * v).sum(1)], 1), np.stack([(e2 * u).sum(1), (e2 * v).sum(1)], 1)], 2)
+    uv = np.stack([tri_uv[:, 1] - tri_uv[:, 0], tri_uv[:, 2] - tri_uv[:, 0]], 2)
+    s = np.linalg.svd(uv @ np.linalg.inv(world), compute_uv=False)
+    return np.sqrt(s[:, 0] * s[:, 1]), s[:, 0] / s[:, 1]
+
+
+def test_the_stretch_of_a_world_matrix_leaves_a_turn_and_one_scale():
+    """unwrap_copy.stretch: M = R c S with S symmetric, det S = 1, so M S⁻¹ has orthogonal columns of one length
+    (M: a turn, then scales 1, 2 and 3 along turned axes, then a move); a turn and one scale have no stretch."""
+    from mathutils import Euler, Matrix
+    from addon.bake.unwrap_copy import stretch
+    turn = Euler((0.3, 0.2, 0.7)).to_matrix().to_4x4()
+    m = Matrix.Translation((1, 2, 3)) @ turn @ Matrix.Diagonal((1, 2, 3, 1)) @ Euler((0.5, -0.4, 0.1)).to_matrix().to_4x4()
+    s = stretch(m)
+    assert np.allclose(s, s.T) and np.linalg.det(s) == pytest.approx(1.0)
+    rest = np.array(m)[:3, :3] @ np.linalg.inv(s)
+    gram = rest.T @ rest
+    assert np.allclose(gram, gram[0, 0] * np.eye(3), atol=1e-9 * gram[0, 0])
+    assert gram[0, 0] == pytest.approx(6.0 ** (2 / 3))                           # (1 · 2 · 3)^(1/3) squared
+    assert stretch(Matrix.Translation((4, 5, 6)) @ turn @ Matrix.Scale(2.5, 4)) is None
+    assert stretch(Matrix.Diagonal((1, 1, 0, 1))) is None
+
+
+@pytest.mark.both_versions
+def test_an_object_scaled_in_object_mode_is_unwrapped_in_its_shape_in_the_world(tmp_path):
+    """Boxes scaled in Object Mode, the scale not applied (as scenes and imports keep it): (1, 1, 4), and (1, 1.5, 0.8)
+    turned. Unwrapped in object space, the tall box's sides got square charts: texels 4 times longer than wide and
+    half the density of its caps'. The unwrappers now see the copy stretched as the world stretches the object
+    (unwrap_copy.stretch), so every face of a box, an exact projection, has square texels of one density."""
+    from addon.bake import uv as uvmod
+    from addon.bake.uvchecks import world_triangles
+    tall = added(bpy.ops.mesh.primitive_cube_add, size=1.0)
+    turned = added(bpy.ops.mesh.primitive_cube_add, size=1.0, location=(3, 0, 0), rotation=(0.3, 0.2, 0.7))
+    tall.name, turned.name = "Tall", "Turned"
+    tall.scale, turned.scale = (1.0, 1.0, 4.0), (1.0, 1.5, 0.8)     # the operator's scale= goes into the vertices
+    bake_lightmaps([tall, turned], ["ao"], tmp_path, BakeOptions(resolution=128, samples=1),
+                   scene=bpy.context.scene)
+    for obj in (tall, turned):
+        density, aniso = _texel_shape(uvmod.triangles_uv(obj, "Lightmap").astype(float), world_triangles(obj))
+        assert aniso.max() < 1.01, (obj.name, aniso.max())
+        assert density.max() / density.min() < 1.01, (obj.name, density.max() / density.min())
+
+
 @pytest.mark.both_versions
 def test_lightmap_pack_is_refused_where_it_gives_uneven_texels(tmp_path, monkeypatch):
     """Lightmap Pack fills more of a cylinder's 256² map than Smart UV Project (0.78 against 0.72) by giving its

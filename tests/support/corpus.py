@@ -292,14 +292,16 @@ def _builder():
         deselect()
         kinds[linked.name] = "linked_duplicate"
 
-        bpy.ops.mesh.primitive_cube_add(size=0.6, location=(2.5, 0.0, 0.3), scale=(-1.0, 1.0, 1.0))
+        bpy.ops.mesh.primitive_cube_add(size=0.6, location=(2.5, 0.0, 0.3))
         neg = added()
+        neg.scale = (-1.0, 1.0, 1.0)           # the operator's scale= would go into the vertices
         neg.name = "Negative Scale"
         give(neg, principled("Negative Material", (0.3, 0.8, 0.8)))
         kinds[neg.name] = "negative_scale"
 
-        bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(-2.5, 2.0, 0.3), scale=(1.6, 0.6, 0.6))
+        bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(-2.5, 2.0, 0.3))
         squash = added()
+        squash.scale = (1.6, 0.6, 0.6)
         squash.name = "Non-uniform Scale"
         give(squash, principled("Squashed Material", (0.9, 0.9, 0.5)))
         kinds[squash.name] = "non_uniform_scale"
