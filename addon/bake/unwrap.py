@@ -295,10 +295,10 @@ class _Copies:
                                      f"UV layer (make it local)")
         try:
             self.scratch = self.state.track(bpy.data.scenes, bpy.data.scenes.new("IL unwrap"))
-            scale = unwrap_scale(o.data for o in self.group)
-            for o in self.group:
+            linears = [stretch(o.matrix_world, scaled=len(self.group) > 1) for o in self.group]
+            scale = unwrap_scale([o.data for o in self.group], linears)
+            for o, stretched in zip(self.group, linears):
                 tmp = self.state.track(bpy.data.meshes, bpy.data.meshes.new(f"IL unwrap {o.data.name}"))
-                stretched = stretch(o.matrix_world)
                 loops, welded = canonical_copy(o.data, tmp, scale, self.weld, stretched)
                 matrix = o.matrix_world.copy()
                 if stretched is not None:            # the copy's world is the object's: M S⁻¹ on S-stretched vertices

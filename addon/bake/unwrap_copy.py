@@ -21,18 +21,24 @@ UNWRAP_BAND = 64.0
 1e-5 to 1e4 m unwrap alike."""
 
 
-def mesh_area(me):
-    """Surface area of mesh ``me`` in object space (its own units, no transform)."""
-    t = positions(me).astype(float)[corner_vertices(me)[corner_triangles(me)]]
-    return float(triangle_areas(t).sum())
+def mesh_area(me, linear=None):
+    """Surface area of mesh ``me`` in object space (its own units, no transform), or with its vertices × the 3 x 3
+    ``linear``."""
+    co = positions(me).astype(float)
+    if linear is not None:
+        co = co @ linear.T
+    return float(triangle_areas(co[corner_vertices(me)[corner_triangles(me)]]).sum())
 
 
-def unwrap_scale(meshes):
-    """The factor the unwrap copies of ``meshes`` (one UV square) are scaled by: 1 within UNWRAP_BAND, else the
+def unwrap_scale(meshes, linears=None):
+    """The factor the unwrap copies of ``meshes`` (one UV square; each stretched by its 3 x 3 of ``linears``, None
+    for none) are scaled by: 1 within UNWRAP_BAND, else the
     power of two (exact in floating point) that brings √(their total area) nearest to 1 m. Charts come out the
     same shape at any scale, so UV coverage, chart areas and the texel density (from the real world area) are
     scale-free."""
-    size = math.sqrt(sum(mesh_area(me) for me in meshes))
+    meshes = list(meshes)
+    linears = linears or [None] * len(meshes)
+    size = math.sqrt(sum(mesh_area(me, lin) for me, lin in zip(meshes, linears)))
     if size <= 0 or 1.0 / UNWRAP_BAND <= size <= UNWRAP_BAND:
         return 1.0
     return 2.0 ** -round(math.log2(size))
@@ -42,19 +48,21 @@ STRETCH_TOLERANCE = 1e-6
 """A world matrix whose linear part is a rotation and one scale within this (relative) has no :func:`stretch`."""
 
 
-def stretch(matrix):
+def stretch(matrix, scaled=False):
     """The 3 x 3 stretch S of an object's world ``matrix`` M = R c S (R a rotation or a reflection, c > 0 its mean
     scale, S symmetric positive definite with det S = 1: S = P / ∛det P for P = √(MᵀM), the polar decomposition),
-    or None when M scales alike along every axis (within STRETCH_TOLERANCE) or flattens one. An unwrap copy
-    stretched by S has the object's shape in the world (up to a turn and one scale), so the unwrappers, which work
-    on a mesh as it is, give a box scaled (1, 1, 4) in Object Mode four times the texels along its length instead
-    of square charts, and the joins read its creases and areas as baked."""
+    or with ``scaled`` P = c S itself; None when that is the identity (within STRETCH_TOLERANCE) or M flattens an
+    axis. An unwrap copy stretched by S has the object's shape in the world (up to a turn and one scale), so the
+    unwrappers, which work on a mesh as it is, give a box scaled (1, 1, 4) in Object Mode four times the texels
+    along its length instead of square charts, and the joins read its creases and areas as baked; the copies of an
+    atlas are stretched by P, so that each object's charts also take its size in the world."""
     m = np.array(matrix, float)[:3, :3]
     lam, vec = np.linalg.eigh(m.T @ m)
     if not np.isfinite(lam).all() or lam.min() <= 1e-12 * lam.max():
         return None
     root = np.sqrt(lam)
-    root /= np.cbrt(root.prod())
+    if not scaled:
+        root /= np.cbrt(root.prod())
     if np.abs(root - 1.0).max() <= STRETCH_TOLERANCE:
         return None
     return (vec * root) @ vec.T

@@ -31,7 +31,7 @@ from ..blender.digest import rna_digest
 from ..blender.scene import corner_vertices, face_sizes, face_starts, from_its_mesh, positions
 from ..core.io.files import prune_least_recent, write_bytes
 
-LAYOUT_VERSION = 10
+LAYOUT_VERSION = 11
 """Raised whenever the layout search (uv.py, unwrap.py) changes what it makes for the same input."""
 DIR = ".il-uv-cache"
 MAGIC = b"IL light-map UVs 1\n"

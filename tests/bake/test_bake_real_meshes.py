@@ -648,6 +648,27 @@ def test_an_object_scaled_in_object_mode_is_unwrapped_in_its_shape_in_the_world(
 
 
 @pytest.mark.both_versions
+def test_an_atlas_gives_objects_at_other_scales_one_texel_density(tmp_path):
+    """One atlas of three unit cubes whose objects are scaled 1, 3 and (1, 1, 3) in Object Mode: unwrapped in object
+    space, the cube scaled 3 got a third of the texels per metre of the other (its charts the size of a 1 m cube's);
+    the copies of an atlas are stretched by their whole scale (unwrap_copy.stretch, scaled), so every face of the
+    three has one density and square texels."""
+    from addon.bake import uv as uvmod
+    from addon.bake.uvchecks import world_triangles
+    cubes = []
+    for k, scale in enumerate([(1, 1, 1), (3, 3, 3), (1, 1, 3)]):
+        cube = added(bpy.ops.mesh.primitive_cube_add, size=1.0, location=(5 * k, 0, 0))
+        cube.scale = scale
+        cubes.append(cube)
+    bake_lightmaps(cubes, ["ao"], tmp_path, BakeOptions(resolution=256, samples=1, atlas=True),
+                   scene=bpy.context.scene)
+    shapes = [_texel_shape(uvmod.triangles_uv(o, "Lightmap").astype(float), world_triangles(o)) for o in cubes]
+    density = np.concatenate([d for d, _ in shapes])
+    assert density.max() / density.min() < 1.01, [(d.min(), d.max()) for d, _ in shapes]
+    assert max(a.max() for _, a in shapes) < 1.01
+
+
+@pytest.mark.both_versions
 def test_lightmap_pack_is_refused_where_it_gives_uneven_texels(tmp_path, monkeypatch):
     """Lightmap Pack fills more of a cylinder's 256² map than Smart UV Project (0.78 against 0.72) by giving its
     caps about half the density of its side (density spread 0.45): the layout kept is Smart UV Project's, whose
