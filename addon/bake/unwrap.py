@@ -295,7 +295,7 @@ class _Copies:
                                      f"UV layer (make it local)")
         try:
             self.scratch = self.state.track(bpy.data.scenes, bpy.data.scenes.new("IL unwrap"))
-            linears = [stretch(o.matrix_world, scaled=len(self.group) > 1) for o in self.group]
+            linears = [_shared_stretch(o, scaled=len(self.group) > 1) for o in self.group]
             scale = unwrap_scale([o.data for o in self.group], linears)
             for o, stretched in zip(self.group, linears):
                 tmp = self.state.track(bpy.data.meshes, bpy.data.meshes.new(f"IL unwrap {o.data.name}"))
@@ -632,6 +632,22 @@ class _Copies:
     def _uvs(temps):
         """[(flat float32 "Lightmap" UVs,)] of the copies (the shape :meth:`_write` takes)."""
         return [(corner_uv(obj.data, LIGHTMAP).ravel(),) for obj in temps]
+
+
+def _shared_stretch(obj, scaled):
+    """:func:`unwrap_copy.stretch` of ``obj``'s world matrix when every object whose mesh is ``obj``'s has the same,
+    else None: linked duplicates share one layer, so their layout is made for them all, in object space, when they
+    stand in the world stretched differently."""
+    own = stretch(obj.matrix_world, scaled)
+    if obj.data.users <= 1:
+        return own
+    for other in bpy.data.objects:
+        if other.data is obj.data and other is not obj:
+            theirs = stretch(other.matrix_world, scaled)
+            if (own is None) != (theirs is None) or (own is not None and not np.allclose(own, theirs, rtol=0,
+                                                                                         atol=1e-6)):
+                return None
+    return own
 
 
 def _affine(linear):

@@ -668,6 +668,24 @@ def test_an_atlas_gives_objects_at_other_scales_one_texel_density(tmp_path):
     assert max(a.max() for _, a in shapes) < 1.01
 
 
+def test_linked_duplicates_stretched_differently_keep_one_layout_that_fits_every_map(tmp_path):
+    """Two objects sharing one mesh (one "Lightmap" layer), scaled (1, 1, 4) and (4, 1, 1): a layout made for either
+    one's shape in the world would be rewritten for the other and leave the first one's map baked on UVs the mesh no
+    longer has. Baked one after the other, the second bake leaves the layer the first one's map was baked on."""
+    from addon.bake import uv as uvmod
+    a = added(bpy.ops.mesh.primitive_cube_add, size=1.0)
+    b = a.copy()
+    bpy.context.scene.collection.objects.link(b)
+    a.name, b.name = "Tall", "Wide"
+    a.scale, b.location, b.scale = (1.0, 1.0, 4.0), (5.0, 0.0, 0.0), (4.0, 1.0, 1.0)
+    layers = []
+    for obj in (a, b):
+        bake_lightmaps([obj], ["ao"], tmp_path / obj.name, BakeOptions(resolution=64, samples=1),
+                       scene=bpy.context.scene)
+        layers.append(uvmod.corner_uv(a.data, "Lightmap").copy())
+    assert np.array_equal(layers[0], layers[1])
+
+
 @pytest.mark.both_versions
 def test_lightmap_pack_is_refused_where_it_gives_uneven_texels(tmp_path, monkeypatch):
     """Lightmap Pack fills more of a cylinder's 256² map than Smart UV Project (0.78 against 0.72) by giving its
