@@ -106,7 +106,7 @@ def _margins(margin):
     return out + [0.5]
 
 
-def _unwrap_with_margin(group, state, options, names):
+def _unwrap_with_margin(group, state, options, names, linears=None):
     """Generate "Lightmap" for ``group``; return its :class:`_Made` (side, margin in texels, unwrapper): by
     :func:`_search` on copies whose coincident vertices are welded (:func:`unwrap_copy.welded_vertices`), or again on
     copies as the meshes are when the weld joined faces that cover each other (the welded layout fails, or puts texels
@@ -115,7 +115,7 @@ def _unwrap_with_margin(group, state, options, names):
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always")
         try:
-            made, welded = _search(group, state, options, names, weld=True), None
+            made, welded = _search(group, state, options, names, weld=True, linears=linears), None
         except InputError as e:
             made, welded = None, e
     if made is not None and not (made.welded and _overlapping(made.welded, made.side)):
@@ -124,10 +124,10 @@ def _unwrap_with_margin(group, state, options, names):
         return made
     if made is None and welded is not None and not getattr(welded, "welded", False):
         raise welded
-    return _search(group, state, options, names, weld=False)
+    return _search(group, state, options, names, weld=False, linears=linears)
 
 
-def _search(group, state, options, names, weld=True):
+def _search(group, state, options, names, weld=True, linears=None):
     """Generate "Lightmap" for ``group`` on its unwrap copies (welded with ``weld``); return its :class:`_Made`.
 
     A fixed resolution gives the side at once; the margin is lowered (down to half a texel, with a
@@ -139,7 +139,7 @@ def _search(group, state, options, names, weld=True):
     """
     label = ", ".join(f"'{o.name}'" for o in group)
     fixed = fixed_side(group[0], options)
-    with _Copies(group, state, weld, texel_size(group, options, fixed)) as copies:
+    with _Copies(group, state, weld, texel_size(group, options, fixed), linears) as copies:
         try:
             made = _search_copies(copies, group, options, names, label, fixed)
         except InputError as e:
@@ -271,8 +271,9 @@ class _Copies:
     in an empty scene (measured in the full level's scene: an unwrap of a quad with its two mode switches 2.9 -> 0.5 ms,
     a removal with the view layer's update 7.4 -> 0.9 ms)."""
 
-    def __init__(self, group, state, weld=True, texel=None):
+    def __init__(self, group, state, weld=True, texel=None, linears=None):
         self.group, self.state, self.weld, self.texel = list(group), state, weld, texel
+        self.linears = linears   # per copy: its stretch (unwrap_copy.Stretches.of), or None for the object's own
         self.scratch = None      # the scene the copies live in (the user's scene and its depsgraph never see them)
         self.copies = []
         self.loops = []          # per copy: the original mesh's loop of each of the copy's loops
@@ -295,7 +296,7 @@ class _Copies:
                                      f"UV layer (make it local)")
         try:
             self.scratch = self.state.track(bpy.data.scenes, bpy.data.scenes.new("IL unwrap"))
-            linears = [_shared_stretch(o, scaled=len(self.group) > 1) for o in self.group]
+            linears = self.linears or [stretch(o.matrix_world, len(self.group) > 1) for o in self.group]
             scale = unwrap_scale([o.data for o in self.group], linears)
             for o, stretched in zip(self.group, linears):
                 tmp = self.state.track(bpy.data.meshes, bpy.data.meshes.new(f"IL unwrap {o.data.name}"))
@@ -632,22 +633,6 @@ class _Copies:
     def _uvs(temps):
         """[(flat float32 "Lightmap" UVs,)] of the copies (the shape :meth:`_write` takes)."""
         return [(corner_uv(obj.data, LIGHTMAP).ravel(),) for obj in temps]
-
-
-def _shared_stretch(obj, scaled):
-    """:func:`unwrap_copy.stretch` of ``obj``'s world matrix when every object whose mesh is ``obj``'s has the same,
-    else None: linked duplicates share one layer, so their layout is made for them all, in object space, when they
-    stand in the world stretched differently."""
-    own = stretch(obj.matrix_world, scaled)
-    if obj.data.users <= 1:
-        return own
-    for other in bpy.data.objects:
-        if other.data is obj.data and other is not obj:
-            theirs = stretch(other.matrix_world, scaled)
-            if (own is None) != (theirs is None) or (own is not None and not np.allclose(own, theirs, rtol=0,
-                                                                                         atol=1e-6)):
-                return None
-    return own
 
 
 def _affine(linear):

@@ -5,6 +5,7 @@ import dataclasses
 import math
 
 import bmesh
+import bpy
 import numpy as np
 
 from ..blender.scene import corner_triangles, corner_vertices, positions
@@ -68,8 +69,56 @@ def stretch(matrix, scaled=False):
     return (vec * root) @ vec.T
 
 
+def same_stretch(a, b):
+    """Whether two stretches (:func:`stretch`, or None) are one, to STRETCH_TOLERANCE of the larger's largest entry
+    (float32 world matrices of one scale turned differently differ by their round-off)."""
+    if a is None or b is None:
+        return a is None and b is None
+    return float(np.abs(a - b).max()) <= STRETCH_TOLERANCE * max(float(np.abs(a).max()), float(np.abs(b).max()))
+
+
+class Stretches:
+    """The stretch of each object's unwrap copy in one run (:func:`stretch`; ``scaled`` for an atlas). Objects that
+    share a mesh share its one light-map layer: they get one only when every object of the file using that mesh
+    stands stretched alike, else None (their layout is made in object space, as for a mesh of its own before the
+    stretch), so that baking one never rewrites the layer another one's map was baked on. The file's objects are
+    read once, when a mesh with several users is first asked about."""
+
+    def __init__(self):
+        self._users = None
+        self._alike = {}
+
+    def users(self, me):
+        """The objects of the file whose data is the mesh ``me``."""
+        if self._users is None:
+            self._users = {}
+            for o in bpy.data.objects:
+                if o.type == "MESH" and o.data is not None:
+                    self._users.setdefault(o.data.as_pointer(), []).append(o)
+        return self._users.get(me.as_pointer(), [])
+
+    def of(self, obj, scaled):
+        """The stretch of ``obj``'s unwrap copy."""
+        own = stretch(obj.matrix_world, scaled)
+        if obj.data.users <= 1:
+            return own
+        key = (obj.data.as_pointer(), bool(scaled))
+        if key not in self._alike:
+            theirs = [stretch(o.matrix_world, scaled) for o in self.users(obj.data)]
+            self._alike[key] = all(same_stretch(t, theirs[0]) for t in theirs)
+        return own if self._alike[key] else None
+
+    def shared_apart(self, obj):
+        """Whether ``obj``'s mesh is shared by objects stretched differently (its layout made in object space)."""
+        if obj.data.users <= 1:
+            return False
+        self.of(obj, False)
+        return not self._alike[(obj.data.as_pointer(), False)]
+
+
 def canonical_copy(me, tmp, scale, weld=True, stretched=None):
-    """Fill the empty mesh ``tmp`` with ``me``'s vertices (× ``scale``) and faces, every face starting at its
+    """Fill the empty mesh ``tmp`` with ``me``'s vertices (× the 3 x 3 ``stretched``, :func:`stretch`, then
+    × ``scale``) and faces, every face starting at its
     lowest vertex index and the faces sorted by their first three vertices (then corner count, then their order),
     all revealed and selected; return, for each of ``tmp``'s loops, ``me``'s loop it copies, and whether ``weld``
     joined any vertices at one position (:func:`welded_vertices`).

@@ -21,6 +21,7 @@ from ..core import errors, lightmap
 from ..core.memo import FIGURES, digest
 from ..core.errors import InputError
 from . import uvcache
+from .unwrap_copy import Stretches
 from .options import article
 
 LIGHTMAP = "Lightmap"
@@ -246,6 +247,7 @@ def prepare(scene, objects, state, options, together=False, cache=None):
 def _prepare_groups(scene, objects, state, options, together, cache, made):
     """The loop of :func:`prepare` over its groups, filling ``made``."""
     settled = cache.settled if cache is not None else {}
+    stretches = cache.stretches if cache is not None else Stretches()
     for group in ([list(objects)] if together else [[o] for o in objects]):
         first = group[0]
         if not together and first.data.as_pointer() in settled:
@@ -253,14 +255,15 @@ def _prepare_groups(scene, objects, state, options, together, cache, made):
             if layout is not None:
                 layout = _shared(first, layout, options)
                 if cache is not None:           # a rerun that bakes only this object finds the layout
-                    digest = uvcache.key(group, scene.view_layers[0].depsgraph, options, together)
+                    digest = uvcache.key(group, scene.view_layers[0].depsgraph, options, together,
+                                         [stretches.of(first, together)])
                     if digest not in cache.memory:  # else its mesh's own key (moved, turned): that entry stays
                         cache.put(digest, uvcache.Entry([corner_uv(first.data, LIGHTMAP).ravel()],
                                                         layout.side, layout.margin, layout.unwrap, 0, layout.window,
                                                         uvcache.corners_of([first.data])))
                     layout.key = digest
         else:
-            layout = _layout(scene, group, state, options, made.layers, together, cache)
+            layout = _layout(scene, group, state, options, made.layers, together, cache, stretches)
             if not together:
                 settled[first.data.as_pointer()] = layout
         if layout is None:
@@ -294,23 +297,25 @@ def _shared(obj, layout, options):
     return _Made(s, margin, layout.unwrap, window=window)
 
 
-def _layout(scene, group, state, options, names, together, cache):
+def _layout(scene, group, state, options, names, together, cache, stretches):
     """The group's layout (:class:`_Made`): from ``cache``, else None when one object's existing layer is reused
     (:func:`_reusable`), else generated (:func:`unwrap._unwrap_with_margin`, :func:`_cut_window`) and kept in
     ``cache``."""
     from .unwrap import _unwrap_with_margin
     digest = entry = None
+    linears = [stretches.of(o, together) for o in group]
     if cache is not None:
-        digest = uvcache.key(group, scene.view_layers[0].depsgraph, options, together)
+        digest = uvcache.key(group, scene.view_layers[0].depsgraph, options, together, linears)
         entry = cache.get(digest, [o.data for o in group])
     if entry is not None:
         if entry.corners is None:       # written before the corners were kept: the key holds them as they are now
             entry = dataclasses.replace(entry, corners=uvcache.corners_of([o.data for o in group]))
             cache.put(digest, entry)
         return dataclasses.replace(_from_entry(group, entry, state, options), key=digest)
-    if not together and LIGHTMAP in group[0].data.uv_layers and _reusable(group[0], options):
+    if (not together and LIGHTMAP in group[0].data.uv_layers and not stretches.shared_apart(group[0])
+            and _reusable(group[0], options)):
         return None
-    made = _cut_window(group, _unwrap_with_margin(group, state, options, names), state, names, options)
+    made = _cut_window(group, _unwrap_with_margin(group, state, options, names, linears), state, names, options)
     if cache is not None:
         uvs = [corner_uv(o.data, LIGHTMAP).ravel() for o in group]
         cache.put(digest, uvcache.Entry(uvs, made.side, made.margin, made.unwrap, made.enlarged_from, made.window,
@@ -412,7 +417,9 @@ def _write_layer(state, me, uv):
 
 def _reusable(obj, options):
     """An earlier bake's "Lightmap" layer is reused when it covers the square map it will get and its texels are
-    square on it (REUSE_ASPECT: a layout carried into a window is made again)."""
+    square on it (REUSE_ASPECT: a layout carried into a window is made again). Not asked for a mesh whose users
+    stand stretched differently (:meth:`unwrap_copy.Stretches.shared_apart`): its layer may have been made for one
+    of them while it stood alone, and its layout is made again, in object space."""
     from .uvchecks import MIN_COVERAGE, _outside, coverage_ratio
     tri = triangles_uv(obj, LIGHTMAP)
     if _outside(tri):

@@ -7,7 +7,8 @@ first loops and corner counts: what the unwrappers see, and the loop order the U
 (the modifiers' result; for a mesh only subdivided, ``blender.scene.subdivided_only``, the modifiers' settings instead,
 and nothing more for one without modifiers, ``blender.scene.unmodified``,
 which need no evaluation), the metric MᵀM of its world matrix (world area, hence the side chosen from a texel density;
-the matrix itself for an atlas; both to 6 digits), and the layout options (margin, resolution, texel density, maximum
+the matrix itself for an atlas; both to 6 digits) and the stretch its unwrap copy gets (:class:`unwrap_copy.Stretches`),
+and the layout options (margin, resolution, texel density, maximum
 resolution, fixed sizes, atlas), :data:`LAYOUT_VERSION` and Blender's version (the unwrappers may change). An entry
 is :data:`MAGIC`, a JSON head on one line (the side, margin and unwrapper, each object's loop count and the window the
 layout was carried into: width, height and the side it was cut from; 0 0 0 for none), a newline, then each object's
@@ -30,6 +31,7 @@ import numpy as np
 from ..blender.digest import rna_digest
 from ..blender.scene import corner_vertices, face_sizes, face_starts, from_its_mesh, positions
 from ..core.io.files import prune_least_recent, write_bytes
+from .unwrap_copy import Stretches
 
 LAYOUT_VERSION = 11
 """Raised whenever the layout search (uv.py, unwrap.py) changes what it makes for the same input."""
@@ -91,15 +93,18 @@ def _arrays(me):
     return positions(me), corner_vertices(me), starts, face_sizes(me, starts)
 
 
-def key(objects, depsgraph, options, together=False):
-    """Hex digest of the layout of ``objects`` made with ``options`` (see the module docstring)."""
+def key(objects, depsgraph, options, together=False, linears=None):
+    """Hex digest of the layout of ``objects`` made with ``options`` and the stretches ``linears`` of their unwrap
+    copies (:meth:`unwrap_copy.Stretches.of`; see the module docstring)."""
     h = hashlib.blake2b(digest_size=20)
     h.update(repr((LAYOUT_VERSION, tuple(bpy.app.version), float(options.margin), options.texel_density,
                    int(options.resolution), int(options.max_resolution), bool(together))).encode())
-    for o in objects:
+    for o, lin in zip(objects, linears or [None] * len(objects)):
         sizes = options.sizes.get(o.name) if options.sizes else None
         m = np.array(o.matrix_world, float)[:3, :3]
-        h.update(repr((tuple(sizes) if sizes else None, _rounded(m if together else m.T @ m))).encode())
+        h.update(repr((tuple(sizes) if sizes else None, _rounded(m if together else m.T @ m),
+                       None if lin is None else (_rounded(lin), tuple(f"{v:.4g}" for v in np.linalg.eigvalsh(lin))))
+                      ).encode())
         if from_its_mesh(o):            # the mesh and the settings give the evaluated mesh: it is not read
             meshes = (o.data,)
             for mod in o.modifiers:
@@ -132,6 +137,7 @@ class UVCache:
         self.memory, self.pending = {}, {}
         self.used = set()     # entry files this run read or wrote
         self.settled = {}     # mesh pointer -> the layout (uv._Made, None: a layer reused) this run gave the mesh
+        self.stretches = Stretches()      # the unwrap copies' stretches in this run
 
     def path(self, digest):
         return os.path.join(self.folder, f"{digest}{SUFFIX}")

@@ -668,22 +668,56 @@ def test_an_atlas_gives_objects_at_other_scales_one_texel_density(tmp_path):
     assert max(a.max() for _, a in shapes) < 1.01
 
 
-def test_linked_duplicates_stretched_differently_keep_one_layout_that_fits_every_map(tmp_path):
-    """Two objects sharing one mesh (one "Lightmap" layer), scaled (1, 1, 4) and (4, 1, 1): a layout made for either
-    one's shape in the world would be rewritten for the other and leave the first one's map baked on UVs the mesh no
-    longer has. Baked one after the other, the second bake leaves the layer the first one's map was baked on."""
+def test_turned_linked_duplicates_of_a_large_scale_share_the_stretch_of_an_atlas(tmp_path):
+    """An atlas of a cube scaled 30 and two linked duplicates of another cube scaled 100, turned differently: their
+    world matrices' float32 round-off puts their P = c S about 5e-6 apart, which is one stretch
+    (unwrap_copy.same_stretch is relative), so all three get one texel density."""
     from addon.bake import uv as uvmod
-    a = added(bpy.ops.mesh.primitive_cube_add, size=1.0)
+    from addon.bake.uvchecks import world_triangles
+    c = added(bpy.ops.mesh.primitive_cube_add, size=1.0)
+    a = added(bpy.ops.mesh.primitive_cube_add, size=1.0, location=(200, 0, 0))
     b = a.copy()
     bpy.context.scene.collection.objects.link(b)
-    a.name, b.name = "Tall", "Wide"
-    a.scale, b.location, b.scale = (1.0, 1.0, 4.0), (5.0, 0.0, 0.0), (4.0, 1.0, 1.0)
-    layers = []
-    for obj in (a, b):
-        bake_lightmaps([obj], ["ao"], tmp_path / obj.name, BakeOptions(resolution=64, samples=1),
-                       scene=bpy.context.scene)
-        layers.append(uvmod.corner_uv(a.data, "Lightmap").copy())
-    assert np.array_equal(layers[0], layers[1])
+    c.scale, a.scale, a.rotation_euler = (30, 30, 30), (100, 100, 100), (0.3, 0.2, 0.7)
+    b.location, b.scale, b.rotation_euler = (400, 0, 0), (100, 100, 100), (1.1, -0.4, 2.0)
+    bpy.context.view_layer.update()
+    bake_lightmaps([c, a, b], ["ao"], tmp_path, BakeOptions(resolution=256, samples=1, atlas=True),
+                   scene=bpy.context.scene)
+    density = np.concatenate([_texel_shape(uvmod.triangles_uv(o, "Lightmap").astype(float), world_triangles(o))[0]
+                              for o in (c, a, b)])
+    assert density.max() / density.min() < 1.01
+
+
+def test_linked_duplicates_stretched_differently_keep_one_layout_whatever_came_before(tmp_path):
+    """Two objects sharing one mesh (one "Lightmap" layer), scaled (1, 1, 4) and (4, 1, 1): a layout made for either
+    one's shape in the world would leave the other's map baked on UVs made for another shape, or be rewritten for it.
+    The first one is baked while it is the mesh's only user (its layer made for its shape, kept, and cached in its
+    folder); once the second one shares the mesh, the layer both get is the one a fresh bake of both gives, also
+    from that folder's cache (unwrap_copy.Stretches) and from the kept layer, and baking the second one alone
+    leaves it as it is."""
+    from addon.bake import uv as uvmod
+    a = added(bpy.ops.mesh.primitive_cube_add, size=1.0)
+    a.name, a.scale = "Tall", (1.0, 1.0, 4.0)
+    bpy.context.view_layer.update()
+    opts = BakeOptions(resolution=64, samples=1, overwrite=True)
+    scene = bpy.context.scene
+    bake_lightmaps([a], ["ao"], tmp_path / "alone", opts, scene=scene)
+    alone = uvmod.corner_uv(a.data, "Lightmap").copy()
+    b = a.copy()
+    scene.collection.objects.link(b)
+    b.name, b.location, b.scale = "Wide", (5.0, 0.0, 0.0), (4.0, 1.0, 1.0)
+    bpy.context.view_layer.update()
+    layers = {}
+    for case, folder, drop in (("kept layer", "kept", False), ("cache", "alone", True), ("fresh", "fresh", True)):
+        if drop:
+            a.data.uv_layers.remove(a.data.uv_layers["Lightmap"])
+        bake_lightmaps([a, b], ["ao"], tmp_path / folder, opts, scene=scene)
+        layers[case] = uvmod.corner_uv(a.data, "Lightmap").copy()
+    bake_lightmaps([b], ["ao"], tmp_path / "wide", opts, scene=scene)
+    layers["wide alone"] = uvmod.corner_uv(a.data, "Lightmap").copy()
+    assert not np.array_equal(alone, layers["fresh"])
+    for case, uv in layers.items():
+        assert np.array_equal(uv, layers["fresh"]), case
 
 
 @pytest.mark.both_versions
