@@ -14,6 +14,7 @@ from . import uv as uvmod
 from .cycles import RENDER_VARIANTS
 from .kinds import KINDS
 from .plan import map_file
+from .unwrap_copy import Stretches
 
 
 HASH_KEY = "il:input_hash"
@@ -51,7 +52,8 @@ def input_hash(scene, group, kind, options, lighting, parts=None):
     lights and world (``lighting``, :func:`lighting_digest`; a ``lit`` kind only: irradiance) and the options that
     change the map.
     Other objects are not in it: moving an occluder leaves its neighbours' maps as they are (``force`` bakes them).
-    ``parts``: a dict keeping each object's part before its materials for the next kind's hash."""
+    ``parts``: a dict keeping each object's part before its materials for the next kind's hash (and, under
+    "stretches", the run's :class:`unwrap_copy.Stretches`)."""
     h = hashlib.blake2b(digest_size=16)
     h.update(f"{kind}:{bpy.app.version_string}".encode())
     for name in _HASHED_OPTIONS:
@@ -59,10 +61,11 @@ def input_hash(scene, group, kind, options, lighting, parts=None):
     if KINDS[kind].lit:
         h.update(f"bounces={options.bounces};{lighting}".encode())
     depsgraph = scene.view_layers[0].depsgraph
+    stretches = Stretches() if parts is None else parts.setdefault("stretches", Stretches())
     for o in group:
         part = None if parts is None else parts.get(o.as_pointer())
         if part is None:
-            part = _object_part(o, options, depsgraph)
+            part = _object_part(o, options, depsgraph, stretches)
             if parts is not None:
                 parts[o.as_pointer()] = part
         for data in part:
@@ -72,9 +75,11 @@ def input_hash(scene, group, kind, options, lighting, parts=None):
     return h.hexdigest()
 
 
-def _object_part(o, options, depsgraph):
+def _object_part(o, options, depsgraph, stretches):
     """What :func:`input_hash` digests of object ``o`` before its materials, in order (the same for every map
-    kind)."""
+    kind). For a generated layout of a mesh other objects share, whether they stand stretched differently
+    (:meth:`unwrap_copy.Stretches.shared_apart`): its layout is then made in object space, so a duplicate added or
+    scaled differently changes the layout the maps of the others are baked through."""
     out = [o.name.encode()]
     if options.sizes and o.name in options.sizes:
         out.append(repr(tuple(options.sizes[o.name])).encode())
@@ -93,6 +98,8 @@ def _object_part(o, options, depsgraph):
         out.append(f"{len(ev.vertices)}:{len(ev.polygons)}".encode())
     if options.uv_layer and options.uv_layer in me.uv_layers:
         out.append(corner_uv(me, options.uv_layer).tobytes())
+    elif not options.uv_layer and stretches.shared_apart(o):
+        out.append(b"stretched apart")
     return out
 
 

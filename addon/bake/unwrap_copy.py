@@ -98,22 +98,19 @@ class Stretches:
         return self._users.get(me.as_pointer(), [])
 
     def of(self, obj, scaled):
-        """The stretch of ``obj``'s unwrap copy."""
-        own = stretch(obj.matrix_world, scaled)
-        if obj.data.users <= 1:
-            return own
-        key = (obj.data.as_pointer(), bool(scaled))
-        if key not in self._alike:
-            theirs = [stretch(o.matrix_world, scaled) for o in self.users(obj.data)]
-            self._alike[key] = all(same_stretch(t, theirs[0]) for t in theirs)
-        return own if self._alike[key] else None
+        """The stretch of ``obj``'s unwrap copy (duplicates compared by their shape S alone: an atlas bakes one object
+        of a mesh, at its own scale)."""
+        return None if self.shared_apart(obj) else stretch(obj.matrix_world, scaled)
 
     def shared_apart(self, obj):
         """Whether ``obj``'s mesh is shared by objects stretched differently (its layout made in object space)."""
         if obj.data.users <= 1:
             return False
-        self.of(obj, False)
-        return not self._alike[(obj.data.as_pointer(), False)]
+        key = obj.data.as_pointer()
+        if key not in self._alike:
+            theirs = [stretch(o.matrix_world) for o in self.users(obj.data)]
+            self._alike[key] = all(same_stretch(t, theirs[0]) for t in theirs)
+        return not self._alike[key]
 
 
 def canonical_copy(me, tmp, scale, weld=True, stretched=None):

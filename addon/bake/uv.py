@@ -312,8 +312,8 @@ def _layout(scene, group, state, options, names, together, cache, stretches):
             entry = dataclasses.replace(entry, corners=uvcache.corners_of([o.data for o in group]))
             cache.put(digest, entry)
         return dataclasses.replace(_from_entry(group, entry, state, options), key=digest)
-    if (not together and LIGHTMAP in group[0].data.uv_layers and not stretches.shared_apart(group[0])
-            and _reusable(group[0], options)):
+    if not together and LIGHTMAP in group[0].data.uv_layers and _reusable(group[0], options,
+                                                                        stretches.shared_apart(group[0])):
         return None
     made = _cut_window(group, _unwrap_with_margin(group, state, options, names, linears), state, names, options)
     if cache is not None:
@@ -345,6 +345,10 @@ WINDOW_ASPECT = 0.9
 """A layout is carried into a window of its map (:func:`_cut_window`) when the window's sides differ by more than
 this ratio (Blender's packers fill one side of the square: a UV sphere's Smart UV Project layout 0.70 of the other,
 a cylinder's 0.83)."""
+REUSE_ANISOTROPY = 1.5
+"""Most texel anisotropy (:func:`core.lightmap.texel_anisotropy`) on the mesh as it is of a layer reused for linked
+duplicates that stand stretched differently (:func:`_reusable`): Smart UV Project's layouts 1.0, joined charts
+1.1-1.26 on the primitives; a box's layer made for it scaled (1, 1, 4): 4."""
 REUSE_ASPECT = 1.08
 """An earlier "Lightmap" layer is reused for a square map only when its texels are square to this ratio
 (:func:`core.lightmap.texel_aspect`; measured 0.968-1.003 on Smart UV Project layouts made for a square, 1.065 on a
@@ -415,16 +419,22 @@ def _write_layer(state, me, uv):
     me.uv_layers[LIGHTMAP].data.foreach_set("uv", uv)
 
 
-def _reusable(obj, options):
+def _reusable(obj, options, apart=False):
     """An earlier bake's "Lightmap" layer is reused when it covers the square map it will get and its texels are
-    square on it (REUSE_ASPECT: a layout carried into a window is made again). Not asked for a mesh whose users
-    stand stretched differently (:meth:`unwrap_copy.Stretches.shared_apart`): its layer may have been made for one
-    of them while it stood alone, and its layout is made again, in object space."""
+    square on it (REUSE_ASPECT: a layout carried into a window is made again). For a mesh whose users stand
+    stretched differently (``apart``: :meth:`unwrap_copy.Stretches.shared_apart`), whose layout is made on the mesh
+    as it is, its texels must be square there, and not only on average (REUSE_ANISOTROPY: a layer made for one of
+    them while it stood alone, stretched as it stands, is made again)."""
     from .uvchecks import MIN_COVERAGE, _outside, coverage_ratio
     tri = triangles_uv(obj, LIGHTMAP)
     if _outside(tri):
         return False
-    if abs(math.log(lightmap.texel_aspect(tri, world_triangles(obj)))) > math.log(REUSE_ASPECT):
+    me = obj.data
+    surface = (positions(me).astype(float)[corner_vertices(me)[corner_triangles(me)]] if apart
+               else world_triangles(obj))
+    if abs(math.log(lightmap.texel_aspect(tri, surface))) > math.log(REUSE_ASPECT):
+        return False
+    if apart and lightmap.texel_anisotropy(tri, surface) > REUSE_ANISOTROPY:
         return False
     side = fixed_side(obj, options) or resolution([obj], {obj.name: LIGHTMAP}, options)
     return coverage_ratio(tri, side, side)[0] >= MIN_COVERAGE

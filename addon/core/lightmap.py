@@ -91,6 +91,37 @@ def density_spread(tri_uv, tri_world, quantile=0.1):
     return float(at(quantile) / median) if median > 0 else 0.0
 
 
+def texel_anisotropy(tri_uv, tri_xyz):
+    """Area-weighted median over triangles of σ₁ / σ₂, the singular values of the map from the surface (positions
+    (T, 3, 3)) to the UVs: 1 where texels are square on the surface, whatever their orientation (a box's side laid
+    out as a square though it is 4 times longer than wide: 4)."""
+    t = np.asarray(tri_xyz, float)
+    d = np.asarray(tri_uv, float)
+    e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    n1 = np.linalg.norm(e1, axis=1)
+    cross = np.linalg.norm(np.cross(e1, e2), axis=1)
+    ok = (n1 > 0) & (cross > 1e-12 * np.maximum(n1, 1e-30) ** 2)
+    if not ok.any():
+        return 1.0
+    e1, e2, n1, cross, d = e1[ok], e2[ok], n1[ok], cross[ok], d[ok]
+    x2 = np.einsum("ij,ij->i", e1, e2) / n1
+    y2 = cross / n1
+    f1, f2 = d[:, 1] - d[:, 0], d[:, 2] - d[:, 0]
+    gx = f1 / n1[:, None]
+    gy = (f2 - gx * x2[:, None]) / y2[:, None]
+    frob = (gx ** 2).sum(1) + (gy ** 2).sum(1)
+    det = np.abs(gx[:, 0] * gy[:, 1] - gx[:, 1] * gy[:, 0])
+    root = np.sqrt(np.maximum(frob ** 2 - 4 * det ** 2, 0.0))
+    s1, s2 = np.sqrt(0.5 * (frob + root)), np.sqrt(np.maximum(0.5 * (frob - root), 0.0))
+    keep = s2 > 0
+    if not keep.any():
+        return float("inf")
+    r, w = s1[keep] / s2[keep], cross[keep]
+    order = np.argsort(r)
+    c = np.cumsum(w[order])
+    return float(r[order][min(np.searchsorted(c, 0.5 * c[-1]), len(c) - 1)])
+
+
 def texel_aspect(tri_uv, tri_world):
     """Area-weighted median over triangles of |∇u| / |∇v| (∇ on the surface, UVs against positions (T, 3, 3)):
     the ratio h / w of the map sides that gives square texels on the surface. 1 for a layout made for a square map

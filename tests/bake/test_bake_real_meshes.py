@@ -652,7 +652,8 @@ def test_an_atlas_gives_objects_at_other_scales_one_texel_density(tmp_path):
     """One atlas of three unit cubes whose objects are scaled 1, 3 and (1, 1, 3) in Object Mode: unwrapped in object
     space, the cube scaled 3 got a third of the texels per metre of the other (its charts the size of a 1 m cube's);
     the copies of an atlas are stretched by their whole scale (unwrap_copy.stretch, scaled), so every face of the
-    three has one density and square texels."""
+    three has one density and square texels, also when the cube scaled 3 has a linked duplicate at scale 1 (the
+    same shape: duplicates are compared by their stretch S alone)."""
     from addon.bake import uv as uvmod
     from addon.bake.uvchecks import world_triangles
     cubes = []
@@ -660,6 +661,10 @@ def test_an_atlas_gives_objects_at_other_scales_one_texel_density(tmp_path):
         cube = added(bpy.ops.mesh.primitive_cube_add, size=1.0, location=(5 * k, 0, 0))
         cube.scale = scale
         cubes.append(cube)
+    twin = cubes[1].copy()                 # a linked duplicate of the cube scaled 3, at scale 1, not baked
+    bpy.context.scene.collection.objects.link(twin)
+    twin.location, twin.scale = (0, 5, 0), (1, 1, 1)
+    bpy.context.view_layer.update()
     bake_lightmaps(cubes, ["ao"], tmp_path, BakeOptions(resolution=256, samples=1, atlas=True),
                    scene=bpy.context.scene)
     shapes = [_texel_shape(uvmod.triangles_uv(o, "Lightmap").astype(float), world_triangles(o)) for o in cubes]
@@ -694,7 +699,8 @@ def test_linked_duplicates_stretched_differently_keep_one_layout_whatever_came_b
     The first one is baked while it is the mesh's only user (its layer made for its shape, kept, and cached in its
     folder); once the second one shares the mesh, the layer both get is the one a fresh bake of both gives, also
     from that folder's cache (unwrap_copy.Stretches) and from the kept layer, and baking the second one alone
-    leaves it as it is."""
+    leaves it as it is. In that folder the first one's map, baked through its own old layout, is baked again (its
+    inputs say its mesh is now shared by an object stretched differently), not kept as unchanged."""
     from addon.bake import uv as uvmod
     a = added(bpy.ops.mesh.primitive_cube_add, size=1.0)
     a.name, a.scale = "Tall", (1.0, 1.0, 4.0)
@@ -708,10 +714,13 @@ def test_linked_duplicates_stretched_differently_keep_one_layout_whatever_came_b
     b.name, b.location, b.scale = "Wide", (5.0, 0.0, 0.0), (4.0, 1.0, 1.0)
     bpy.context.view_layer.update()
     layers = {}
-    for case, folder, drop in (("kept layer", "kept", False), ("cache", "alone", True), ("fresh", "fresh", True)):
+    for case, folder, drop in (("kept layer", "kept", False), ("cache", "alone", True), ("fresh", "fresh", True),
+                               ("fresh layer kept for 128²", "kept128", False)):
         if drop:
             a.data.uv_layers.remove(a.data.uv_layers["Lightmap"])
-        bake_lightmaps([a, b], ["ao"], tmp_path / folder, opts, scene=scene)
+        rep = bake_lightmaps([a, b], ["ao"], tmp_path / folder,
+                             opts.replace(resolution=128) if folder == "kept128" else opts, scene=scene)
+        assert set(rep["objects"]) == {"Tall", "Wide"} and not rep["unchanged"], case
         layers[case] = uvmod.corner_uv(a.data, "Lightmap").copy()
     bake_lightmaps([b], ["ao"], tmp_path / "wide", opts, scene=scene)
     layers["wide alone"] = uvmod.corner_uv(a.data, "Lightmap").copy()

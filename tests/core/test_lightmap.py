@@ -344,6 +344,24 @@ def test_texel_aspect_of_a_stretched_layout_is_its_stretch():
     assert lm.texel_aspect(uv2 * [side / w, side / h], world) == pytest.approx(h / w, rel=1e-9)
 
 
+def test_texel_anisotropy_is_the_stretch_whatever_its_direction():
+    """The tilted 3 x 2 m rectangle of the test above, mapped isometrically: anisotropy 1; its UVs scaled 4 along u,
+    or half of its triangles scaled 4 along u and the other half 4 along v: 4 (texel_aspect, which reads the
+    direction too, gives 4 and, for the mix, whichever half its median falls in)."""
+    u, v = np.meshgrid(np.linspace(0, 3, 7), np.linspace(0, 2, 5))
+    quads = [((i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)) for i in range(6) for j in range(4)]
+    tris = np.array([[q[0], q[1], q[2]] for q in quads] + [[q[0], q[2], q[3]] for q in quads])
+    uv2 = np.stack([u[tris[..., 1], tris[..., 0]], v[tris[..., 1], tris[..., 0]]], -1) / 4
+    c, s_ = math.cos(0.7), math.sin(0.7)
+    world = np.stack([uv2[..., 0] * 4, uv2[..., 1] * 4 * c, uv2[..., 1] * 4 * s_ + 1.0], -1)
+    assert lm.texel_anisotropy(uv2, world) == pytest.approx(1.0, abs=1e-9)
+    assert lm.texel_anisotropy(uv2 * [4, 1], world) == pytest.approx(4.0, rel=1e-9)
+    mixed = uv2.copy()
+    mixed[::2] *= [4, 1]
+    mixed[1::2] *= [1, 4]
+    assert lm.texel_anisotropy(mixed, world) == pytest.approx(4.0, rel=1e-9)
+
+
 def test_density_spread_is_the_low_quantile_density_over_the_median():
     """Three unit squares side by side on the surface, laid out at UV scales 1, 1 and 1/2 (densities 1, 1, 0.5 in
     UV length per metre): the lowest tenth of the area has density 0.5, the median 1; a uniform layout gives 1."""
