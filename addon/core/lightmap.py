@@ -91,10 +91,9 @@ def density_spread(tri_uv, tri_world, quantile=0.1):
     return float(at(quantile) / median) if median > 0 else 0.0
 
 
-def texel_anisotropy(tri_uv, tri_xyz):
-    """Area-weighted median over triangles of σ₁ / σ₂, the singular values of the map from the surface (positions
-    (T, 3, 3)) to the UVs: 1 where texels are square on the surface, whatever their orientation (a box's side laid
-    out as a square though it is 4 times longer than wide: 4)."""
+def _surface_gradients(tri_uv, tri_xyz):
+    """Per triangle with area, the UVs' derivatives along the surface (``gx``, ``gy``: (T', 2) along the frame
+    e1 / |e1|, n x e1 / |e1|: J [|e1|, x2; 0, y2] = [f1 f2]) and twice its area, or None when no triangle has any."""
     t = np.asarray(tri_xyz, float)
     d = np.asarray(tri_uv, float)
     e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
@@ -102,13 +101,29 @@ def texel_anisotropy(tri_uv, tri_xyz):
     cross = np.linalg.norm(np.cross(e1, e2), axis=1)
     ok = (n1 > 0) & (cross > 1e-12 * np.maximum(n1, 1e-30) ** 2)
     if not ok.any():
-        return 1.0
+        return None
     e1, e2, n1, cross, d = e1[ok], e2[ok], n1[ok], cross[ok], d[ok]
     x2 = np.einsum("ij,ij->i", e1, e2) / n1
     y2 = cross / n1
     f1, f2 = d[:, 1] - d[:, 0], d[:, 2] - d[:, 0]
     gx = f1 / n1[:, None]
-    gy = (f2 - gx * x2[:, None]) / y2[:, None]
+    return gx, (f2 - gx * x2[:, None]) / y2[:, None], cross
+
+
+def _weighted_median(values, weights):
+    order = np.argsort(values)
+    c = np.cumsum(weights[order])
+    return values[order][min(np.searchsorted(c, 0.5 * c[-1]), len(c) - 1)]
+
+
+def texel_anisotropy(tri_uv, tri_xyz):
+    """Area-weighted median over triangles of σ₁ / σ₂, the singular values of the map from the surface (positions
+    (T, 3, 3)) to the UVs: 1 where texels are square on the surface, whatever their orientation (a box's side laid
+    out as a square though it is 4 times longer than wide: 4)."""
+    grads = _surface_gradients(tri_uv, tri_xyz)
+    if grads is None:
+        return 1.0
+    gx, gy, area = grads
     frob = (gx ** 2).sum(1) + (gy ** 2).sum(1)
     det = np.abs(gx[:, 0] * gy[:, 1] - gx[:, 1] * gy[:, 0])
     root = np.sqrt(np.maximum(frob ** 2 - 4 * det ** 2, 0.0))
@@ -116,39 +131,23 @@ def texel_anisotropy(tri_uv, tri_xyz):
     keep = s2 > 0
     if not keep.any():
         return float("inf")
-    r, w = s1[keep] / s2[keep], cross[keep]
-    order = np.argsort(r)
-    c = np.cumsum(w[order])
-    return float(r[order][min(np.searchsorted(c, 0.5 * c[-1]), len(c) - 1)])
+    return float(_weighted_median(s1[keep] / s2[keep], area[keep]))
 
 
 def texel_aspect(tri_uv, tri_world):
     """Area-weighted median over triangles of |∇u| / |∇v| (∇ on the surface, UVs against positions (T, 3, 3)):
     the ratio h / w of the map sides that gives square texels on the surface. 1 for a layout made for a square map
     from isometric charts; h / w for such a layout carried into a w x h window (:func:`to_window`)."""
-    t = np.asarray(tri_world, float)
-    d = np.asarray(tri_uv, float)
-    e1, e2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
-    n1 = np.linalg.norm(e1, axis=1)
-    cross = np.linalg.norm(np.cross(e1, e2), axis=1)
-    ok = (n1 > 0) & (cross > 1e-12 * np.maximum(n1, 1e-30) ** 2)
-    if not ok.any():
+    grads = _surface_gradients(tri_uv, tri_world)
+    if grads is None:
         return 1.0
-    e1, e2, n1, cross, d = e1[ok], e2[ok], n1[ok], cross[ok], d[ok]
-    x2 = np.einsum("ij,ij->i", e1, e2) / n1                       # e2 in the frame (e1 / |e1|, n x e1 / |e1|)
-    y2 = cross / n1
-    f1, f2 = d[:, 1] - d[:, 0], d[:, 2] - d[:, 0]                  # J [n1, x2; 0, y2] = [f1 f2]
-    gx = f1 / n1[:, None]
-    gy = (f2 - gx * x2[:, None]) / y2[:, None]
+    gx, gy, area = grads
     grad_u = np.hypot(gx[:, 0], gy[:, 0])
     grad_v = np.hypot(gx[:, 1], gy[:, 1])
     keep = (grad_u > 0) & (grad_v > 0)
     if not keep.any():
         return 1.0
-    r, w = np.log(grad_u[keep] / grad_v[keep]), cross[keep]
-    order = np.argsort(r)
-    c = np.cumsum(w[order])
-    return float(np.exp(r[order][np.searchsorted(c, 0.5 * c[-1])]))
+    return float(np.exp(_weighted_median(np.log(grad_u[keep] / grad_v[keep]), area[keep])))
 
 
 def _texels_inside(tri_uv, width, height, strict=False, chunk=1 << 20):

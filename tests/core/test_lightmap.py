@@ -330,15 +330,20 @@ def test_a_chart_window_keeps_every_texel_of_the_charts():
     assert size[1] < 0.7 * side
 
 
-def test_texel_aspect_of_a_stretched_layout_is_its_stretch():
-    """A tilted 3 x 2 m rectangle mapped isometrically (1/4 UV per metre) has square texels on a square map
-    (aspect 1); its UVs scaled by (s/w, s/h), as :func:`to_window` does, give h / w."""
+def _tilted_rectangle():
+    """A 3 x 2 m rectangle tilted by 0.7 rad, as 48 triangles: (isometric UVs, 1/4 UV per metre; positions)."""
     u, v = np.meshgrid(np.linspace(0, 3, 7), np.linspace(0, 2, 5))
     quads = [((i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)) for i in range(6) for j in range(4)]
     tris = np.array([[q[0], q[1], q[2]] for q in quads] + [[q[0], q[2], q[3]] for q in quads])
     uv2 = np.stack([u[tris[..., 1], tris[..., 0]], v[tris[..., 1], tris[..., 0]]], -1) / 4
     c, s_ = math.cos(0.7), math.sin(0.7)
-    world = np.stack([uv2[..., 0] * 4, uv2[..., 1] * 4 * c, uv2[..., 1] * 4 * s_ + 1.0], -1)
+    return uv2, np.stack([uv2[..., 0] * 4, uv2[..., 1] * 4 * c, uv2[..., 1] * 4 * s_ + 1.0], -1)
+
+
+def test_texel_aspect_of_a_stretched_layout_is_its_stretch():
+    """A tilted 3 x 2 m rectangle mapped isometrically (1/4 UV per metre) has square texels on a square map
+    (aspect 1); its UVs scaled by (s/w, s/h), as :func:`to_window` does, give h / w."""
+    uv2, world = _tilted_rectangle()
     assert lm.texel_aspect(uv2, world) == pytest.approx(1.0, abs=1e-9)
     w, h, side = 40, 28, 40
     assert lm.texel_aspect(uv2 * [side / w, side / h], world) == pytest.approx(h / w, rel=1e-9)
@@ -348,12 +353,7 @@ def test_texel_anisotropy_is_the_stretch_whatever_its_direction():
     """The tilted 3 x 2 m rectangle of the test above, mapped isometrically: anisotropy 1; its UVs scaled 4 along u,
     or half of its triangles scaled 4 along u and the other half 4 along v: 4 (texel_aspect, which reads the
     direction too, gives 4 and, for the mix, whichever half its median falls in)."""
-    u, v = np.meshgrid(np.linspace(0, 3, 7), np.linspace(0, 2, 5))
-    quads = [((i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)) for i in range(6) for j in range(4)]
-    tris = np.array([[q[0], q[1], q[2]] for q in quads] + [[q[0], q[2], q[3]] for q in quads])
-    uv2 = np.stack([u[tris[..., 1], tris[..., 0]], v[tris[..., 1], tris[..., 0]]], -1) / 4
-    c, s_ = math.cos(0.7), math.sin(0.7)
-    world = np.stack([uv2[..., 0] * 4, uv2[..., 1] * 4 * c, uv2[..., 1] * 4 * s_ + 1.0], -1)
+    uv2, world = _tilted_rectangle()
     assert lm.texel_anisotropy(uv2, world) == pytest.approx(1.0, abs=1e-9)
     assert lm.texel_anisotropy(uv2 * [4, 1], world) == pytest.approx(4.0, rel=1e-9)
     mixed = uv2.copy()
