@@ -10,7 +10,7 @@ from ..blender.digest import node_tree_digest, rna_digest, shape_digest
 from ..blender.materials import user_material
 from ..blender.scene import corner_uv, corner_vertices, from_its_mesh, positions, subdivided_only
 from ..core.io import exr
-from . import uv as uvmod
+from . import uv as uvmod, uvcache
 from .cycles import RENDER_VARIANTS
 from .kinds import KINDS
 from .plan import map_file
@@ -49,13 +49,16 @@ def input_hash(scene, group, kind, options, lighting, parts=None):
     ``blender.scene.subdivided_only``, whose evaluated mesh is not read; the evaluated positions themselves
     change in their last bit when a UV layer is added under a Subdivision; the UVs of ``options.uv_layer`` when
     given), its transform and its materials' node trees (the user's own: ``blender.materials.user_material``), the
-    lights and world (``lighting``, :func:`lighting_digest`; a ``lit`` kind only: irradiance) and the options that
-    change the map.
+    lights and world (``lighting``, :func:`lighting_digest`; a ``lit`` kind only: irradiance), the options that
+    change the map, and for a generated layout ``uvcache.LAYOUT_VERSION`` (a version whose layouts differ bakes
+    the maps again: else a map kept as unchanged would lie on UVs the mesh no longer gets).
     Other objects are not in it: moving an occluder leaves its neighbours' maps as they are (``force`` bakes them).
     ``parts``: a dict keeping each object's part before its materials for the next kind's hash (and, under
     "stretches", the run's :class:`unwrap_copy.Stretches`)."""
     h = hashlib.blake2b(digest_size=16)
     h.update(f"{kind}:{bpy.app.version_string}".encode())
+    if options.target == "image" and not options.uv_layer:       # the layouts this version generates
+        h.update(f"layout {uvcache.LAYOUT_VERSION}".encode())
     for name in _HASHED_OPTIONS:
         h.update(f"{name}={getattr(options, name)!r};".encode())
     if KINDS[kind].lit:

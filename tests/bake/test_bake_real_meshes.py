@@ -673,6 +673,25 @@ def test_an_atlas_gives_objects_at_other_scales_one_texel_density(tmp_path):
     assert max(a.max() for _, a in shapes) < 1.01
 
 
+def test_a_layout_version_that_changes_the_layouts_bakes_the_maps_again(tmp_path, monkeypatch):
+    """A map baked through a generated layout is kept as unchanged by a rerun, and baked again once the layout
+    version changes (its layout would: a kept map would lie on UVs its mesh no longer gets); a map baked through the
+    user's own UV layer stays unchanged."""
+    from addon.bake import uvcache
+    cube = added(bpy.ops.mesh.primitive_cube_add, size=1.0)
+    cube.name = "Box"
+    cube.data.uv_layers.new(name="Mine")
+    scene = bpy.context.scene
+    generated = BakeOptions(resolution=32, samples=1, overwrite=True)
+    own = generated.replace(uv_layer="Mine")
+    for opts, folder in ((generated, "generated"), (own, "own")):
+        bake_lightmaps([cube], ["ao"], tmp_path / folder, opts, scene=scene)
+        assert bake_lightmaps([cube], ["ao"], tmp_path / folder, opts, scene=scene)["unchanged"] == {"Box": ["ao"]}
+    monkeypatch.setattr(uvcache, "LAYOUT_VERSION", uvcache.LAYOUT_VERSION + 1)
+    assert bake_lightmaps([cube], ["ao"], tmp_path / "generated", generated, scene=scene)["unchanged"] == {}
+    assert bake_lightmaps([cube], ["ao"], tmp_path / "own", own, scene=scene)["unchanged"] == {"Box": ["ao"]}
+
+
 def test_turned_linked_duplicates_of_a_large_scale_share_the_stretch_of_an_atlas(tmp_path):
     """An atlas of a cube scaled 30 and two linked duplicates of another cube scaled 100, turned differently: their
     world matrices' float32 round-off puts their P = c S about 5e-6 apart, which is one stretch
