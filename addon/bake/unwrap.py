@@ -28,7 +28,7 @@ from . import unwrap_merge, uvchecks
 from .options import article
 from .uv import (LIGHTMAP, MAX_UV_LAYERS, _Made, _dilation, _say_enlarged, _write_layer, fixed_side, resolution,
                  triangles_uv, world_area)
-from .unwrap_copy import canonical_copy, smoothed_copy, stretch, unwrap_scale
+from .unwrap_copy import Stretches, canonical_copy, smoothed_copy, unwrap_scale
 from .uvchecks import (MIN_COVERAGE, _disjoint, _fits, _outside, _overlap, _overlapping, baked_fill, chart_area,
                        density_spread)
 
@@ -273,7 +273,7 @@ class _Copies:
 
     def __init__(self, group, state, weld=True, texel=None, linears=None):
         self.group, self.state, self.weld, self.texel = list(group), state, weld, texel
-        self.linears = linears   # per copy: its stretch (unwrap_copy.Stretches.of), or None for the object's own
+        self.linears = linears   # per copy: its stretch (unwrap_copy.Stretches.of; made here when not given)
         self.scratch = None      # the scene the copies live in (the user's scene and its depsgraph never see them)
         self.copies = []
         self.loops = []          # per copy: the original mesh's loop of each of the copy's loops
@@ -296,14 +296,15 @@ class _Copies:
                                      f"UV layer (make it local)")
         try:
             self.scratch = self.state.track(bpy.data.scenes, bpy.data.scenes.new("IL unwrap"))
-            linears = self.linears or [stretch(o.matrix_world, len(self.group) > 1) for o in self.group]
+            shared = Stretches()
+            linears = self.linears or [shared.of(o, len(self.group) > 1) for o in self.group]
             scale = unwrap_scale([o.data for o in self.group], linears)
             for o, stretched in zip(self.group, linears):
                 tmp = self.state.track(bpy.data.meshes, bpy.data.meshes.new(f"IL unwrap {o.data.name}"))
                 loops, welded = canonical_copy(o.data, tmp, scale, self.weld, stretched)
                 matrix = o.matrix_world.copy()
                 if stretched is not None:            # the copy's world is the object's: M S⁻¹ on S-stretched vertices
-                    matrix = Matrix((np.array(matrix, float) @ _affine(np.linalg.inv(stretched))).tolist())
+                    matrix = matrix @ Matrix(np.linalg.inv(stretched).tolist()).to_4x4()
                 self.smooth.append(smoothed_copy(tmp, matrix, scale, self.texel))
                 self.loops.append(loops)
                 if welded:
@@ -633,13 +634,6 @@ class _Copies:
     def _uvs(temps):
         """[(flat float32 "Lightmap" UVs,)] of the copies (the shape :meth:`_write` takes)."""
         return [(corner_uv(obj.data, LIGHTMAP).ravel(),) for obj in temps]
-
-
-def _affine(linear):
-    """The 4 x 4 matrix of the 3 x 3 ``linear``."""
-    out = np.eye(4)
-    out[:3, :3] = linear
-    return out
 
 
 @contextlib.contextmanager

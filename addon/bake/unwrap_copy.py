@@ -22,13 +22,18 @@ UNWRAP_BAND = 64.0
 1e-5 to 1e4 m unwrap alike."""
 
 
-def mesh_area(me, linear=None):
-    """Surface area of mesh ``me`` in object space (its own units, no transform), or with its vertices × the 3 x 3
-    ``linear``."""
+def mesh_triangles(me, linear=None):
+    """(T, 3, 3) loop triangles of mesh ``me`` in object space (its own units, no transform), or with its vertices ×
+    the 3 x 3 ``linear``."""
     co = positions(me).astype(float)
     if linear is not None:
         co = co @ linear.T
-    return float(triangle_areas(co[corner_vertices(me)[corner_triangles(me)]]).sum())
+    return co[corner_vertices(me)[corner_triangles(me)]]
+
+
+def mesh_area(me, linear=None):
+    """Surface area of :func:`mesh_triangles`."""
+    return float(triangle_areas(mesh_triangles(me, linear)).sum())
 
 
 def unwrap_scale(meshes, linears=None):

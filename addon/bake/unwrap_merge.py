@@ -71,21 +71,13 @@ def layouts(obj, edit, reference):
 
 def _edge_keys(me, surf):
     """Each bmesh edge's :class:`core.merging.Surface` edge (by its two vertices)."""
-    ends = np.sort(np.stack([surf.vertex, surf.vertex[_after(surf)]], axis=1), axis=1)
-    number = {(int(a), int(b)): int(e) for (a, b), e in zip(ends, surf.corner_edge)}
+    number = {(int(a), int(b)): e for e, (a, b) in enumerate(surf.edge_vertices)}
     bm = bmesh.new()
     try:
         bm.from_mesh(me)
         return [number.get(tuple(sorted((e.verts[0].index, e.verts[1].index))), -1) for e in bm.edges]
     finally:
         bm.free()
-
-
-def _after(surf):
-    """Per corner, the next corner of its face."""
-    start = np.flatnonzero(np.r_[True, surf.owner[1:] != surf.owner[:-1]])
-    total = np.diff(np.r_[start, len(surf.owner)])
-    return corner_next(start, total)
 
 
 def _seams(me, edges, surf, labels, selected):

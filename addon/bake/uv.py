@@ -21,7 +21,7 @@ from ..core import errors, lightmap
 from ..core.memo import FIGURES, digest
 from ..core.errors import InputError
 from . import uvcache
-from .unwrap_copy import Stretches
+from .unwrap_copy import Stretches, mesh_triangles
 from .options import article
 
 LIGHTMAP = "Lightmap"
@@ -429,9 +429,7 @@ def _reusable(obj, options, apart=False):
     tri = triangles_uv(obj, LIGHTMAP)
     if _outside(tri):
         return False
-    me = obj.data
-    surface = (positions(me).astype(float)[corner_vertices(me)[corner_triangles(me)]] if apart
-               else world_triangles(obj))
+    surface = mesh_triangles(obj.data) if apart else world_triangles(obj)
     if abs(math.log(lightmap.texel_aspect(tri, surface))) > math.log(REUSE_ASPECT):
         return False
     if apart and lightmap.texel_anisotropy(tri, surface) > REUSE_ANISOTROPY:

@@ -34,13 +34,14 @@ FOLDED = 0.002
 
 @dataclasses.dataclass
 class Surface:
-    """A mesh as a merge reads it: per corner its face (``owner``) and vertex, per edge (vertex pairs, numbered by
-    :func:`surface`) the two faces that share it (-1: a border or non-manifold edge), its length and the cosine of the
-    angle between those faces' normals (-1 without two faces), per triangle (corner indices ``tri``) its face and 3D
-    area."""
+    """A mesh as a merge reads it: per corner its face (``owner``) and vertex, per edge (numbered by :func:`surface`)
+    its two vertices (lower first), the two faces that share it (-1: a border or non-manifold edge), its length and
+    the cosine of the angle between those faces' normals (-1 without two faces), per triangle (corner indices
+    ``tri``) its face and 3D area."""
     owner: np.ndarray
     vertex: np.ndarray
     corner_edge: np.ndarray
+    edge_vertices: np.ndarray
     edge_faces: np.ndarray
     edge_length: np.ndarray
     edge_cos: np.ndarray
@@ -67,7 +68,7 @@ def surface(owner, vertex, after, co, tri, tri_face):
     v = ends[first]
     length = np.linalg.norm(co[v[:, 0]] - co[v[:, 1]], axis=1)
     tri = np.asarray(tri, np.int64).reshape(-1, 3)
-    return Surface(owner, vertex, corner_edge, edge_faces, length, _edge_cos(co, owner, vertex, after, edge_faces),
+    return Surface(owner, vertex, corner_edge, v, edge_faces, length, _edge_cos(co, owner, vertex, after, edge_faces),
                    tri, np.asarray(tri_face, np.int64), triangle_areas(co[vertex[tri]]))
 
 
