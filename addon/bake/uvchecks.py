@@ -295,6 +295,10 @@ HINT_SLACK = 0.05
 more (the model's side for FILL itself where that gives none): a layout's fill moves by a few points from one side to
 the next (charts joined or not, packed in other places; measured on a cylinder with 2-texel margins: 0.508 at 6
 texels/m with its charts joined, then 0.505, 0.525, 0.552 at 6.84, 7.5, 8)."""
+SLACK_REACH = 2.0
+"""The side for HINT_SLACK more is named only up to this many times the side for FILL: beyond, the layout is near the
+fill its charts' shapes allow with no margins, where the model's side runs away (a UV sphere at 256², 0.536 of its map
+in 2 charts: 7,633 for 60 %, 328 for 55 %, which fills 0.567)."""
 
 
 def fill(group, width, height=None):
@@ -340,8 +344,10 @@ def low_fill(group, size, margin, options):
     covered = have * w * h
     goal = FILL_HINT if have < FILL_HINT else FILL
     per_chart, asked = covered / max(charts, 1), float(options.margin)
-    need = ((side_for_fill(have, side, per_chart, margin, asked, goal + HINT_SLACK) if goal == FILL else None)
-            or side_for_fill(have, side, per_chart, margin, asked, goal))
+    need = side_for_fill(have, side, per_chart, margin, asked, goal)
+    if goal == FILL and need:
+        more = side_for_fill(have, side, per_chart, margin, asked, goal + HINT_SLACK)
+        need = more if more and more <= SLACK_REACH * need else need
     cause = (f"{covered / max(tris, 1):.2g} texels per triangle" if covered < 4 * tris else
              f"{covered / max(charts, 1):.3g} texels per chart, {charts} charts with {margin:g}-texel margins")
     if need and need <= lightmap.MAX_RESOLUTION:
