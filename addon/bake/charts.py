@@ -3,9 +3,9 @@ import math
 
 import numpy as np
 
-from ..blender.scene import corner_uv, corner_vertices, face_starts, positions
+from ..blender.scene import corner_triangles, corner_uv, corner_vertices, face_starts, positions
 from ..core.memo import FIGURES
-from ..core.pack import chart_labels
+from ..core.pack import chart_labels, side_that_fills
 from ..core.seams import welded
 
 
@@ -44,3 +44,26 @@ def side_for_fill(have, side, per_chart, margin, asked, goal):
     r = math.sqrt(goal / e)
     want = 2 * max(asked, 0.5) * r / (1 - r)
     return max(side + 1, math.ceil(side * want / s))
+
+
+def packed_side(group, layer, side, margin, goal, cap, work):
+    """:func:`core.pack.side_that_fills` of the group's charts in ``layer`` (faces joined as :func:`chart_count`
+    joins them): the least side up to ``cap`` at which they, placed by their texels with ``margin`` texels, cover
+    ``goal`` of the map, or None."""
+    tri, labels, count = [], [], 0
+    for o in group:
+        me = o.data
+        tris = corner_triangles(me).astype(np.int64)
+        if not len(tris):
+            continue
+        corners = tris.ravel()
+        vert = first_at_position(positions(me))[corner_vertices(me)]
+        uv = corner_uv(me, layer)
+        label = chart_labels(np.repeat(np.arange(len(tris)), 3), vert[corners], uv[corners])
+        tri.append(uv[tris])
+        labels.append(label + count)
+        count += int(label.max()) + 1
+    if not count:
+        return None
+    return FIGURES.call(side_that_fills, np.concatenate(tri), np.concatenate(labels), int(side), float(margin),
+                        float(goal), int(cap), float(work))

@@ -16,7 +16,7 @@ from ..blender.scene import corner_triangles, corner_vertices, positions
 from . import evaluated
 from ..core.margins import footprint_gap, margin_from_gap
 from ..core.pack import spacing
-from .charts import chart_count, first_at_position, side_for_fill
+from .charts import chart_count, first_at_position, packed_side, side_for_fill
 from .options import article
 from .uv import (LIGHTMAP, corners as uv_corners, group_triangles_uv, mesh_triangles_uv, triangles_uv, window,
                  world_area, world_triangles)
@@ -300,6 +300,13 @@ SLACK_REACH = 2.0
 fill its charts' shapes allow with no margins, where the model's side runs away (a UV sphere at 256², 0.536 of its map
 in 2 charts: 7,633 for 60 %, 328 for 55 %, which fills 0.567)."""
 
+HINT_REACH = 16
+HINT_WORK = 20_000
+"""Where the margin model finds no side (its charts would fill under the goal with no margins at all, as packed at
+this side), the side named is measured: the charts placed by their texels (:func:`charts.packed_side`) at sides up to
+HINT_REACH times the map's, while charts × side is at most HINT_WORK. The level's props 15-24 texels wide, their
+Smart UV Project charts packed by their boxes, were told that no resolution fills 50 %; at 128-256 they fill 0.51-0.56."""
+
 
 def fill(group, width, height=None):
     """Covered texels (centre rule) / map texels of the group's "Lightmap" layers in a width x height map (square
@@ -330,7 +337,7 @@ def low_fill(group, size, margin, options):
     (width, height: the map's final size; ``margin`` the charts' margin in its texels), else None:
     its fill, covered texels per triangle or per chart, and the side (and texel density) that reaches FILL_HINT
     (FILL from above FILL_HINT, for HINT_SLACK more) by :func:`charts.side_for_fill` (of a square map of as many
-    texels). The texel
+    texels), or where that finds none, measured by :func:`charts.packed_side` (HINT_REACH, HINT_WORK). The texel
     density T is the one whose layout covers that fill of such a map: covered texels = T² × world area = goal × side²
     (the layout's chart area at the side it fills, not at this side, where margins take more of it)."""
     w, h = size
@@ -350,12 +357,16 @@ def low_fill(group, size, margin, options):
         need = more if more and more <= SLACK_REACH * need else need
     cause = (f"{covered / max(tris, 1):.2g} texels per triangle" if covered < 4 * tris else
              f"{covered / max(charts, 1):.3g} texels per chart, {charts} charts with {margin:g}-texel margins")
-    if need and need <= lightmap.MAX_RESOLUTION:
+    cap = min(lightmap.MAX_RESOLUTION, HINT_REACH * side)
+    if not need or need > lightmap.MAX_RESOLUTION:
+        need = packed_side(group, LIGHTMAP, side, asked, goal, cap, HINT_WORK)
+    if need:
         area = sum(world_area(o) for o in group)
         density = f" (about {need * math.sqrt(goal / area):.3g} texels/m)" if area else ""
         hint = f"a resolution of about {need}{density} fills {100 * goal:.0f} %"
     else:
-        hint = f"no resolution fills {100 * goal:.0f} % (merge or simplify the faces, or use an atlas)"
+        hint = (f"no resolution up to {cap} was found to fill {100 * goal:.0f} % (merge or simplify the faces, or use "
+                f"an atlas)")
     line = f"{label}: light-map charts cover only {100 * have:.1f} % of the {w}x{h} map ({cause}); {hint}"
     errors.warn(line)
     return line

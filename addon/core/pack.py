@@ -353,6 +353,41 @@ def largest(tri, labels, side, margin, start=1.0, steps=5):
     return best
 
 
+def side_that_fills(tri, labels, side, margin, goal, cap, work=math.inf):
+    """The least map side in (``side``, ``cap``] at which the charts (``labels`` of the triangles ``tri``, UVs of a
+    ``side``² map), placed by their texels with ``margin`` texels (:func:`pack`) at the scale at which their covered
+    texels are ``goal`` of the map, find a place: doubling, then bisection to an eighth of the side; None when no side up to ``cap`` does, or
+    once charts × side passes ``work``."""
+    tri = np.asarray(tri, float).reshape(-1, 3, 2)
+    labels = np.asarray(labels, np.int64)
+    charts = int(labels.max()) + 1 if len(labels) else 0
+
+    def fills(n):
+        have = float(coverage_mask(tri, n, n).sum())
+        scale = math.sqrt(goal * n * n / have) if have else 0.0
+        for _ in range(2):                 # the texels a chart covers grow with the square of its scale, about
+            got = pack(tri, labels, n, margin, scale) if scale else None
+            if got is None:
+                return False
+            if got.covered >= goal * n * n:
+                return True
+            scale *= math.sqrt(goal * n * n / max(got.covered, 1))
+        return False
+
+    low, high = side, None
+    while high is None and low < cap:
+        n = min(2 * low, cap)
+        if not charts or charts * n > work:
+            return None
+        low, high = (low, n) if fills(n) else (n, None)
+    if high is None:
+        return None
+    while high - low > max(1, high // 8):
+        mid = (low + high) // 2
+        low, high = (low, mid) if fills(mid) else (mid, high)
+    return high
+
+
 def lowest(tri, labels, side, margin):
     """:class:`Packing` of the charts at their size (the same texels per UV unit) in a ``side``² map, or None when
     one finds no place. Each chart takes the place whose top is lowest, so the charts stay in the fewest rows this

@@ -170,3 +170,23 @@ def test_a_footprint_grows_by_chessboard_distance_and_pools_its_fine_texels():
         assert np.array_equal(pack._grown(mask, r), want)
         fine = rng.random((pack.FINE * h, pack.FINE * w)) < 0.05
         assert np.array_equal(pack._pooled(fine), fine.reshape(h, pack.FINE, w, pack.FINE).any(axis=(1, 3)))
+
+
+def test_the_side_that_fills_is_the_least_at_which_a_packing_of_the_charts_covers_the_goal():
+    """The six charts at 24² with 2-texel margins: pack.side_that_fills names a side at which pack.largest (its own
+    bisection on the scale) covers the goal, no less than the least such side found by trying every side (the
+    reference) and at most twice it (a greedy packing's fill moves by ±0.03 from one side to the next, so the least
+    side is not sharper than its doubling); None when the cap is under that side or the work limit is passed."""
+    tris, vert, uv = _layout()
+    labels = _labels(tris, vert, uv)
+    t, margin, goal = uv[tris], 2.0, 0.45
+
+    def fills(n):
+        got = pack.largest(t, labels, n, margin)
+        return got is not None and got.covered >= goal * n * n
+
+    least = next(n for n in range(25, 400) if fills(n))
+    named = pack.side_that_fills(t, labels, 24, margin, goal, 400)
+    assert fills(named) and least <= named <= 2 * least, (least, named)
+    assert pack.side_that_fills(t, labels, 24, margin, goal, least - 1) is None
+    assert pack.side_that_fills(t, labels, 24, margin, goal, 400, work=6 * (least - 1)) is None
