@@ -358,7 +358,7 @@ def low_fill(group, size, margin, options):
     cause = (f"{covered / max(tris, 1):.2g} texels per triangle" if covered < 4 * tris else
              f"{covered / max(charts, 1):.3g} texels per chart, {charts} charts with {margin:g}-texel margins")
     cap = min(lightmap.MAX_RESOLUTION, HINT_REACH * side)
-    if not need or need > lightmap.MAX_RESOLUTION:
+    if (not need or need > lightmap.MAX_RESOLUTION) and charts * 2 * side <= HINT_WORK:
         need = packed_side(group, LIGHTMAP, side, asked, goal, cap, HINT_WORK)
     if need:
         area = sum(world_area(o) for o in group)
