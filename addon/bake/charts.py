@@ -46,10 +46,13 @@ def side_for_fill(have, side, per_chart, margin, asked, goal):
     return max(side + 1, math.ceil(side * want / s))
 
 
-def packed_side(group, layer, side, margin, goal, cap, work):
+def packed_side(group, layer, size, margin, goal, cap, work):
     """:func:`core.pack.side_that_fills` of the group's charts in ``layer`` (faces joined as :func:`chart_count`
-    joins them): the least side up to ``cap`` at which they, placed by their texels with ``margin`` texels, cover
-    ``goal`` of the map, or None."""
+    joins them) on a map of ``size`` (w, h; a window's UVs are taken to its texels, so the charts keep their shape in
+    a square map of as many texels): the side up to ``cap`` at which they, placed by their texels with ``margin``
+    texels, cover ``goal`` of the map, or None."""
+    w, h = size
+    side = max(1, round(math.sqrt(w * h)))
     tri, labels, count = [], [], 0
     for o in group:
         me = o.data
@@ -60,10 +63,10 @@ def packed_side(group, layer, side, margin, goal, cap, work):
         vert = first_at_position(positions(me))[corner_vertices(me)]
         uv = corner_uv(me, layer)
         label = chart_labels(np.repeat(np.arange(len(tris)), 3), vert[corners], uv[corners])
-        tri.append(uv[tris])
+        tri.append(uv[tris] * (w / side, h / side))
         labels.append(label + count)
         count += int(label.max()) + 1
     if not count:
         return None
-    return FIGURES.call(side_that_fills, np.concatenate(tri), np.concatenate(labels), int(side), float(margin),
-                        float(goal), int(cap), float(work))
+    return FIGURES.call(side_that_fills, np.concatenate(tri), np.concatenate(labels), side, float(margin),
+                        float(goal), int(cap), float(work)) or None

@@ -301,11 +301,13 @@ fill its charts' shapes allow with no margins, where the model's side runs away 
 in 2 charts: 7,633 for 60 %, 328 for 55 %, which fills 0.567)."""
 
 HINT_REACH = 16
+HINT_SIDE = 512
 HINT_WORK = 20_000
 """Where the margin model finds no side (its charts would fill under the goal with no margins at all, as packed at
 this side), the side named is measured: the charts placed by their texels (:func:`charts.packed_side`) at sides up to
-HINT_REACH times the map's, while charts × side is at most HINT_WORK. The level's props 15-24 texels wide, their
-Smart UV Project charts packed by their boxes, were told that no resolution fills 50 %; at 128-256 they fill 0.51-0.56."""
+HINT_REACH times the map's and at most HINT_SIDE (a packing's cost grows with the square of its side), while charts ×
+side is at most HINT_WORK. The level's props 15-24 texels wide, their Smart UV Project charts packed by their boxes,
+were told that no resolution fills 50 %; at 128-256 they fill 0.51-0.56."""
 
 
 def fill(group, width, height=None):
@@ -357,16 +359,15 @@ def low_fill(group, size, margin, options):
         need = more if more and more <= SLACK_REACH * need else need
     cause = (f"{covered / max(tris, 1):.2g} texels per triangle" if covered < 4 * tris else
              f"{covered / max(charts, 1):.3g} texels per chart, {charts} charts with {margin:g}-texel margins")
-    cap = min(lightmap.MAX_RESOLUTION, HINT_REACH * side)
     if (not need or need > lightmap.MAX_RESOLUTION) and charts * 2 * side <= HINT_WORK:
-        need = packed_side(group, LIGHTMAP, side, asked, goal, cap, HINT_WORK)
-    if need:
+        cap = min(lightmap.MAX_RESOLUTION, HINT_REACH * side, HINT_SIDE)
+        need = packed_side(group, LIGHTMAP, size, asked, goal, cap, HINT_WORK)
+    if need and need <= lightmap.MAX_RESOLUTION:
         area = sum(world_area(o) for o in group)
         density = f" (about {need * math.sqrt(goal / area):.3g} texels/m)" if area else ""
         hint = f"a resolution of about {need}{density} fills {100 * goal:.0f} %"
     else:
-        hint = (f"no resolution up to {cap} was found to fill {100 * goal:.0f} % (merge or simplify the faces, or use "
-                f"an atlas)")
+        hint = f"no resolution was found that fills {100 * goal:.0f} % (merge or simplify the faces, or use an atlas)"
     line = f"{label}: light-map charts cover only {100 * have:.1f} % of the {w}x{h} map ({cause}); {hint}"
     errors.warn(line)
     return line

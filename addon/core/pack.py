@@ -354,19 +354,28 @@ def largest(tri, labels, side, margin, start=1.0, steps=5):
 
 
 def side_that_fills(tri, labels, side, margin, goal, cap, work=math.inf):
-    """The least map side in (``side``, ``cap``] at which the charts (``labels`` of the triangles ``tri``, UVs of a
-    ``side``² map), placed by their texels with ``margin`` texels (:func:`pack`) at the scale at which their covered
-    texels are ``goal`` of the map, find a place: doubling, then bisection to an eighth of the side; None when no side up to ``cap`` does, or
-    once charts × side passes ``work``."""
+    """A map side in (``side``, ``cap``] at which the charts (``labels`` of the triangles ``tri``, UVs of a ``side``²
+    map), placed by their texels with ``margin`` texels (:func:`pack`) at the scale at which their triangles cover
+    ``goal`` of the map, find a place and cover it: doubling, then bisection to an eighth of the side. The fill is not
+    monotone in the side (a greedy placement on a raster): the side named fills, the one an eighth below it did not,
+    a smaller one may. 0 (not None: a memo keeps it) when no side up to ``cap`` does, or once charts × side passes
+    ``work``; a side at which a chart's box, so scaled, is wider than the map is not packed."""
     tri = np.asarray(tri, float).reshape(-1, 3, 2)
     labels = np.asarray(labels, np.int64)
-    charts = int(labels.max()) + 1 if len(labels) else 0
+    side, cap = max(1, int(side)), int(cap)
+    charts = _charts(labels)
+    e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    area = float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum()) / 2
+    if not charts or not area > 0:
+        return 0
+    extent = max(float(np.ptp(tri[c].reshape(-1, 2), axis=0).max()) for c in charts)
 
     def fills(n):
-        have = float(coverage_mask(tri, n, n).sum())
-        scale = math.sqrt(goal * n * n / have) if have else 0.0
+        scale = math.sqrt(goal / area)
         for _ in range(2):                 # the texels a chart covers grow with the square of its scale, about
-            got = pack(tri, labels, n, margin, scale) if scale else None
+            if scale * extent > 1:
+                return False
+            got = pack(tri, labels, n, margin, scale)
             if got is None:
                 return False
             if got.covered >= goal * n * n:
@@ -377,11 +386,11 @@ def side_that_fills(tri, labels, side, margin, goal, cap, work=math.inf):
     low, high = side, None
     while high is None and low < cap:
         n = min(2 * low, cap)
-        if not charts or charts * n > work:
-            return None
+        if len(charts) * n > work:
+            return 0
         low, high = (low, n) if fills(n) else (n, None)
     if high is None:
-        return None
+        return 0
     while high - low > max(1, high // 8):
         mid = (low + high) // 2
         low, high = (low, mid) if fills(mid) else (mid, high)

@@ -172,21 +172,34 @@ def test_a_footprint_grows_by_chessboard_distance_and_pools_its_fine_texels():
         assert np.array_equal(pack._pooled(fine), fine.reshape(h, pack.FINE, w, pack.FINE).any(axis=(1, 3)))
 
 
-def test_the_side_that_fills_is_the_least_at_which_a_packing_of_the_charts_covers_the_goal():
-    """The six charts at 24² with 2-texel margins: pack.side_that_fills names a side at which pack.largest (its own
-    bisection on the scale) covers the goal, no less than the least such side found by trying every side (the
-    reference) and at most twice it (a greedy packing's fill moves by ±0.03 from one side to the next, so the least
-    side is not sharper than its doubling); None when the cap is under that side or the work limit is passed."""
+def test_the_side_that_fills_is_the_least_at_which_a_packing_of_the_charts_covers_the_goal(monkeypatch):
+    """The six charts at 24² with 2-texel margins: pack.side_that_fills names a side at which a packing of them at one
+    scale covers the goal (the reference: pack.pack at 61 scales around the one at which their triangles' area is
+    the goal), no less than the least such side and at most twice it (a greedy packing's fill moves by ±0.03 from one
+    side to the next, so the least side is not sharper than its doubling), never above the cap; 0 when the cap is
+    under that side or the work limit is passed. One strip 10 times longer than wide covers a tenth of a square at
+    the most: 0, at once."""
     tris, vert, uv = _layout()
     labels = _labels(tris, vert, uv)
     t, margin, goal = uv[tris], 2.0, 0.45
+    area = float(lightmap.triangle_areas(np.concatenate([t, np.zeros(t.shape[:2] + (1,))], axis=2)).sum())
 
     def fills(n):
-        got = pack.largest(t, labels, n, margin)
-        return got is not None and got.covered >= goal * n * n
+        for f in np.linspace(0.85, 1.15, 61):
+            got = pack.pack(t, labels, n, margin, f * np.sqrt(goal / area))
+            if got is not None and got.covered >= goal * n * n:
+                return True
+        return False
 
     least = next(n for n in range(25, 400) if fills(n))
     named = pack.side_that_fills(t, labels, 24, margin, goal, 400)
     assert fills(named) and least <= named <= 2 * least, (least, named)
-    assert pack.side_that_fills(t, labels, 24, margin, goal, least - 1) is None
-    assert pack.side_that_fills(t, labels, 24, margin, goal, 400, work=6 * (least - 1)) is None
+    for cap in (least + 3, 50, 2 * least - 1, 100):               # not 24 × 2^k
+        got = pack.side_that_fills(t, labels, 24, margin, goal, cap)
+        assert got == 0 or (fills(got) and least <= got <= cap), (cap, got)
+    assert pack.side_that_fills(t, labels, 24, margin, goal, least - 1) == 0
+    assert pack.side_that_fills(t, labels, 24, margin, goal, 400, work=6 * (least - 1)) == 0
+    strip = np.array([[(0, 0), (1, 0), (1, 0.1)], [(0, 0), (1, 0.1), (0, 0.1)]])
+    packed = []
+    monkeypatch.setattr(pack, "pack", lambda *a: packed.append(a[2]))
+    assert pack.side_that_fills(strip, np.zeros(2, np.int64), 16, margin, 0.2, 16384) == 0 and packed == []
