@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from .lightmap import coverage_mask
+from .lightmap import coverage_mask, uv_area
 from .rows import unique_rows
 
 FINE = 3
@@ -364,8 +364,7 @@ def side_that_fills(tri, labels, side, margin, goal, cap, work=math.inf):
     labels = np.asarray(labels, np.int64)
     side, cap = max(1, int(side)), int(cap)
     charts = _charts(labels)
-    e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-    area = float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum()) / 2
+    area = uv_area(tri)
     if not charts or not area > 0:
         return 0
     extent = max(float(np.ptp(tri[c].reshape(-1, 2), axis=0).max()) for c in charts)

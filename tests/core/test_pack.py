@@ -182,7 +182,7 @@ def test_the_side_that_fills_is_the_least_at_which_a_packing_of_the_charts_cover
     tris, vert, uv = _layout()
     labels = _labels(tris, vert, uv)
     t, margin, goal = uv[tris], 2.0, 0.45
-    area = float(lightmap.triangle_areas(np.concatenate([t, np.zeros(t.shape[:2] + (1,))], axis=2)).sum())
+    area = lightmap.uv_area(t)
 
     def fills(n):
         for f in np.linspace(0.85, 1.15, 61):
