@@ -341,10 +341,11 @@ def _from_entry(group, entry, state, options):
                  entry.enlarged_from, window=entry.window)
 
 
-WINDOW_ASPECT = 0.9
-"""A layout is carried into a window of its map (:func:`_cut_window`) when the window's sides differ by more than
-this ratio (Blender's packers fill one side of the square: a UV sphere's Smart UV Project layout 0.70 of the other,
-a cylinder's 0.83)."""
+WINDOW_AREA = 0.9
+"""A layout is carried into a window of its map (:func:`_cut_window`) when the window holds at most this share of
+the square's texels (Blender's packers fill one side of the square: a UV sphere's Smart UV Project layout 0.70 of
+the other, a cylinder's 0.83; a layout whose charts lie in a square in a corner of the map was baked in the whole
+square)."""
 REUSE_ANISOTROPY = 1.5
 """Most texel anisotropy (:func:`core.lightmap.texel_anisotropy`) on the mesh as it is of a layer reused for linked
 duplicates that stand stretched differently (:func:`_reusable`): Smart UV Project's layouts 1.0, joined charts
@@ -352,15 +353,16 @@ duplicates that stand stretched differently (:func:`_reusable`): Smart UV Projec
 REUSE_ASPECT = 1.08
 """An earlier "Lightmap" layer is reused for a square map only when its texels are square to this ratio
 (:func:`core.lightmap.texel_aspect`; measured 0.968-1.003 on Smart UV Project layouts made for a square, 1.065 on a
-UV sphere's Lightmap Pack layout at 256², 0.71-0.83 on layouts carried into windows, which are at least
-1 / WINDOW_ASPECT = 1.11 from square)."""
+UV sphere's Lightmap Pack layout at 256², 0.71-0.83 on layouts carried into windows whose sides differ; a layout
+carried into a square window has square texels in a square map, and is reused as such)."""
 
 
 def window(tri, side, margin):
     """(lo, size) of :func:`core.lightmap.chart_window` of the charts ``tri`` at ``side`` with ``margin`` texels
-    around them when its sides differ by more than WINDOW_ASPECT (the map is cut to it), else None (kept square)."""
+    around them when it holds at most WINDOW_AREA of the ``side``² texels (the map is cut to it), else None (kept
+    square)."""
     lo, size = lightmap.chart_window(tri, side, margin)
-    return None if min(size) > WINDOW_ASPECT * max(size) else (lo, size)
+    return None if int(size[0]) * int(size[1]) > WINDOW_AREA * side * side else (lo, size)
 
 
 def group_triangles_uv(group):
@@ -372,8 +374,8 @@ def _cut_window(group, made, state, names, options):
     """With a texel density (the bake chooses the map's size), carry the group's generated layout into the window
     of whole texels that holds its charts and their margins (:func:`core.lightmap.chart_window`) at the side S its
     map gets (the texel-density side, at least the layout's): the map becomes width x height, the same texels
-    (every texel centre keeps its place against the charts) without the empty strip the packer left. Kept square
-    when the window's sides are within WINDOW_ASPECT (a fixed resolution is always square)."""
+    (every texel centre keeps its place against the charts) without the empty texels the packer left. Kept square
+    when the window holds more than WINDOW_AREA of the square (a fixed resolution is always square)."""
     from .uvchecks import _disjoint
     if options.texel_density is None or options.sizes:
         return made
