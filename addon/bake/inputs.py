@@ -89,6 +89,8 @@ def _object_part(o, options, depsgraph, stretches):
     out.append(np.array(o.matrix_world, np.float64).tobytes())
     me = o.data
     out += [positions(me).tobytes(), corner_vertices(me)[uvmod.corners(me)].tobytes()]
+    if options.target == "image" and not options.uv_layer and not options.atlas:
+        out.append(uvmod.own_uvs(me))         # a generated layout may be the charts of the mesh's own layers
     subdivided = subdivided_only(o)             # the mesh and the settings hashed give the evaluated mesh
     for mod in o.modifiers:
         if mod.show_render or (subdivided and mod.show_viewport):

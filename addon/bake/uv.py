@@ -26,12 +26,27 @@ from .options import article
 
 LIGHTMAP = "Lightmap"
 MAX_UV_LAYERS = 8
+OWN_LAYERS = 4
+"""Most of a mesh's own UV layers whose charts a generated layout may take (:func:`own_layers`)."""
 ADDED_BY_PREVIEW = "il_lightmap_added_uv"
 """ID property of a mesh whose light-map layer (the value: its name) a Preview added from a bake folder's UV cache:
 Remove Preview takes the layer away again; a bake that keeps the layer as its product makes it its own."""
 
 
 # ------------------------------------------------------------------ reading layers
+
+def own_layers(me):
+    """Names of mesh ``me``'s own UV layers, all but "Lightmap" (at most OWN_LAYERS, in their order): the charts an
+    artist, an importer or a primitive operator gave it, which a generated layout may place again by their texels
+    (``unwrap._Copies.try_own_layers``), so its layout depends on their UVs."""
+    return [layer.name for layer in me.uv_layers if layer.name != LIGHTMAP][:OWN_LAYERS]
+
+
+def own_uvs(me):
+    """Bytes of the UVs of :func:`own_layers` of mesh ``me`` (name, then float32 UVs, each), for the digests a
+    generated layout is keyed and hashed by."""
+    return b"".join(name.encode() + b"\0" + corner_uv(me, name).astype(np.float32).tobytes() for name in own_layers(me))
+
 
 _FIXED = None      # {(what, pointer, layer): value} while the layouts are fixed (:func:`fixed_layouts`), else None
 
@@ -344,8 +359,8 @@ def _from_entry(group, entry, state, options):
 WINDOW_AREA = 0.9
 """A layout is carried into a window of its map (:func:`_cut_window`) when the window holds at most this share of
 the square's texels (Blender's packers fill one side of the square: a UV sphere's Smart UV Project layout 0.70 of
-the other, a cylinder's 0.83; a layout whose charts lie in a square in a corner of the map was baked in the whole
-square)."""
+the other, a cylinder's 0.83; a mesh's own grid placed by its texels fills a square window in a corner: a torus at
+40 texels/m 124² of 215², whose square map it filled 0.33 of)."""
 REUSE_ANISOTROPY = 1.5
 """Most texel anisotropy (:func:`core.lightmap.texel_anisotropy`) on the mesh as it is of a layer reused for linked
 duplicates that stand stretched differently (:func:`_reusable`): Smart UV Project's layouts 1.0, joined charts

@@ -7,9 +7,9 @@ first loops and corner counts: what the unwrappers see, and the loop order the U
 (the modifiers' result; for a mesh only subdivided, ``blender.scene.subdivided_only``, the modifiers' settings instead,
 and nothing more for one without modifiers, ``blender.scene.unmodified``,
 which need no evaluation), the metric MᵀM of its world matrix (world area, hence the side chosen from a texel density;
-the matrix itself for an atlas; both to 6 digits) and the stretch its unwrap copy gets (:class:`unwrap_copy.Stretches`),
-and the layout options (margin, resolution, texel density, maximum
-resolution, fixed sizes, atlas), :data:`LAYOUT_VERSION` and Blender's version (the unwrappers may change). An entry
+the matrix itself for an atlas; both to 6 digits), the stretch its unwrap copy gets (:class:`unwrap_copy.Stretches`),
+for a single mesh the UVs of its own layers (``uv.own_layers``: its layout may be their charts), and the layout
+options (margin, resolution, texel density, maximum resolution, fixed sizes, atlas), :data:`LAYOUT_VERSION` and Blender's version (the unwrappers may change). An entry
 is :data:`MAGIC`, a JSON head on one line (the side, margin and unwrapper, each object's loop count and the window the
 layout was carried into: width, height and the side it was cut from; 0 0 0 for none), a newline, then each object's
 UVs (little-endian float32, its loop order; one block for all, read at once: an eighth of the time of an npz's two
@@ -33,7 +33,7 @@ from ..blender.scene import corner_vertices, face_sizes, face_starts, from_its_m
 from ..core.io.files import prune_least_recent, write_bytes
 from .unwrap_copy import Stretches
 
-LAYOUT_VERSION = 12
+LAYOUT_VERSION = 13
 """Raised whenever the layout search (uv.py, unwrap.py) changes what it makes for the same input."""
 DIR = ".il-uv-cache"
 MAGIC = b"IL light-map UVs 1\n"
@@ -116,6 +116,9 @@ def key(objects, depsgraph, options, together=False, linears=None):
             for a in _arrays(me):
                 h.update(np.int64(a.size).tobytes())
                 h.update(a.tobytes())
+        if not together:                  # a single mesh's layout may be its own layers' charts
+            from .uv import own_uvs
+            h.update(own_uvs(o.data))
     return h.hexdigest()
 
 

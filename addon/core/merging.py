@@ -137,6 +137,15 @@ def _shared_vertices(surf, labels, candidates):
     return out
 
 
+def crosses_crease(surf, labels):
+    """Whether a chart of face ``labels`` holds an edge whose two faces' normals are :data:`CREASE` or more degrees
+    apart (both faces in the chart: a layout given to the bake, whose charts the joins here would never make)."""
+    labels = np.asarray(labels, np.int64)
+    inner = (surf.edge_faces >= 0).all(axis=1)
+    same = labels[surf.edge_faces[inner, 0]] == labels[surf.edge_faces[inner, 1]]
+    return bool((surf.edge_cos[inner][same] < np.cos(np.radians(CREASE))).any())
+
+
 def joined(labels, pairs_):
     """Face labels with each pair's second chart joined to its first."""
     out = np.asarray(labels, np.int64).copy()

@@ -23,6 +23,14 @@ def added(op, **kw):
     return obj
 
 
+def plain(obj):
+    """``obj`` without the UV layers its primitive operator gave it: its layout is then an unwrapper's (a mesh's own
+    layers may give it, unwrap._Copies.try_own_layers)."""
+    while obj.data.uv_layers:
+        obj.data.uv_layers.remove(obj.data.uv_layers[0])
+    return obj
+
+
 def normals_and_loops(obj):
     me = obj.data
     n = np.zeros(len(me.polygons) * 3)
@@ -329,7 +337,7 @@ def test_a_low_fill_line_near_the_fill_its_charts_allow_names_a_side_that_fills_
     named 7,633 for 60 %). The line names a side at most twice the map's, and baked at that side the layout fills
     what the line names (measured: 0.567 at 328)."""
     import re
-    sphere = added(bpy.ops.mesh.primitive_uv_sphere_add)
+    sphere = plain(added(bpy.ops.mesh.primitive_uv_sphere_add))
     opts = BakeOptions(resolution=256, samples=1)
     with pytest.warns(ILWarning, match="light-map charts cover only"):
         entry = bake_lightmaps([sphere], ["ao"], tmp_path / "a", opts)["objects"][sphere.name]["ao"]
@@ -348,7 +356,7 @@ def test_a_small_map_the_margin_model_gives_up_on_is_told_a_side_its_charts_fill
     resolution fills 50 % (as of the full level's tori, which fill 0.51 at 128², 0.95 at 4096²). The side is measured
     instead (charts.packed_side: the charts placed by their texels), and baked at that side the torus fills 50 %
     (within 0.02, as the cylinder's line above; measured 0.521 at 115)."""
-    torus = added(bpy.ops.mesh.primitive_torus_add, major_radius=0.275, minor_radius=0.55 / 6)
+    torus = plain(added(bpy.ops.mesh.primitive_torus_add, major_radius=0.275, minor_radius=0.55 / 6))
     opts = BakeOptions(texel_density=10, samples=1, margin=2)
     with pytest.warns(ILWarning, match="light-map charts cover only"):
         entry = bake_lightmaps([torus], ["ao"], tmp_path / "a", opts)["objects"][torus.name]["ao"]
@@ -462,9 +470,9 @@ def test_each_mesh_keeps_the_unwrapper_that_fills_its_map_more(tmp_path, monkeyp
     from addon.bake import unwrap, uvchecks
     monkeypatch.setattr(unwrap._Copies, "try_merged", lambda *a, **k: None)     # the two unwrappers alone
     scene = bpy.context.scene
-    made = {"Cylinder": (added(bpy.ops.mesh.primitive_cylinder_add), 128),
-            "Torus": (added(bpy.ops.mesh.primitive_torus_add), 256),
-            "Sphere": (added(bpy.ops.mesh.primitive_uv_sphere_add), 128)}
+    made = {"Cylinder": (plain(added(bpy.ops.mesh.primitive_cylinder_add)), 128),
+            "Torus": (plain(added(bpy.ops.mesh.primitive_torus_add)), 256),
+            "Sphere": (plain(added(bpy.ops.mesh.primitive_uv_sphere_add)), 128)}
     fills = {}
     for name, (obj, side) in made.items():
         obj.name = name
@@ -493,7 +501,7 @@ def test_a_texel_density_map_is_cut_to_the_window_of_its_charts(tmp_path):
     from addon.bake import uv as uvmod
     from addon.core import lightmap
     scene = bpy.context.scene
-    sphere = added(bpy.ops.mesh.primitive_uv_sphere_add)
+    sphere = plain(added(bpy.ops.mesh.primitive_uv_sphere_add))
     density = 24.0
     opts = BakeOptions(texel_density=density, samples=1, margin=1, overwrite=True)
     rep = bake_lightmaps([sphere], ["ao"], tmp_path / "a", opts, scene=scene)
@@ -597,7 +605,7 @@ def test_a_square_bake_elsewhere_does_not_change_the_layout_of_maps_kept(tmp_pat
     layout), then again at 24 texels/m into the first with one map more: the first folder's UV cache gives the
     mesh its layout back, so the map kept unchanged and the new one are baked through the layer the mesh has."""
     scene = bpy.context.scene
-    sphere = added(bpy.ops.mesh.primitive_uv_sphere_add)
+    sphere = plain(added(bpy.ops.mesh.primitive_uv_sphere_add))
     density = BakeOptions(texel_density=24, samples=1, margin=1, overwrite=True)
     first = bake_lightmaps([sphere], ["ao"], tmp_path / "a", density, scene=scene)
     bake_lightmaps([sphere], ["ao"], tmp_path / "b", BakeOptions(resolution=64, samples=1, margin=1), scene=scene)
@@ -793,7 +801,7 @@ def test_lightmap_pack_is_refused_where_it_gives_uneven_texels(tmp_path, monkeyp
     density is even (spread at least unwrap.MIN_SPREAD)."""
     from addon.bake import unwrap, uvchecks
     scene = bpy.context.scene
-    cyl = added(bpy.ops.mesh.primitive_cylinder_add)
+    cyl = plain(added(bpy.ops.mesh.primitive_cylinder_add))
     opts = BakeOptions(resolution=256, samples=1, margin=1)
     with monkeypatch.context() as m:
         m.setattr(unwrap, "even_enough", lambda spread, other: True)
@@ -811,8 +819,7 @@ def test_a_layout_depends_on_the_faces_not_on_their_order(tmp_path, side):
     """The unwrap copy is canonical (faces sorted by their vertices, each starting at its lowest vertex): the same
     mesh with its faces in another order and each face starting at another corner gets the same UVs at every
     face corner, by Smart UV Project (64²) and by Lightmap Pack (256²)."""
-    bpy.ops.mesh.primitive_uv_sphere_add()
-    a = bpy.context.object
+    a = plain(added(bpy.ops.mesh.primitive_uv_sphere_add))
     me = a.data
     faces = [list(p.vertices) for p in me.polygons]
     rng = np.random.default_rng(1)
@@ -967,7 +974,7 @@ def test_faces_that_cover_each_other_split_differently_are_unwrapped_unwelded(tm
 def _noisy_ico(level, noise):
     """An ico sphere of radius 0.4 m, its vertices moved radially by a fixed pseudo-random ``noise`` of the radius
     (a scan's noise; the level benchmark's "Scan")."""
-    ico = added(bpy.ops.mesh.primitive_ico_sphere_add, subdivisions=level, radius=0.4)
+    ico = plain(added(bpy.ops.mesh.primitive_ico_sphere_add, subdivisions=level, radius=0.4))
     bm = bmesh.new()
     bm.from_mesh(ico.data)
     rng = np.random.default_rng(27)

@@ -62,6 +62,18 @@ def test_charts_are_never_joined_across_a_hard_edge():
         assert merging.pairs(surf, np.array([0, 1])) == want, fold
 
 
+def test_a_chart_across_a_hard_edge_is_told_from_charts_split_at_it():
+    """A layout given to the bake (a mesh's own UV layer) may hold a chart across a hard edge: two quads folded
+    along their shared edge in one chart cross it at 88° and more (merging.CREASE), not at 87°; split in two charts
+    they never do, nor does a chart with faces on both sides of the fold whose faces along it are another chart's."""
+    for fold, want in ((60.0, False), (87.0, False), (88.5, True), (90.0, True), (180.0, True)):
+        surf, co, cells, _ = grid(2, 1, fold=fold)
+        assert merging.crosses_crease(surf, np.array([0, 0])) is want, fold
+        assert merging.crosses_crease(surf, np.array([0, 1])) is False
+    surf, co, cells, _ = grid(3, 1, fold=90.0)
+    assert merging.crosses_crease(surf, np.array([0, 1, 0])) is False
+
+
 def test_a_flat_layout_is_kept_and_a_turned_over_folded_or_uneven_one_is_not():
     surf, co, cells, uv = grid(4, 4)
     tri = uv[surf.tri]
