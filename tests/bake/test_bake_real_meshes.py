@@ -14,21 +14,9 @@ from addon.bake import BakeOptions, bake_lightmaps
 from addon.core.io import exr
 from addon.core.errors import ILError, ILWarning, InputError
 from addon.blender import compat, scene as sc
+from tests.support.meshes import added, plain
 
 
-def added(op, **kw):
-    op(**kw)
-    obj = bpy.context.object
-    obj.select_set(False)
-    return obj
-
-
-def plain(obj):
-    """``obj`` without the UV layers its primitive operator gave it: its layout is then an unwrapper's (a mesh's own
-    layers may give it, unwrap._Copies.try_own_layers)."""
-    while obj.data.uv_layers:
-        obj.data.uv_layers.remove(obj.data.uv_layers[0])
-    return obj
 
 
 def normals_and_loops(obj):

@@ -12,19 +12,7 @@ from addon.bake import uv as uvmod
 from addon.core import lightmap
 from addon.core.errors import ILWarning
 from addon.core.io import exr
-
-
-def _added(op, **kw):
-    op(**kw)
-    obj = bpy.context.object
-    obj.select_set(False)
-    return obj
-
-
-def _plain(obj):
-    while obj.data.uv_layers:
-        obj.data.uv_layers.remove(obj.data.uv_layers[0])
-    return obj
+from tests.support.meshes import added, plain
 
 
 def _copy(obj, name):
@@ -55,8 +43,8 @@ def test_a_primitive_is_baked_through_the_grid_its_operator_gives_it(tmp_path, k
     (1 − 1/rings) ((128 − 2 (m − 1) − 2) / 128)², at the texel density of Smart UV Project's layout (spread at least
     MIN_SPREAD), no texel under two faces, none of the surface without texels; the same mesh without the layer,
     Smart UV Project's and the joins', fills under 0.55 and gets a low-fill line."""
-    obj = _added(getattr(bpy.ops.mesh, f"primitive_{kind}_add"))
-    bare = _plain(_copy(obj, "Bare"))
+    obj = added(getattr(bpy.ops.mesh, f"primitive_{kind}_add"))
+    bare = plain(_copy(obj, "Bare"))
     rep, said = _bake(obj, tmp_path / "own")
     entry = rep["objects"][obj.name]["ao"]
     m = entry["margin"]
@@ -69,12 +57,12 @@ def test_a_primitive_is_baked_through_the_grid_its_operator_gives_it(tmp_path, k
     channels, _ = exr.read_exr(entry["file"])
     assert all(np.isfinite(c).all() for c in channels.values())
     other, said = _bake(bare, tmp_path / "bare")
-    plain = other["objects"][bare.name]["ao"]
-    assert not plain["unwrap"].startswith(unwrap.OWN) and plain["coverage"] < 0.55 and "low_fill" in plain
+    smart = other["objects"][bare.name]["ao"]
+    assert not smart["unwrap"].startswith(unwrap.OWN) and smart["coverage"] < 0.55 and "low_fill" in smart
 
 
 def _grid_torus(name):
-    obj = _added(bpy.ops.mesh.primitive_torus_add)
+    obj = added(bpy.ops.mesh.primitive_torus_add)
     obj.name = name
     return obj
 
@@ -129,7 +117,7 @@ def test_an_own_layer_across_a_box_edge_is_refused(tmp_path, monkeypatch):
     from addon.core import merging
 
     def bake(out):
-        cube = _added(bpy.ops.mesh.primitive_cube_add, size=0.5672)
+        cube = added(bpy.ops.mesh.primitive_cube_add, size=0.5672)
         cube.modifiers.new("Bevel", "BEVEL").width = 0.0567
         return _bake(cube, out, texel_density=10, margin=2)[0]["objects"][cube.name]["ao"]
 
