@@ -20,7 +20,7 @@ import bpy
 from mathutils import Matrix
 import numpy as np
 
-from ..blender.scene import corner_triangles, corner_uv, corner_vertices
+from ..blender.scene import corner_triangles, corner_uv, corner_vertices, positions
 from ..blender.state import remove_ids
 from ..core import lightmap, merging, pack
 from ..core.errors import InputError
@@ -90,6 +90,13 @@ joined (:meth:`_Copies.try_merged`): each round's unwrap handles one island a pa
 1,152-face torus joined from its faces: 0.7 s at a 22² map, mostly the unwraps). Measured on the full level's props
 (maps 10-60 texels wide): joins from Lightmap Pack won no map there and took 16 s of the 22 s the joins took; on the
 primitives at 128²-512² they give the torus's, Suzanne's and the ico sphere's best layouts."""
+OWN_FLOOR = 0.25
+"""Least texel density of a triangle of a mesh's own layer's layout over the median (a texture unwrap shrinks hidden
+faces to next to nothing: they would get no texel of their own)."""
+OWN_ANISOTROPY = 1.5
+"""Most texel anisotropy (:func:`core.lightmap.texel_anisotropy`) of a layout of a mesh's own layer once its charts
+are made isotropic (``uv.REUSE_ANISOTROPY``'s bound; a UV sphere's grid 1.2 at 128²: its rows near the poles keep
+texels narrower around than high, which no linear map of the chart undoes)."""
 MIN_CHART_AREA = 0.2
 """A margin is lowered (down to half a texel) until the charts fill at least this fraction of the map: a
 margin wider than that wastes most texels of a small map."""
@@ -142,7 +149,7 @@ def _search(group, state, options, names, weld=True, linears=None):
     """
     label = ", ".join(f"'{o.name}'" for o in group)
     fixed = fixed_side(group[0], options)
-    with _Copies(group, state, weld, texel_size(group, options, fixed), linears) as copies:
+    with _Copies(group, state, weld, texel_size(group, options, fixed), linears, options.atlas) as copies:
         try:
             made = _search_copies(copies, group, options, names, label, fixed)
         except InputError as e:
@@ -276,8 +283,9 @@ class _Copies:
     in an empty scene (measured in the full level's scene: an unwrap of a quad with its two mode switches 2.9 -> 0.5 ms,
     a removal with the view layer's update 7.4 -> 0.9 ms)."""
 
-    def __init__(self, group, state, weld=True, texel=None, linears=None):
+    def __init__(self, group, state, weld=True, texel=None, linears=None, atlas=False):
         self.group, self.state, self.weld, self.texel = list(group), state, weld, texel
+        self.atlas = atlas           # an atlas's layout (of one object too) never takes the meshes' own layers
         self.linears = linears   # per copy: its stretch (unwrap_copy.Stretches.of; made here when not given)
         self.scratch = None      # the scene the copies live in (the user's scene and its depsgraph never see them)
         self.copies = []
@@ -581,16 +589,17 @@ class _Copies:
 
     def try_own_layers(self, side, margin, cut):
         """For one copy (whatever its layout fills: one packing a layer): the charts of each of its mesh's own UV
-        layers (:func:`uv.own_layers`: an artist's or an importer's unwrap, a primitive's own grid), scaled to the UV
-        area of the layout in place (its texel density) and placed by their texels (:meth:`_raster_packed`: charts
-        stacked or mirrored onto one another get places of their own). The best is kept when it fits a ``side``²
-        map, fills more of it as baked, leaves no face without texels (:func:`core.lightmap.unmapped_fraction`), has
-        no chart across an edge sharper than ``core.merging.CREASE`` (a cube's cross: its light would blend across it),
-        its texel density is as even (:func:`even_enough`) and no more of its texels lie under several faces (a
-        chart folded over itself). Unreal Engine makes its light-map UVs so, from the mesh's first UV channel.
-        Measured at 256² (4-texel margins): a torus's own grid fills 0.94 against 0.48, a UV sphere's 0.89 against
-        0.54, a cylinder's 0.79 against 0.62; Suzanne's (density spread 0.66) and a cube's cross are not kept."""
-        if len(self.copies) != 1:
+        layers (:func:`uv.own_layers`: an artist's or an importer's unwrap, a primitive's own grid), each made of
+        square texels on average (:func:`core.lightmap.isotropic`: a torus's grid on the unit square becomes a 4 × 1
+        rectangle), scaled to the UV area of the layout in place (its texel density) and placed by their texels
+        (:meth:`_raster_packed`: charts stacked or mirrored onto one another get places of their own). The best is
+        kept when it fits a ``side``² map, fills more of it as baked, gives every face texels
+        (:func:`core.lightmap.unmapped_fraction` 0, no triangle under OWN_FLOOR of the median density), has no chart
+        across an edge sharper than ``core.merging.CREASE`` (a cube's cross: its light would blend across it), texels
+        square to OWN_ANISOTROPY, a texel density as even (:func:`even_enough`) and no more texels under several
+        faces (a chart folded over itself). Unreal Engine makes its light-map UVs so, from UV channel 0. Not for an
+        atlas (``atlas``: its key and hash leave the layers out)."""
+        if len(self.copies) != 1 or self.atlas:
             return
         o = self.group[0]
         names = own_layers(o.data)
@@ -604,11 +613,15 @@ class _Copies:
         surf = spread = shared = best = None
         for name in names:
             uv = corner_uv(o.data, name)[loops].astype(float)
-            own = lightmap.uv_area(uv[tris])
-            if not np.isfinite(uv).all() or not own > 0 or not area > 0:
+            if not np.isfinite(uv).all() or not area > 0:
                 continue
             surf = surf or unwrap_merge.surface_of(copy)
-            if merging.crosses_crease(surf, pack.chart_labels(surf.owner, surf.vertex, uv)):
+            charts = pack.chart_labels(surf.owner, surf.vertex, uv)
+            if merging.crosses_crease(surf, charts):
+                continue
+            uv = lightmap.isotropic(uv, tris, charts[surf.owner], positions(copy)[surf.vertex])
+            own = lightmap.uv_area(uv[tris])
+            if not own > 0:
                 continue
             new = self._raster_packed([uv * math.sqrt(area / own)], side, margin, cut)
             if new is None:
@@ -617,8 +630,11 @@ class _Copies:
                 spread, shared = density_spread(self.group), _overlap(self.group, side)
             self._write(new)
             fill = baked_fill(self.group, side, margin, cut)
+            tri_uv, tri_world = triangles_uv(o, LIGHTMAP), world_triangles(o)
             if (fill > (best[0] if best else have) and _fits(self, self.group, side)
-                    and lightmap.unmapped_fraction(world_triangles(o), triangles_uv(o, LIGHTMAP)) == 0
+                    and lightmap.unmapped_fraction(tri_world, tri_uv) == 0
+                    and lightmap.density_floor(tri_uv, tri_world) >= OWN_FLOOR
+                    and lightmap.texel_anisotropy(tri_uv, tri_world) <= OWN_ANISOTROPY
                     and even_enough(density_spread(self.group), spread) and _overlap(self.group, side) <= shared):
                 best = (fill, new)
         if best is None:

@@ -116,6 +116,52 @@ def _weighted_median(values, weights):
     return values[order][min(np.searchsorted(c, 0.5 * c[-1]), len(c) - 1)]
 
 
+def isotropic(uv, tri, chart, co):
+    """Corner UVs ``uv`` (N, 2) with each chart (``chart``: its label per corner) mapped by L = Ḡ^½: Ḡ the chart's
+    mean metric G = MᵀM over its triangles ``tri`` (T, 3 corner indices), weighted by their area, M the map from UV
+    to the corner positions ``co`` (N, 3) (3D edges = M × UV edges). Under L a unit of UV is a metre on average in
+    every direction: a grid laid on the unit square over a surface 4 times longer than wide becomes a 4 × 1
+    rectangle of square texels."""
+    uv = np.asarray(uv, float).reshape(-1, 2)
+    tri = np.asarray(tri, np.int64).reshape(-1, 3)
+    chart = np.asarray(chart, np.int64)
+    p = np.asarray(co, float).reshape(-1, 3)[tri]
+    d = uv[tri]
+    e = np.stack([p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]], axis=2)              # (T, 3, 2)
+    f = np.stack([d[:, 1] - d[:, 0], d[:, 2] - d[:, 0]], axis=2)              # (T, 2, 2)
+    det = f[:, 0, 0] * f[:, 1, 1] - f[:, 0, 1] * f[:, 1, 0]
+    area = 0.5 * np.linalg.norm(np.cross(e[:, :, 0], e[:, :, 1]), axis=1)
+    ok = (np.abs(det) > 1e-12 * np.maximum((f ** 2).sum(axis=(1, 2)), 1e-30)) & (area > 0)
+    m = e[ok] @ np.linalg.inv(f[ok])                                           # (T', 3, 2)
+    g = np.einsum("tki,tkj->tij", m, m) * area[ok][:, None, None]
+    k = chart[tri[ok, 0]]
+    total = np.zeros((int(chart.max()) + 1 if len(chart) else 0, 2, 2))
+    np.add.at(total, k, g)
+    weight = np.bincount(k, weights=area[ok], minlength=len(total))
+    out = uv.copy()
+    for c in np.flatnonzero(weight > 0):
+        w, v = np.linalg.eigh(total[c] / weight[c])
+        if w.min() <= 0:
+            continue
+        root = (v * np.sqrt(w)) @ v.T
+        sel = chart == c
+        out[sel] = uv[sel] @ root.T
+    return out
+
+
+def density_floor(tri_uv, tri_xyz):
+    """The least texel density √(UV area / area) of a triangle over the area-weighted median (triangles with area):
+    1 for uniform texels, near 0 where a layout shrinks some faces to next to nothing (a texture unwrap's hidden
+    faces)."""
+    world = triangle_areas(tri_xyz)
+    keep = world > 1e-12 * max(float(world.max()) if len(world) else 0.0, 1e-30)
+    if not keep.any():
+        return 1.0
+    density = np.sqrt(uv_areas(tri_uv)[keep] / world[keep])
+    median = _weighted_median(density, world[keep])
+    return float(density.min() / median) if median > 0 else 0.0
+
+
 def texel_anisotropy(tri_uv, tri_xyz):
     """Area-weighted median over triangles of σ₁ / σ₂, the singular values of the map from the surface (positions
     (T, 3, 3)) to the UVs: 1 where texels are square on the surface, whatever their orientation (a box's side laid

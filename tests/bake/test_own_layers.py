@@ -1,6 +1,6 @@
-"""A generated layout made of the charts of the mesh's own UV layers (unwrap._Copies.try_own_layers): kept where it
-fills more, refused where its density is uneven, a chart folds over itself or a face gets no texel, and keyed by
-those layers' UVs."""
+"""A generated layout made of the charts of the mesh's own UV layers (unwrap._Copies.try_own_layers): made of square
+texels, kept where it fills more, refused where it fills less, is uneven, folded, collapsed, shrinks faces or crosses
+a hard edge, never for an atlas, and keyed by those layers' UVs."""
 import warnings
 
 import bpy
@@ -10,9 +10,10 @@ import pytest
 from addon.bake import BakeOptions, bake_lightmaps, unwrap, uvchecks
 from addon.bake import uv as uvmod
 from addon.core import lightmap
-from addon.core.errors import ILWarning
 from addon.core.io import exr
 from tests.support.meshes import added, plain
+
+DENSITY = 40.0
 
 
 def _copy(obj, name):
@@ -22,47 +23,63 @@ def _copy(obj, name):
     return new
 
 
-def _fill(obj, side):
-    return float(lightmap.coverage_mask(uvmod.triangles_uv(obj, "Lightmap"), side, side).mean())
-
-
 def _bake(obj, out, **kw):
-    opts = BakeOptions(**{"samples": 1, **({} if "texel_density" in kw else {"resolution": 128}), **kw})
+    opts = BakeOptions(**{"samples": 1, **({} if "resolution" in kw else {"texel_density": DENSITY}), **kw})
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always")
         rep = bake_lightmaps([obj], ["ao"], out, opts)
-    return rep, [str(w.message) for w in said if issubclass(w.category, ILWarning)]
+    return rep["objects"][obj.name]["ao"], [str(w.message) for w in said]
+
+
+def _texels(obj, entry):
+    """The baked layout's triangles in texels of its w x h map, and their world positions."""
+    w, h = entry["resolution"]
+    return uvmod.triangles_uv(obj, "Lightmap") * (w, h), uvmod.world_triangles(obj)
+
+
+def _coarsest(tri_texels, tri_world):
+    """Area-weighted median over triangles of σ₂, the smaller singular value of the map from the surface to the
+    texels: texels per metre in the direction the layout resolves least."""
+    e1, e2 = tri_world[:, 1] - tri_world[:, 0], tri_world[:, 2] - tri_world[:, 0]
+    n1 = np.linalg.norm(e1, axis=1)
+    cross = np.linalg.norm(np.cross(e1, e2), axis=1)
+    x2, y2 = np.einsum("ij,ij->i", e1, e2) / n1, cross / n1
+    f1, f2 = tri_texels[:, 1] - tri_texels[:, 0], tri_texels[:, 2] - tri_texels[:, 0]
+    gx = f1 / n1[:, None]
+    gy = (f2 - gx * x2[:, None]) / y2[:, None]
+    s2 = np.linalg.svd(np.stack([gx, gy], axis=2), compute_uv=False)[:, 1]
+    order = np.argsort(s2)
+    c = np.cumsum(cross[order])
+    return float(s2[order][np.searchsorted(c, 0.5 * c[-1])])
 
 
 @pytest.mark.both_versions
-@pytest.mark.parametrize("kind, rings", [("torus", 0), ("uv_sphere", 16)])
-def test_a_primitive_is_baked_through_the_grid_its_operator_gives_it(tmp_path, kind, rings):
-    """A torus's and a UV sphere's own layer is one chart, a grid on the unit square (the sphere's first and last
-    rows are triangles: 1 − 1/rings of it covered). Placed by its texels in a 128² map, at least m − 1 texels from the
-    border (m: the layout's margin) and a texel of rounding each side, it fills at least
-    (1 − 1/rings) ((128 − 2 (m − 1) − 2) / 128)², at the texel density of Smart UV Project's layout (spread at least
-    MIN_SPREAD), no texel under two faces, none of the surface without texels; the same mesh without the layer,
-    Smart UV Project's and the joins', fills under 0.55 and gets a low-fill line."""
-    obj = added(getattr(bpy.ops.mesh, f"primitive_{kind}_add"))
+def test_a_uv_sphere_is_baked_through_the_grid_its_operator_gives_it(tmp_path):
+    """A UV sphere's own layer is one chart, a grid on the unit square over a surface twice as long (around) as high.
+    Made of square texels (core.lightmap.isotropic: a 2 × 1 rectangle) and placed by its texels at 40 texels/m, it
+    fills at least 0.15 more of its map than the same mesh without the layer (Smart UV Project's layout and the
+    joins'), with texels square to unwrap.OWN_ANISOTROPY, resolving at least 40 / √OWN_ANISOTROPY texels per metre
+    in its coarsest direction (σ₁σ₂ = 40², σ₁ / σ₂ ≤ OWN_ANISOTROPY), no texel under two faces, every face with
+    texels, finite pixels; the map is the window around the chart (at most the margin and a texel of rounding on
+    each side)."""
+    obj = added(bpy.ops.mesh.primitive_uv_sphere_add)
     bare = plain(_copy(obj, "Bare"))
-    rep, said = _bake(obj, tmp_path / "own")
-    entry = rep["objects"][obj.name]["ao"]
-    m = entry["margin"]
-    bound = (1 - (1 / rings if rings else 0)) * ((128 - 2 * (m - 1) - 2) / 128) ** 2
-    assert entry["unwrap"] == unwrap.OWN + unwrap.RASTER, entry["unwrap"]
-    assert _fill(obj, 128) == pytest.approx(entry["coverage"]) and entry["coverage"] >= bound, (entry, bound)
-    assert "low_fill" not in entry and not any("cover only" in w for w in said), said
-    assert entry["overlap"] == 0 and uvchecks.density_spread([obj]) >= unwrap.MIN_SPREAD
-    assert lightmap.unmapped_fraction(uvmod.world_triangles(obj), uvmod.triangles_uv(obj, "Lightmap")) == 0
+    entry, _ = _bake(obj, tmp_path / "own")
+    smart, _ = _bake(bare, tmp_path / "bare")
+    assert entry["unwrap"] == unwrap.OWN + unwrap.RASTER and not smart["unwrap"].startswith(unwrap.OWN)
+    assert entry["coverage"] >= smart["coverage"] + 0.15, (entry["coverage"], smart["coverage"])
+    texels, world = _texels(obj, entry)
+    assert lightmap.texel_anisotropy(texels, world) <= unwrap.OWN_ANISOTROPY
+    assert _coarsest(texels, world) >= DENSITY / unwrap.OWN_ANISOTROPY ** 0.5
+    assert entry["overlap"] == 0 and lightmap.unmapped_fraction(world, texels) == 0
+    pad = 2 * (entry["margin"] + 1)
+    assert np.all(np.ptp(texels.reshape(-1, 2), axis=0) + pad >= entry["resolution"]), entry["resolution"]
     channels, _ = exr.read_exr(entry["file"])
     assert all(np.isfinite(c).all() for c in channels.values())
-    other, said = _bake(bare, tmp_path / "bare")
-    smart = other["objects"][bare.name]["ao"]
-    assert not smart["unwrap"].startswith(unwrap.OWN) and smart["coverage"] < 0.55 and "low_fill" in smart
 
 
-def _grid_torus(name):
-    obj = added(bpy.ops.mesh.primitive_torus_add)
+def _grid_sphere(name):
+    obj = added(bpy.ops.mesh.primitive_uv_sphere_add)
     obj.name = name
     return obj
 
@@ -74,83 +91,88 @@ def _remap(obj, f):
     layer.data.foreach_get("uv", uv)
     starts = np.zeros(len(me.polygons), np.int32)
     me.polygons.foreach_get("loop_start", starts)
-    uv = f(uv.reshape(-1, 2), starts).astype(np.float32)
+    sizes = np.zeros(len(me.polygons), np.int32)
+    me.polygons.foreach_get("loop_total", sizes)
+    uv = f(uv.reshape(-1, 2), starts, sizes).astype(np.float32)
     layer.data.foreach_set("uv", uv.ravel())
 
 
-def _cubed(uv, starts):
+def _cubed(uv, starts, sizes):
     return np.stack([uv[:, 0] ** 3, uv[:, 1]], axis=1)          # density 3u² across the grid: 0 at u = 0
 
 
-def _folded(uv, starts):
+def _folded(uv, starts, sizes):
     return np.stack([uv[:, 0], np.abs(2 * uv[:, 1] - 1)], axis=1)   # the grid's halves over one another
 
 
-def _collapsed(uv, starts):
+def _collapsed(uv, starts, sizes):
     out = uv.copy()
-    for s in starts[::40]:                                       # every 40th quad on a point beside the grid
-        out[s:s + 4] = 2.0
+    for s, n in zip(starts[::40], sizes[::40]):                  # every 40th face on a point beside the grid
+        out[s:s + n] = 2.0
     return out
 
 
 @pytest.mark.parametrize("distort", [_cubed, _folded, _collapsed], ids=["uneven", "folded", "collapsed"])
 def test_an_own_layer_that_would_fill_more_is_refused_when_it_is_no_light_map(tmp_path, distort):
-    """The torus's grid made uneven (u → u³: the density spread falls to 0), folded (v → |2v − 1|: its halves share
-    every texel) or collapsed (every 40th face on a point: faces without texels) still fills more than
-    Smart UV Project's charts, and is refused: the layout kept is an unwrapper's, as even, without shared texels and
-    with a texel for every face."""
-    obj = _grid_torus("Distorted")
+    """The sphere's grid made uneven (u → u³: the density spread falls to 0), folded (v → |2v − 1|: its halves share
+    every texel) or collapsed (every 40th face on a point) still fills more than Smart UV Project's charts, and is
+    refused: the layout kept is an unwrapper's, as even, without shared texels and no triangle under
+    unwrap.OWN_FLOOR of the median density (a face shrunk on its own is a chart of its own, which
+    core.lightmap.isotropic gives its size back; a shrunk region inside a chart is refused by
+    core.lightmap.density_floor, tests/core/test_lightmap.py)."""
+    obj = _grid_sphere("Distorted")
     _remap(obj, distort)
-    rep, _ = _bake(obj, tmp_path / "d")
-    entry = rep["objects"][obj.name]["ao"]
+    entry, _ = _bake(obj, tmp_path / "d")
     assert not entry["unwrap"].startswith(unwrap.OWN), entry["unwrap"]
+    texels, world = _texels(obj, entry)
     assert entry["overlap"] == 0 and uvchecks.density_spread([obj]) >= unwrap.MIN_SPREAD
-    assert lightmap.unmapped_fraction(uvmod.world_triangles(obj), uvmod.triangles_uv(obj, "Lightmap")) == 0
+    assert lightmap.unmapped_fraction(world, texels) == 0 and lightmap.density_floor(texels, world) >= unwrap.OWN_FLOOR
+
+
+def test_an_own_layer_that_fills_less_is_refused(tmp_path):
+    """An ico sphere's own layer (triangles laid in a strip) placed by its texels at 128² fills about half what
+    Smart UV Project's charts do: the layout kept is an unwrapper's."""
+    obj = added(bpy.ops.mesh.primitive_ico_sphere_add, subdivisions=3)
+    entry, _ = _bake(obj, tmp_path / "i", resolution=128)
+    assert not entry["unwrap"].startswith(unwrap.OWN), entry["unwrap"]
 
 
 def test_an_own_layer_across_a_box_edge_is_refused(tmp_path, monkeypatch):
     """A bevelled cube 0.57 m wide at 10 texels/m (the level benchmark's "Prop 050"): its own layer, the cross a cube
-    primitive gets, holds one chart across the box's 90° edges, and placed by its texels fills 0.37 of its 27 x 21
-    map against Smart UV Project's 0.36. It is refused (core.merging.CREASE: the light of two sides of a hard edge
-    would blend, and the Bevel modifier's UVs across such a chart came out differently from run to run): the layout
-    kept is Smart UV Project's; without the rule it would be the cross's."""
+    primitive gets, holds one chart across the box's 90° edges. It is refused (core.merging.CREASE: the light of two
+    sides of a hard edge would blend, and the Bevel modifier's UVs across such a chart came out differently from
+    run to run): the layout kept is Smart UV Project's; without the rule it would be the cross's."""
     from addon.core import merging
 
     def bake(out):
         cube = added(bpy.ops.mesh.primitive_cube_add, size=0.5672)
         cube.modifiers.new("Bevel", "BEVEL").width = 0.0567
-        return _bake(cube, out, texel_density=10, margin=2)[0]["objects"][cube.name]["ao"]
+        return _bake(cube, out, texel_density=10, margin=2)[0]
 
     assert not bake(tmp_path / "a")["unwrap"].startswith(unwrap.OWN)
     monkeypatch.setattr(merging, "crosses_crease", lambda *a: False)
     assert bake(tmp_path / "b")["unwrap"] == unwrap.OWN + unwrap.RASTER
 
 
+def test_an_atlas_never_takes_the_own_layers(tmp_path):
+    """An atlas of one object (Shared Atlas on, one object selected) keeps an unwrapper's layout: the atlas's UV
+    cache key and input hash leave the meshes' own layers out."""
+    obj = _grid_sphere("Atlas")
+    entry, _ = _bake(obj, tmp_path / "a", atlas=True)
+    assert not entry["unwrap"].startswith(unwrap.OWN), entry["unwrap"]
+
+
 def test_a_layout_made_of_an_own_layer_follows_that_layer(tmp_path):
-    """The layout (and so the map's inputs) depends on the own layer's UVs: baked again into the same folder after the
-    layer was made uneven, the map is baked again (not "unchanged") through an unwrapper's layout, not the one the UV
-    cache holds for the grid; unchanged, it is kept."""
-    obj = _grid_torus("Keyed")
+    """The layout (and so the map's inputs) depends on the own layer's UVs: baked again into the same folder after
+    the layer was made uneven, the map is baked again (not "unchanged") through an unwrapper's layout, not the one
+    the UV cache holds for the grid; unchanged, it is kept."""
+    obj = _grid_sphere("Keyed")
     opts = dict(overwrite=True)
-    first, _ = _bake(obj, tmp_path / "k", **opts)
+    first = bake_lightmaps([obj], ["ao"], tmp_path / "k", BakeOptions(texel_density=DENSITY, samples=1, **opts))
     assert first["objects"][obj.name]["ao"]["unwrap"] == unwrap.OWN + unwrap.RASTER
-    again, _ = _bake(obj, tmp_path / "k", **opts)
+    again = bake_lightmaps([obj], ["ao"], tmp_path / "k", BakeOptions(texel_density=DENSITY, samples=1, **opts))
     assert obj.name in again["unchanged"]
     _remap(obj, _cubed)
-    third, _ = _bake(obj, tmp_path / "k", **opts)
+    third = bake_lightmaps([obj], ["ao"], tmp_path / "k", BakeOptions(texel_density=DENSITY, samples=1, **opts))
     assert obj.name not in third["unchanged"]
     assert not third["objects"][obj.name]["ao"]["unwrap"].startswith(unwrap.OWN)
-
-
-def test_at_a_texel_density_the_grid_is_baked_in_a_window_around_it(tmp_path):
-    """At 40 texels/m the torus's grid (one chart, square in its layer) keeps the texel density of Smart UV Project's
-    layout and is baked in the window its charts and margins need: C covered texels in a square chart of side √C,
-    with m texels of margin and a texel of rounding each side, fill at least C / (√C + 2 m + 2)²."""
-    obj = _grid_torus("Windowed")
-    rep, said = _bake(obj, tmp_path / "w", texel_density=40)
-    entry = rep["objects"][obj.name]["ao"]
-    w, h = entry["resolution"]
-    covered = entry["coverage"] * w * h
-    assert entry["unwrap"] == unwrap.OWN + unwrap.RASTER and "low_fill" not in entry, entry
-    assert entry["coverage"] >= covered / (covered ** 0.5 + 2 * entry["margin"] + 2) ** 2 > 0.8
-    assert covered == pytest.approx(40 ** 2 * uvmod.world_area(obj), rel=0.1)

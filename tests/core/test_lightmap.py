@@ -376,3 +376,46 @@ def test_density_spread_is_the_low_quantile_density_over_the_median():
     world = np.concatenate([p[1] for p in parts])
     assert lm.density_spread(uv, world) == pytest.approx(0.5)
     assert lm.density_spread(world[..., :2] * 0.1, world) == pytest.approx(1.0)
+
+
+def _grid_chart(n=8):
+    """An n × n grid of quads on the unit UV square as corner arrays: (uv (N, 2), triangles (T, 3 corners))."""
+    uv, tri = [], []
+    for y in range(n):
+        for x in range(n):
+            k = len(uv)
+            uv += [(x / n, y / n), ((x + 1) / n, y / n), ((x + 1) / n, (y + 1) / n), (x / n, (y + 1) / n)]
+            tri += [(k, k + 1, k + 2), (k, k + 2, k + 3)]
+    return np.array(uv), np.array(tri)
+
+
+def test_isotropic_charts_are_made_of_square_texels_of_a_metre_each():
+    """A grid on the unit UV square laid over a 4 m × 1 m wall (x = 4u, z = v) becomes a 4 × 1 rectangle: one UV
+    unit a metre in both directions (texel anisotropy 1, extents 4 and 1); a second chart over the same wall sheared
+    and turned in UV (a linear map) becomes the same rectangle up to a turn; each chart on its own."""
+    uv, tri = _grid_chart()
+    co = np.stack([4 * uv[:, 0], np.zeros(len(uv)), uv[:, 1]], axis=1)
+    a = np.array([[0.3, 0.8], [-0.5, 0.1]])                     # shear and turn: a linear map of the second chart
+    uv2 = uv @ a.T
+    both = np.concatenate([uv, uv2])
+    tris = np.concatenate([tri, tri + len(uv)])
+    chart = np.repeat([0, 1], len(uv))
+    out = lm.isotropic(both, tris, chart, np.concatenate([co, co]))
+    for k in (0, 1):
+        t = out[tris[chart[tris[:, 0]] == k]]
+        w = np.concatenate([co, co])[tris[chart[tris[:, 0]] == k]]
+        assert lm.texel_anisotropy(t, w) == pytest.approx(1.0, abs=1e-9)
+        assert lm.uv_area(t) == pytest.approx(4.0, rel=1e-9)     # a UV unit is a metre: the wall's 4 m²
+    assert np.ptp(out[:len(uv)], axis=0) == pytest.approx([4.0, 1.0])
+
+
+def test_the_density_floor_is_the_least_triangle_density_over_the_median():
+    """A uniform grid's floor is 1; one triangle's UVs shrunk k times about its centre (area k², density k) leaves
+    the area-weighted median where it was and brings the floor to k."""
+    uv, tri = _grid_chart()
+    co = np.stack([uv[:, 0], uv[:, 1], np.zeros(len(uv))], axis=1)
+    assert lm.density_floor(uv[tri], co[tri]) == pytest.approx(1.0)
+    t = uv[tri].copy()
+    c = t[5].mean(axis=0)
+    t[5] = c + 0.1 * (t[5] - c)
+    assert lm.density_floor(t, co[tri]) == pytest.approx(0.1)
