@@ -603,17 +603,17 @@ class _Copies:
             return
         o = self.group[0]
         names = own_layers(o.data)
-        if not names:
+        area = lightmap.uv_area(triangles_uv(o, LIGHTMAP)) if names else 0.0
+        if not area > 0:
             return
         have = baked_fill(self.group, side, margin, cut)
         before, unwrapper = self._kept(), self.unwrapper
         copy, loops = self.copies[0][1].data, self.loops[0]
         tris = corner_triangles(copy)
-        area = lightmap.uv_area(triangles_uv(o, LIGHTMAP))
         surf = spread = shared = best = None
         for name in names:
             uv = corner_uv(o.data, name)[loops].astype(float)
-            if not np.isfinite(uv).all() or not area > 0:
+            if not np.isfinite(uv).all():
                 continue
             surf = surf or unwrap_merge.surface_of(copy)
             charts = pack.chart_labels(surf.owner, surf.vertex, uv)

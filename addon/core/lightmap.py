@@ -138,15 +138,11 @@ def isotropic(uv, tri, chart, co):
     total = np.zeros((int(chart.max()) + 1 if len(chart) else 0, 2, 2))
     np.add.at(total, k, g)
     weight = np.bincount(k, weights=area[ok], minlength=len(total))
-    out = uv.copy()
-    for c in np.flatnonzero(weight > 0):
-        w, v = np.linalg.eigh(total[c] / weight[c])
-        if w.min() <= 0:
-            continue
-        root = (v * np.sqrt(w)) @ v.T
-        sel = chart == c
-        out[sel] = uv[sel] @ root.T
-    return out
+    root = np.broadcast_to(np.eye(2), total.shape).copy()      # a chart without a metric keeps its UVs
+    w, v = np.linalg.eigh(total / np.maximum(weight, 1e-300)[:, None, None])
+    good = (weight > 0) & (w.min(axis=1) > 0)
+    root[good] = np.einsum("kij,kj,klj->kil", v[good], np.sqrt(w[good]), v[good])
+    return np.einsum("nij,nj->ni", root[chart], uv)
 
 
 def density_floor(tri_uv, tri_xyz):
