@@ -146,6 +146,52 @@ def crosses_crease(surf, labels):
     return bool((surf.edge_cos[inner][same] < np.cos(np.radians(CREASE))).any())
 
 
+LONG = 2.25
+"""A chart at least this many times longer (along its principal axis) than wide is cut by :func:`cut_long` into
+k = round(√(length / width)) ≥ 2 pieces."""
+
+
+def cut_long(uv, owner, chart, longest=LONG):
+    """Corner UVs ``uv`` (N, 2) with each chart (``chart``: its label per corner, ``owner``: the face of each
+    corner) of length L along its principal axis (of its corners' covariance) and width W across it, L ≥ ``longest``
+    · W, cut across that axis into k = round(√(L / W)) pieces of whole faces (a face goes by its mean corner along the
+    axis) and each piece i moved 2 i L along it, so that the pieces are charts of their own
+    (:func:`core.pack.chart_labels`): k pieces of L / k × W stack into a square, L / k = k W. Or None when no chart
+    is so long. A torus's own grid made isotropic is a 4 × 1 strip: 2 pieces fill a square map."""
+    uv = np.asarray(uv, float).reshape(-1, 2)
+    owner = np.asarray(owner, np.int64)
+    chart = np.asarray(chart, np.int64)
+    if not len(chart):
+        return None
+    n = int(chart.max()) + 1
+    count = np.maximum(np.bincount(chart, minlength=n), 1)
+    mean = np.stack([np.bincount(chart, uv[:, i], n) for i in (0, 1)], axis=1) / count[:, None]
+    d = uv - mean[chart]
+    cov = np.zeros((n, 2, 2))
+    np.add.at(cov, chart, d[:, :, None] * d[:, None, :])
+    axes = np.linalg.eigh(cov)[1]                     # columns by ascending variance: the principal axis last
+    along = np.einsum("ni,ni->n", d, axes[chart, :, 1])
+    across = np.einsum("ni,ni->n", d, axes[chart, :, 0])
+    extent = []
+    for v in (along, across):
+        lo, hi = np.full(n, np.inf), np.full(n, -np.inf)
+        np.minimum.at(lo, chart, v)
+        np.maximum.at(hi, chart, v)
+        extent.append((lo, hi - lo))
+    (low, length), (_, width) = extent
+    cut = length >= longest * np.maximum(width, 1e-300)
+    k = np.where(cut, np.rint(np.sqrt(length / np.maximum(width, 1e-300))), 1.0)
+    if not (k >= 2).any():
+        return None
+    faces = int(owner.max()) + 1
+    face_chart = np.zeros(faces, np.int64)
+    face_chart[owner] = chart
+    face_along = np.bincount(owner, along, faces) / np.maximum(np.bincount(owner, minlength=faces), 1)
+    c = face_chart
+    piece = np.clip(np.floor((face_along - low[c]) / np.maximum(length[c], 1e-300) * k[c]), 0, k[c] - 1)
+    return uv + (2.0 * piece[owner] * length[chart])[:, None] * axes[chart, :, 1]
+
+
 def joined(labels, pairs_):
     """Face labels with each pair's second chart joined to its first."""
     out = np.asarray(labels, np.int64).copy()

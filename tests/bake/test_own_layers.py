@@ -9,6 +9,7 @@ import pytest
 
 from addon.bake import BakeOptions, bake_lightmaps, unwrap, uvchecks
 from addon.bake import uv as uvmod
+from addon.blender.scene import corner_uv, corner_vertices
 from addon.core import lightmap
 from addon.core.io import exr
 from tests.support.meshes import added, plain
@@ -176,3 +177,26 @@ def test_a_layout_made_of_an_own_layer_follows_that_layer(tmp_path):
     third = bake_lightmaps([obj], ["ao"], tmp_path / "k", BakeOptions(texel_density=DENSITY, samples=1, **opts))
     assert obj.name not in third["unchanged"]
     assert not third["objects"][obj.name]["ao"]["unwrap"].startswith(unwrap.OWN)
+
+
+@pytest.mark.parametrize("size", [dict(resolution=128), dict()], ids=["128", "40 per m"])
+def test_a_torus_grid_too_long_for_its_map_is_cut_into_two_pieces_that_stack(tmp_path, size):
+    """A torus's own layer made of square texels is a 4 × 1 strip: whole, it could fill at most a quarter of a square
+    map. Cut across its length (core.merging.cut_long) into two 2 × 1 pieces of 24 × 12 quads, stacked, it fills at
+    least 0.8 of a 128² map and of its window at 40 texels/m, with texels square to unwrap.OWN_ANISOTROPY (at 40
+    texels/m resolving at least 40 / √OWN_ANISOTROPY per metre in its coarsest direction), no texel under two faces
+    and every face with texels."""
+    from addon.core import pack
+    obj = added(bpy.ops.mesh.primitive_torus_add)
+    entry, _ = _bake(obj, tmp_path / "t", **size)
+    assert entry["unwrap"] == unwrap.OWN + unwrap.CUT + unwrap.RASTER, entry["unwrap"]
+    assert entry["coverage"] >= 0.8, entry["coverage"]
+    texels, world = _texels(obj, entry)
+    assert lightmap.texel_anisotropy(texels, world) <= unwrap.OWN_ANISOTROPY
+    if not size:
+        assert _coarsest(texels, world) >= DENSITY / unwrap.OWN_ANISOTROPY ** 0.5
+    assert entry["overlap"] == 0 and lightmap.unmapped_fraction(world, texels) == 0
+    me = obj.data
+    faces = np.repeat(np.arange(len(me.polygons)), [p.loop_total for p in me.polygons])
+    pieces = pack.chart_labels(faces, corner_vertices(me), corner_uv(me, "Lightmap"))
+    assert sorted(np.bincount(pieces)) == [24 * 12, 24 * 12]

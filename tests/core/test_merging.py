@@ -119,3 +119,50 @@ def test_kept_joins_take_the_layouts_density_and_a_place_of_their_own():
     assert placed[:, 0].min() == 2.0 and np.isclose(placed[:, 1].min(), 2.0) and cursor > placed[:, 0].max()
     tri = out[surf.tri[np.isin(surf.tri_face, np.flatnonzero(left[::4]))]]
     assert np.isclose(lightmap.uv_areas(tri).sum(), k * 4.0)          # 4 m² at the layout's density
+
+
+def _pieces(surf, uv):
+    """Per face its chart after a cut (core.pack.chart_labels of the cut UVs)."""
+    from addon.core import pack
+    return pack.chart_labels(surf.owner, surf.vertex, uv)
+
+
+def test_a_strip_k_squared_times_longer_than_wide_is_cut_into_k_pieces_that_stack_into_a_square():
+    """A 4 × 1 grid of 16 × 4 quads is cut into 2 pieces of 8 × 4 quads (2 × 1: stacked, a square), a 9 × 1 one into
+    3 (3 × 1), each piece moved rigidly (a translation along the strip, every corner of a face alike); a 2 × 1 strip
+    (under merging.LONG) and a square are left whole (None)."""
+    for nx, ny, k in ((16, 4, 2), (18, 2, 3)):
+        surf, _, cells, uv = grid(nx, ny)
+        uv = uv / ny
+        out = merging.cut_long(uv, surf.owner, np.zeros(len(uv), np.int64))
+        pieces = _pieces(surf, out)
+        assert pieces.max() + 1 == k
+        x = np.array([c[0] for c in cells])
+        for p in range(k):
+            assert set(x[pieces == p]) == set(range(p * nx // k, (p + 1) * nx // k))
+        shift = out - uv
+        assert np.allclose(shift[:, 1], 0)
+        per_face = shift[:, 0].reshape(-1, 4)
+        assert np.allclose(per_face, per_face[:, :1])
+        box = [np.ptp(out[np.repeat(pieces, 4) == p], axis=0) for p in range(k)]
+        assert np.allclose(box, (nx / (k * ny), 1.0))
+    for nx, ny in ((8, 4), (4, 4)):
+        surf, _, _, uv = grid(nx, ny)
+        assert merging.cut_long(uv, surf.owner, np.zeros(len(uv), np.int64)) is None
+
+
+def test_only_the_long_chart_of_a_layout_is_cut_whatever_its_direction():
+    """Two charts: a 1 × 4 column turned 30° and a square beside it. The column (its principal axis, not its box) is
+    cut in 2 at its middle row; the square keeps its UVs."""
+    surf, _, cells, uv = grid(5, 4, skip=[(x, y) for y in range(4) for x in range(1, 2)])
+    col = np.repeat(np.array([c[0] == 0 for c in cells]), 4)
+    t = np.radians(30)
+    turned = uv @ np.array([[np.cos(t), np.sin(t)], [-np.sin(t), np.cos(t)]])
+    uv = np.where(col[:, None], turned, uv)
+    out = merging.cut_long(uv, surf.owner, (~col).astype(np.int64))
+    assert np.array_equal(out[~col], uv[~col])
+    pieces = _pieces(surf, out)
+    rows = np.array([c[1] for c in cells])
+    column = np.array([c[0] == 0 for c in cells])
+    assert len(set(pieces[column])) == 2
+    assert set(rows[column & (pieces == pieces[column][0])]) in ({0, 1}, {2, 3})

@@ -203,3 +203,25 @@ def test_the_side_that_fills_is_the_least_at_which_a_packing_of_the_charts_cover
     packed = []
     monkeypatch.setattr(pack, "pack", lambda *a: packed.append(a[2]))
     assert pack.side_that_fills(strip, np.zeros(2, np.int64), 16, margin, 0.2, 16384) == 0 and packed == []
+
+
+def test_pieces_that_do_not_fit_side_by_side_are_stacked_in_the_square_they_fill():
+    """Two 2 × 1 rectangles (0.6 × 0.3 of a 64² map: 38 × 19 texels each) placed at their size take the lowest
+    places: the second, with no room beside the first, is turned upright next to it, an L in a 63 × 40 box they fill
+    0.57 of (2-texel margins). With squares=(0.85, 0.7) they are also placed in the square their texels fill so,
+    stacked in a 40 × 43 box (0.84), and that placement is kept: the same texels (same density), every chart inside
+    that box."""
+    rect = np.array([(0, 0), (0.6, 0), (0.6, 0.3), (0, 0.3)])
+    uv = np.concatenate([rect, rect + (0, 0.4)])
+    tris = np.array([(0, 1, 2), (0, 2, 3), (4, 5, 6), (4, 6, 7)])
+    labels = np.array([0, 0, 1, 1])
+    side, margin = 64, 2.0
+    wide = pack.lowest(uv[tris], labels, side, margin)
+    square = pack.lowest(uv[tris], labels, side, margin, squares=(0.85, 0.7))
+    fill = lambda p: p.covered / (p.extent[0] * p.extent[1])
+    assert wide.extent[0] > 50 and fill(wide) < 0.7
+    assert square.covered == wide.covered and square.scale == 1.0
+    assert fill(square) > 0.8 and max(square.extent) < 46
+    moved = pack.moved(uv[tris].reshape(-1, 2), np.repeat(labels, 3), square, side) * side
+    assert moved.min() >= 0 and np.all(moved.max(axis=0) <= square.extent)
+    assert int(lightmap.coverage_mask(moved.reshape(-1, 3, 2) / side, side, side).sum()) == square.covered
