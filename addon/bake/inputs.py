@@ -18,6 +18,8 @@ from .unwrap_copy import Stretches
 
 
 HASH_KEY = "il:input_hash"
+UV_DIGEST_KEY = "il:uv_digest"
+"""The header attribute holding :func:`layout_digest` of the UVs an image map was baked through."""
 
 
 _HASHED_OPTIONS = ("resolution", "texel_density", "max_resolution", "samples", "target_error", "pilot_samples",
@@ -199,6 +201,18 @@ class _Bytes:
 
     def data(self):
         return b"".join(self.parts)
+
+
+def layout_digest(group, layer):
+    """Digest of the corner UVs of UV layer ``layer`` of each object of ``group`` (the layout a map is baked
+    through), or None when one lacks that layer."""
+    h = hashlib.blake2b(digest_size=16)
+    for o in group:
+        if not layer or layer not in o.data.uv_layers:
+            return None
+        h.update(o.name.encode())
+        h.update(corner_uv(o.data, layer).tobytes())
+    return h.hexdigest()
 
 
 def stored_hash(path):

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..core.io import exr, png as io_png
 from . import report as reports, uv as uvmod, write
-from .inputs import HASH_KEY, group_map_file, header_text, stored_header, stored_map
+from .inputs import HASH_KEY, UV_DIGEST_KEY, group_map_file, header_text, layout_digest, stored_header, stored_map
 from .kinds import KINDS
 from .passes import BakeResult
 from .plan import map_file
@@ -28,11 +28,31 @@ def unchanged_maps(groups, maps, digests, out, options, stems, report_path):
             if header is None or header_text(header.get(HASH_KEY)) != digests[(name, m)]:
                 continue
             stored = stored_map(path)         # the whole file reads (a damaged one is baked again)
-            if stored is not None and header_text(stored[0].get(HASH_KEY)) == digests[(name, m)]:
+            if (stored is not None and header_text(stored[0].get(HASH_KEY)) == digests[(name, m)]
+                    and _on_its_layout(group, stored[0])):
                 unchanged.setdefault(name, []).append(m)
                 for o, e in _kept_entries(name, group, m, out, options, stems, stored, old_reports).items():
                     kept.setdefault(o, {})[m] = e
     return unchanged, kept
+
+
+def _on_its_layout(group, header):
+    """Whether a map still lies on the UVs its group carries: the layer it was baked through (the header's
+    il:uv_layer) holds the UVs it held (UV_DIGEST_KEY: a "Lightmap" layer edited by hand since is baked through
+    again; the input hash leaves that layer out, so that a rerun without it agrees with the first bake); where a mesh
+    lacks the layer, the layout must be one the UV cache makes again (il:uv_cache names each object), not a layer
+    reused and removed since. A map without the digest (a vertex map, or written before it was kept) passes."""
+    stored = header_text(header.get(UV_DIGEST_KEY))
+    if not stored:
+        return True
+    now = layout_digest(group, header_text(header.get("il:uv_layer")))
+    if now is not None:
+        return now == stored
+    try:
+        cached = json.loads(header_text(header.get("il:uv_cache")) or "{}")
+    except ValueError:
+        return False
+    return isinstance(cached, dict) and all(cached.get(o.name) for o in group)
 
 
 def _kept_entries(name, group, kind, out, options, stems, stored, old_reports):

@@ -9,7 +9,7 @@ from ..core import errors, lightmap
 from ..core.errors import ILError
 from ..core.io import exr, png as io_png
 from . import orientation, uv as uvmod, uvchecks
-from .inputs import HASH_KEY
+from .inputs import HASH_KEY, UV_DIGEST_KEY, layout_digest
 from .kinds import KINDS
 from .passes import flat
 from .plan import file_stems, map_file
@@ -146,6 +146,9 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
     attrs = _attributes(kind, result, options, uv_name)
     if digest:
         attrs[HASH_KEY] = digest
+    layout = layout_digest(group, uv_name)
+    if layout:
+        attrs[UV_DIGEST_KEY] = layout
     if KINDS[kind].layout:
         attrs["il:layout"] = KINDS[kind].layout
     attrs["il:coverage"] = float(result.mask.mean())

@@ -671,3 +671,42 @@ def test_an_inside_out_meshs_cached_layout_reaches_the_files_corners_and_survive
     assert np.array_equal(exr.read_exr(again["objects"]["Cube"]["ao"]["file"])[0]["Y"], pixels)
     assert uvcache._read(path).corners is not None
     assert np.array_equal(uvcache.file_layout(str(tmp_path), ref, cube, scene), now)
+
+
+def _alpha(report, name):
+    channels, _ = exr.read_exr(report["objects"][name]["ao"]["file"])
+    return np.flipud(channels["A"]) > 0.5
+
+
+def test_a_map_stays_unchanged_only_while_the_mesh_carries_the_layer_it_was_baked_through(tmp_path):
+    """The map's header keeps a digest of the UVs it was baked through (inputs.UV_DIGEST_KEY). Rerun: kept. The
+    generated "Lightmap" layer edited by hand (mirrored): baked again, through the cached layout written back into
+    the layer, so that the map lies on the layer the mesh carries (its texels are the layer's coverage); before, the
+    input hash, which leaves that layer out so that a rerun without it agrees with the first bake, kept the map
+    "unchanged" on UVs the mesh no longer had. The layer removed: kept, its layout is in the UV cache. A plane's
+    own "Lightmap" layer, reused (no cache entry), then removed: baked again (the map's layout is gone)."""
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=16, ring_count=8)
+    obj = bpy.context.object
+    opts = BakeOptions(resolution=32, samples=1, bounces=0, overwrite=True)
+    first = bake_lightmaps([obj], ["ao"], tmp_path / "a", opts)
+    layout = sc.corner_uv(obj.data, "Lightmap").copy()
+    assert obj.name in bake_lightmaps([obj], ["ao"], tmp_path / "a", opts)["unchanged"]
+    mirrored = layout.copy()
+    mirrored[:, 0] = 1.0 - mirrored[:, 0]
+    obj.data.uv_layers["Lightmap"].data.foreach_set("uv", mirrored.ravel())
+    again = bake_lightmaps([obj], ["ao"], tmp_path / "a", opts)
+    assert obj.name not in again["unchanged"]
+    assert np.array_equal(sc.corner_uv(obj.data, "Lightmap"), layout)
+    assert np.array_equal(_alpha(again, obj.name), _alpha(first, obj.name))
+    assert np.array_equal(_alpha(again, obj.name), lightmap.coverage_mask(uvmod.triangles_uv(obj, "Lightmap"), 32, 32))
+    obj.data.uv_layers.remove(obj.data.uv_layers["Lightmap"])
+    assert obj.name in bake_lightmaps([obj], ["ao"], tmp_path / "a", opts)["unchanged"]
+
+    bpy.ops.mesh.primitive_plane_add(location=(0, 0, -2))
+    plane = bpy.context.object
+    plane.data.uv_layers.new(name="Lightmap").data.foreach_set("uv", (0.1 + 0.8 * sc.corner_uv(plane.data, "UVMap")).ravel())
+    reused = bake_lightmaps([plane], ["ao"], tmp_path / "b", opts)["objects"][plane.name]["ao"]
+    assert reused["uv_layer"] == "Lightmap" and not reused.get("uv_cache") and "unwrap" not in reused
+    assert plane.name in bake_lightmaps([plane], ["ao"], tmp_path / "b", opts)["unchanged"]
+    plane.data.uv_layers.remove(plane.data.uv_layers["Lightmap"])
+    assert plane.name not in bake_lightmaps([plane], ["ao"], tmp_path / "b", opts)["unchanged"]
