@@ -43,6 +43,10 @@ OWN = "own_uv"
 RASTER."""
 CUT = "+cut_charts"
 """Added to OWN when its long charts were cut into pieces that stack (:func:`core.merging.cut_long`)."""
+CUTS = (None, 3, 4)
+"""The cuts of an own layer's long charts tried at a fixed side (:func:`core.merging.cut_long`'s ``pieces``; None:
+the square stack, the only one tried with a texel density, whose window takes a strip's shape). A UV sphere's grid,
+1.63 times longer than high, in 4 pieces: 0.500 -> 0.614 of a 128² map (2 pieces 0.45, 3 pieces 0.53)."""
 STACKED = (0.85, 0.7)
 """The fills of the squares a texel-density map of cut charts is also packed in (:func:`core.pack.lowest`)."""
 UNWRAPPERS = (SMART, LIGHTMAP_PACK, SMART + RASTER, LIGHTMAP_PACK + RASTER, SMART + MERGED + RASTER,
@@ -599,9 +603,9 @@ class _Copies:
         square texels on average (:func:`core.lightmap.isotropic`: a torus's grid on the unit square becomes a 4 × 1
         rectangle), scaled to the UV area of the layout in place (its texel density) and placed by their texels
         (:meth:`_raster_packed`: charts stacked or mirrored onto one another get places of their own), as they are
-        and with their long charts cut into pieces that stack (:func:`core.merging.cut_long`, CUT: that torus's
-        strip in 2 pieces fills 0.88 of a 256² map, against 0.22 whole and 0.48 for its merged Smart UV Project
-        charts). The best is
+        and with their long charts cut into pieces (:func:`core.merging.cut_long`, CUT, as many as CUTS names: that
+        torus's strip in 2 pieces that stack fills 0.87 of a 256² map, against 0.22 whole and 0.48 for its merged
+        Smart UV Project charts). The best is
         kept when it fits a ``side``² map, fills more of it as baked, gives every face texels
         (:func:`core.lightmap.unmapped_fraction` 0, no triangle under OWN_FLOOR of the median density), has no chart
         across an edge sharper than ``core.merging.CREASE`` (a cube's cross: its light would blend across it), texels
@@ -632,10 +636,13 @@ class _Copies:
             own = lightmap.uv_area(uv[tris])
             if not own > 0:
                 continue
-            for layout, label, squares in ((uv, OWN, ()),
-                                           (merging.cut_long(uv, surf.owner, charts[surf.owner]), OWN + CUT, STACKED)):
-                if layout is None:
+            tried = []
+            variants = [(uv, OWN, ())] + [(merging.cut_long(uv, surf.owner, charts[surf.owner], k), OWN + CUT, STACKED)
+                                          for k in (CUTS[:1] if cut else CUTS)]
+            for layout, label, squares in variants:
+                if layout is None or any(np.array_equal(layout, t) for t in tried):
                     continue
+                tried.append(layout)
                 new = self._raster_packed([layout * math.sqrt(area / own)], side, margin, cut, squares)
                 if new is None:
                     continue
@@ -658,8 +665,8 @@ class _Copies:
     def try_merged(self, side, margin, cut):
         """For one copy whose layout (packed by its texels where that fills more) fills under FILL of its map (of at
         least MERGE_SIDE) as baked: its charts joined round by round (:func:`unwrap_merge.layouts`), and those of Lightmap Pack (one chart
-        a face or two; a mesh of at most MERGE_LIGHTMAP_PACK_FACES whose layout is Smart UV Project's, on a map of at
-        least MERGE_LIGHTMAP_PACK_SIDE), each round's
+        a face or two; a mesh of at most MERGE_LIGHTMAP_PACK_FACES whose layout is not Lightmap Pack's, on a map of
+        at least MERGE_LIGHTMAP_PACK_SIDE), each round's
         layout packed by its texels (:meth:`_raster_packed`); the round that fills most is kept when it fits a
         ``side``² map, fills more of it as baked, its texel density is as even (:func:`even_enough`) and no more of
         its texels lie under several faces.
@@ -677,7 +684,7 @@ class _Copies:
         before, unwrapper = self._kept(), self.unwrapper
         obj = self.copies[0][1]
         starts = [(before[0][0], unwrapper.split("+")[0])]
-        if (unwrapper.startswith(SMART) and len(obj.data.polygons) <= MERGE_LIGHTMAP_PACK_FACES
+        if (not unwrapper.startswith(LIGHTMAP_PACK) and len(obj.data.polygons) <= MERGE_LIGHTMAP_PACK_FACES
                 and side >= MERGE_LIGHTMAP_PACK_SIDE):
             starts.append((self._lightmap_packed(min(margin_fraction(margin, side), _LIGHTMAP_PACK_MAX_MARGIN))[0][0],
                            LIGHTMAP_PACK))

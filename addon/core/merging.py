@@ -146,18 +146,18 @@ def crosses_crease(surf, labels):
     return bool((surf.edge_cos[inner][same] < np.cos(np.radians(CREASE))).any())
 
 
-LONG = 2.25
-"""A chart at least this many times longer (along its principal axis) than wide is cut by :func:`cut_long` into
-k = round(√(length / width)) ≥ 2 pieces."""
+LONG = 1.5
+"""A chart at least this many times longer (along its principal axis) than wide is cut by :func:`cut_long`."""
 
 
-def cut_long(uv, owner, chart, longest=LONG):
+def cut_long(uv, owner, chart, pieces=None, longest=LONG):
     """Corner UVs ``uv`` (N, 2) with each chart (``chart``: its label per corner, ``owner``: the face of each
     corner) of length L along its principal axis (of its corners' covariance) and width W across it, L ≥ ``longest``
-    · W, cut across that axis into k = round(√(L / W)) pieces of whole faces (a face goes by its mean corner along the
-    axis) and each piece i moved 2 i L along it, so that the pieces are charts of their own
-    (:func:`core.pack.chart_labels`): k pieces of L / k × W stack into a square, L / k = k W. Or None when no chart
-    is so long. A torus's own grid made isotropic is a 4 × 1 strip: 2 pieces fill a square map."""
+    · W, cut across that axis into k pieces of whole faces (a face goes by its mean corner along the axis) and each
+    piece i moved 2 i L along it, so that the pieces are charts of their own (:func:`core.pack.chart_labels`).
+    k = ``pieces``, by default max(2, round(√(L / W))): k pieces of L / k × W stack into a square, L / k = k W (a
+    torus's own grid made isotropic is a 4 × 1 strip: 2 pieces fill a square map). Or None when no chart is so
+    long."""
     uv = np.asarray(uv, float).reshape(-1, 2)
     owner = np.asarray(owner, np.int64)
     chart = np.asarray(chart, np.int64)
@@ -180,7 +180,8 @@ def cut_long(uv, owner, chart, longest=LONG):
         extent.append((lo, hi - lo))
     (low, length), (_, width) = extent
     cut = length >= longest * np.maximum(width, 1e-300)
-    k = np.where(cut, np.rint(np.sqrt(length / np.maximum(width, 1e-300))), 1.0)
+    k = np.where(cut, np.maximum(2.0, np.rint(np.sqrt(length / np.maximum(width, 1e-300))))
+                 if pieces is None else float(pieces), 1.0)
     if not (k >= 2).any():
         return None
     faces = int(owner.max()) + 1

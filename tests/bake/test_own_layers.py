@@ -130,9 +130,11 @@ def test_an_own_layer_that_would_fill_more_is_refused_when_it_is_no_light_map(tm
     assert lightmap.unmapped_fraction(world, texels) == 0 and lightmap.density_floor(texels, world) >= unwrap.OWN_FLOOR
 
 
-def test_an_own_layer_that_fills_less_is_refused(tmp_path):
-    """An ico sphere's own layer (triangles laid in a strip) placed by its texels at 128² fills about half what
-    Smart UV Project's charts do: the layout kept is an unwrapper's."""
+def test_an_own_layer_that_fills_less_is_refused(tmp_path, monkeypatch):
+    """An ico sphere's own layer (triangles laid in a strip) placed whole by its texels at 128² fills about half what
+    Smart UV Project's charts do: with no cuts tried (unwrap.CUTS empty), the layout kept is an unwrapper's. (Its
+    strip cut into pieces and joined fills 0.446 against their 0.422, and is kept.)"""
+    monkeypatch.setattr(unwrap, "CUTS", ())
     obj = added(bpy.ops.mesh.primitive_ico_sphere_add, subdivisions=3)
     entry, _ = _bake(obj, tmp_path / "i", resolution=128)
     assert not entry["unwrap"].startswith(unwrap.OWN), entry["unwrap"]
@@ -200,3 +202,22 @@ def test_a_torus_grid_too_long_for_its_map_is_cut_into_two_pieces_that_stack(tmp
     faces = np.repeat(np.arange(len(me.polygons)), [p.loop_total for p in me.polygons])
     pieces = pack.chart_labels(faces, corner_vertices(me), corner_uv(me, "Lightmap"))
     assert sorted(np.bincount(pieces)) == [24 * 12, 24 * 12]
+
+
+def test_a_uv_sphere_grid_at_a_fixed_side_is_cut_into_the_pieces_that_fill_most(tmp_path):
+    """A UV sphere's grid made of square texels is a strip 1.63 times longer than high (√(4/3 / 2) · 2π around, π
+    high): whole it fills 0.50 of a 128² map. Cut into 4 pieces (unwrap.CUTS), three standing and one lying across
+    them (8 of its 32 segments each), it fills at least the 55 % the search aims at, with texels square to unwrap.OWN_ANISOTROPY, no texel under
+    two faces and every face with texels."""
+    from addon.core import pack
+    obj = added(bpy.ops.mesh.primitive_uv_sphere_add)
+    entry, _ = _bake(obj, tmp_path / "s", resolution=128)
+    assert entry["unwrap"] == unwrap.OWN + unwrap.CUT + unwrap.RASTER, entry["unwrap"]
+    assert entry["coverage"] >= uvchecks.FILL, entry["coverage"]
+    texels, world = _texels(obj, entry)
+    assert lightmap.texel_anisotropy(texels, world) <= unwrap.OWN_ANISOTROPY
+    assert entry["overlap"] == 0 and lightmap.unmapped_fraction(world, texels) == 0
+    me = obj.data
+    faces = np.repeat(np.arange(len(me.polygons)), [p.loop_total for p in me.polygons])
+    pieces = pack.chart_labels(faces, corner_vertices(me), corner_uv(me, "Lightmap"))
+    assert sorted(np.bincount(pieces)) == [8 * 16] * 4

@@ -129,24 +129,25 @@ def _pieces(surf, uv):
 
 def test_a_strip_k_squared_times_longer_than_wide_is_cut_into_k_pieces_that_stack_into_a_square():
     """A 4 × 1 grid of 16 × 4 quads is cut into 2 pieces of 8 × 4 quads (2 × 1: stacked, a square), a 9 × 1 one into
-    3 (3 × 1), each piece moved rigidly (a translation along the strip, every corner of a face alike); a 2 × 1 strip
-    (under merging.LONG) and a square are left whole (None)."""
-    for nx, ny, k in ((16, 4, 2), (18, 2, 3)):
+    3 (3 × 1), a 1.5 × 1 one (merging.LONG) into 2, or into as many pieces as asked (``pieces``), each piece moved
+    rigidly (a translation along the strip, every corner of a face alike); a 1.25 × 1 strip and a square are left
+    whole (None)."""
+    for nx, ny, k, pieces in ((16, 4, 2, None), (18, 2, 3, None), (6, 4, 2, None), (16, 4, 4, 4), (18, 2, 3, 3)):
         surf, _, cells, uv = grid(nx, ny)
         uv = uv / ny
-        out = merging.cut_long(uv, surf.owner, np.zeros(len(uv), np.int64))
-        pieces = _pieces(surf, out)
-        assert pieces.max() + 1 == k
+        out = merging.cut_long(uv, surf.owner, np.zeros(len(uv), np.int64), pieces)
+        labels = _pieces(surf, out)
+        assert labels.max() + 1 == k
         x = np.array([c[0] for c in cells])
         for p in range(k):
-            assert set(x[pieces == p]) == set(range(p * nx // k, (p + 1) * nx // k))
+            assert set(x[labels == p]) == set(range(p * nx // k, (p + 1) * nx // k))
         shift = out - uv
         assert np.allclose(shift[:, 1], 0)
         per_face = shift[:, 0].reshape(-1, 4)
         assert np.allclose(per_face, per_face[:, :1])
-        box = [np.ptp(out[np.repeat(pieces, 4) == p], axis=0) for p in range(k)]
+        box = [np.ptp(out[np.repeat(labels, 4) == p], axis=0) for p in range(k)]
         assert np.allclose(box, (nx / (k * ny), 1.0))
-    for nx, ny in ((8, 4), (4, 4)):
+    for nx, ny in ((5, 4), (4, 4)):
         surf, _, _, uv = grid(nx, ny)
         assert merging.cut_long(uv, surf.owner, np.zeros(len(uv), np.int64)) is None
 
