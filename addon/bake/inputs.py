@@ -8,7 +8,8 @@ import numpy as np
 from ..blender import compat
 from ..blender.digest import node_tree_digest, rna_digest, shape_digest
 from ..blender.materials import user_material
-from ..blender.scene import corner_uv, corner_vertices, from_its_mesh, positions, subdivided_only
+from ..blender.scene import (corner_uv, corner_vertices, face_sizes, face_starts, from_its_mesh, positions,
+                             subdivided_only)
 from ..core.io import exr
 from . import uv as uvmod, uvcache
 from .cycles import RENDER_VARIANTS
@@ -19,7 +20,7 @@ from .unwrap_copy import Stretches
 
 HASH_KEY = "il:input_hash"
 UV_DIGEST_KEY = "il:uv_digest"
-"""The header attribute holding :func:`layout_digest` of the UVs an image map was baked through."""
+"""The header attribute holding :func:`layout_digest` of the UVs an image map was baked through (JSON)."""
 
 
 _HASHED_OPTIONS = ("resolution", "texel_density", "max_resolution", "samples", "target_error", "pilot_samples",
@@ -204,15 +205,19 @@ class _Bytes:
 
 
 def layout_digest(group, layer):
-    """Digest of the corner UVs of UV layer ``layer`` of each object of ``group`` (the layout a map is baked
-    through), or None when one lacks that layer."""
-    h = hashlib.blake2b(digest_size=16)
+    """{object: digest} of the corner UVs of UV layer ``layer`` of each object of ``group`` that has it (the layout a
+    map is baked through), the corners of each face in the order of their vertices (the same when an inside-out mesh
+    is flipped for its bake: each corner keeps its UV)."""
+    out = {}
     for o in group:
-        if not layer or layer not in o.data.uv_layers:
-            return None
-        h.update(o.name.encode())
-        h.update(corner_uv(o.data, layer).tobytes())
-    return h.hexdigest()
+        me = o.data
+        if not layer or layer not in me.uv_layers:
+            continue
+        starts = face_starts(me)
+        face = np.repeat(np.arange(len(starts)), face_sizes(me, starts))
+        order = np.lexsort((corner_vertices(me), face))
+        out[o.name] = hashlib.blake2b(corner_uv(me, layer)[order].tobytes(), digest_size=16).hexdigest()
+    return out
 
 
 def stored_hash(path):

@@ -37,22 +37,23 @@ def unchanged_maps(groups, maps, digests, out, options, stems, report_path):
 
 
 def _on_its_layout(group, header):
-    """Whether a map still lies on the UVs its group carries: the layer it was baked through (the header's
-    il:uv_layer) holds the UVs it held (UV_DIGEST_KEY: a "Lightmap" layer edited by hand since is baked through
-    again; the input hash leaves that layer out, so that a rerun without it agrees with the first bake); where a mesh
-    lacks the layer, the layout must be one the UV cache makes again (il:uv_cache names each object), not a layer
-    reused and removed since. A map without the digest (a vertex map, or written before it was kept) passes."""
-    stored = header_text(header.get(UV_DIGEST_KEY))
-    if not stored:
+    """Whether a map still lies on the UVs its group carries: each mesh's layer the map was baked through (the
+    header's il:uv_layer) holds the UVs it held (UV_DIGEST_KEY, by object: a "Lightmap" layer edited by hand is
+    baked through again; the input hash leaves that layer out, so that a rerun without it agrees with the first
+    bake); a mesh that lacks the layer must have a layout the UV cache makes again (il:uv_cache names it), not a
+    layer reused and removed since. A map without the digest (a vertex map, or written before it was kept) passes."""
+    text = header_text(header.get(UV_DIGEST_KEY))
+    if not text:
         return True
-    now = layout_digest(group, header_text(header.get("il:uv_layer")))
-    if now is not None:
-        return now == stored
     try:
+        stored = json.loads(text)
         cached = json.loads(header_text(header.get("il:uv_cache")) or "{}")
     except ValueError:
         return False
-    return isinstance(cached, dict) and all(cached.get(o.name) for o in group)
+    if not isinstance(stored, dict) or not isinstance(cached, dict):
+        return False
+    now = layout_digest(group, header_text(header.get("il:uv_layer")))
+    return all(now[o.name] == stored.get(o.name) if o.name in now else bool(cached.get(o.name)) for o in group)
 
 
 def _kept_entries(name, group, kind, out, options, stems, stored, old_reports):

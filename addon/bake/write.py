@@ -148,7 +148,7 @@ def write_map(name, group, kind, result, out, options, layers, margin=None, over
         attrs[HASH_KEY] = digest
     layout = layout_digest(group, uv_name)
     if layout:
-        attrs[UV_DIGEST_KEY] = layout
+        attrs[UV_DIGEST_KEY] = json.dumps(layout, sort_keys=True)
     if KINDS[kind].layout:
         attrs["il:layout"] = KINDS[kind].layout
     attrs["il:coverage"] = float(result.mask.mean())

@@ -710,3 +710,29 @@ def test_a_map_stays_unchanged_only_while_the_mesh_carries_the_layer_it_was_bake
     assert plane.name in bake_lightmaps([plane], ["ao"], tmp_path / "b", opts)["unchanged"]
     plane.data.uv_layers.remove(plane.data.uv_layers["Lightmap"])
     assert plane.name not in bake_lightmaps([plane], ["ao"], tmp_path / "b", opts)["unchanged"]
+
+
+def test_the_layout_check_keeps_inside_out_meshes_given_layers_and_sees_each_object_of_an_atlas(tmp_path):
+    """The digest of the UVs a map was baked through (inputs.layout_digest) is taken face by face in the order of
+    the corners' vertices: an inside-out cube, flipped for its bake and back, is kept on a rerun, with a generated
+    layer and with ``uv_layer`` (before, its corners' order changed and it was baked again on every rerun). In an
+    atlas each object counts: its cube's layer edited while the plane's is removed bakes it again."""
+    bpy.ops.mesh.primitive_plane_add(size=4)
+    plane = bpy.context.object
+    bpy.ops.mesh.primitive_cube_add(size=0.6, location=(0, 0, 0.3))
+    cube = bpy.context.object
+    cube.data.flip_normals()
+    for name, extra in (("made", {}), ("given", {"uv_layer": "UVMap"})):
+        opts = BakeOptions(resolution=16, samples=1, bounces=0, overwrite=True, **extra)
+        bake_lightmaps([plane, cube], ["ao"], tmp_path / name, opts)
+        assert sorted(bake_lightmaps([plane, cube], ["ao"], tmp_path / name, opts)["unchanged"]) == ["Cube", "Plane"]
+    cube.data.flip_normals()
+    opts = BakeOptions(resolution=32, samples=1, bounces=0, overwrite=True, atlas=True)
+    first = bake_lightmaps([plane, cube], ["ao"], tmp_path / "atlas", opts)
+    (atlas,) = {e["ao"]["file"] for e in first["objects"].values()}
+    assert sorted(bake_lightmaps([plane, cube], ["ao"], tmp_path / "atlas", opts)["unchanged"])
+    uv = sc.corner_uv(cube.data, "Lightmap").copy()
+    uv[:, 0] = 1.0 - uv[:, 0]
+    cube.data.uv_layers["Lightmap"].data.foreach_set("uv", uv.ravel())
+    plane.data.uv_layers.remove(plane.data.uv_layers["Lightmap"])
+    assert not bake_lightmaps([plane, cube], ["ao"], tmp_path / "atlas", opts)["unchanged"]
