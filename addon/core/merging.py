@@ -157,7 +157,7 @@ def cut_long(uv, owner, chart, pieces=None, longest=LONG):
     piece i moved 2 i L along it, so that the pieces are charts of their own (:func:`core.pack.chart_labels`).
     k = ``pieces``, by default max(2, round(√(L / W))): k pieces of L / k × W stack into a square, L / k = k W (a
     torus's own grid made isotropic is a 4 × 1 strip: 2 pieces fill a square map). Or None when no chart is so
-    long."""
+    long, is a line (no width) or a face alone, or when no chart's faces fall in two pieces."""
     uv = np.asarray(uv, float).reshape(-1, 2)
     owner = np.asarray(owner, np.int64)
     chart = np.asarray(chart, np.int64)
@@ -179,17 +179,26 @@ def cut_long(uv, owner, chart, pieces=None, longest=LONG):
         np.maximum.at(hi, chart, v)
         extent.append((lo, hi - lo))
     (low, length), (_, width) = extent
-    cut = length >= longest * np.maximum(width, 1e-300)
+    faces = int(owner.max()) + 1
+    face_chart = np.zeros(faces, np.int64)
+    face_chart[owner] = chart
+    sizes = np.bincount(face_chart[np.unique(owner)], minlength=n)           # faces of each chart
+    cut = (length >= longest * width) & (width > 1e-9 * length) & (sizes >= 2)
     k = np.where(cut, np.maximum(2.0, np.rint(np.sqrt(length / np.maximum(width, 1e-300))))
                  if pieces is None else float(pieces), 1.0)
     if not (k >= 2).any():
         return None
-    faces = int(owner.max()) + 1
-    face_chart = np.zeros(faces, np.int64)
-    face_chart[owner] = chart
+    k = np.minimum(k, sizes)
     face_along = np.bincount(owner, along, faces) / np.maximum(np.bincount(owner, minlength=faces), 1)
     c = face_chart
     piece = np.clip(np.floor((face_along - low[c]) / np.maximum(length[c], 1e-300) * k[c]), 0, k[c] - 1)
+    used = np.unique(owner)
+    first = np.full(n, np.inf)
+    np.minimum.at(first, c[used], piece[used])
+    last = np.full(n, -np.inf)
+    np.maximum.at(last, c[used], piece[used])
+    if not (last > first).any():                       # every chart's faces in one piece: nothing is cut
+        return None
     return uv + (2.0 * piece[owner] * length[chart])[:, None] * axes[chart, :, 1]
 
 

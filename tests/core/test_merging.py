@@ -130,8 +130,8 @@ def _pieces(surf, uv):
 def test_a_strip_k_squared_times_longer_than_wide_is_cut_into_k_pieces_that_stack_into_a_square():
     """A 4 × 1 grid of 16 × 4 quads is cut into 2 pieces of 8 × 4 quads (2 × 1: stacked, a square), a 9 × 1 one into
     3 (3 × 1), a 1.5 × 1 one (merging.LONG) into 2, or into as many pieces as asked (``pieces``), each piece moved
-    rigidly (a translation along the strip, every corner of a face alike); a 1.25 × 1 strip and a square are left
-    whole (None)."""
+    rigidly (a translation along the strip, every corner of a face alike); a 1.25 × 1 strip, a square, one long face
+    and a chart collapsed onto a line are left whole (None)."""
     for nx, ny, k, pieces in ((16, 4, 2, None), (18, 2, 3, None), (6, 4, 2, None), (16, 4, 4, 4), (18, 2, 3, 3)):
         surf, _, cells, uv = grid(nx, ny)
         uv = uv / ny
@@ -150,6 +150,11 @@ def test_a_strip_k_squared_times_longer_than_wide_is_cut_into_k_pieces_that_stac
     for nx, ny in ((5, 4), (4, 4)):
         surf, _, _, uv = grid(nx, ny)
         assert merging.cut_long(uv, surf.owner, np.zeros(len(uv), np.int64)) is None
+    surf, _, _, uv = grid(1, 1)                                   # one long face: nothing to cut
+    assert merging.cut_long(uv * (8, 1), surf.owner, np.zeros(len(uv), np.int64)) is None
+    surf, _, _, uv = grid(8, 1)                                   # a chart collapsed onto a line
+    line = np.stack([uv[:, 0], np.zeros(len(uv))], axis=1)
+    assert merging.cut_long(line, surf.owner, np.zeros(len(uv), np.int64)) is None
 
 
 def test_only_the_long_chart_of_a_layout_is_cut_whatever_its_direction():
