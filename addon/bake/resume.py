@@ -37,11 +37,12 @@ def unchanged_maps(groups, maps, digests, out, options, stems, report_path):
 
 
 def _on_its_layout(group, header):
-    """Whether a map still lies on the UVs its group carries: each mesh's layer the map was baked through (the
-    header's il:uv_layer) holds the UVs it held (UV_DIGEST_KEY, by object: a "Lightmap" layer edited by hand is
-    baked through again; the input hash leaves that layer out, so that a rerun without it agrees with the first
-    bake); a mesh that lacks the layer must have a layout the UV cache makes again (il:uv_cache names it), not a
-    layer reused and removed since. A map without the digest (a vertex map, or written before it was kept) passes."""
+    """Whether a map still lies on a layout its group gets again: for each object, the layer the map was baked
+    through (the header's il:uv_layer) holds the UVs it held (UV_DIGEST_KEY, by object), or the UV cache makes its
+    layout again (il:uv_cache names it: the layer is the bake's product, written back from the cache by the next
+    bake that needs it and read from the cache by an export). So a layer reused (no cache entry) and since edited or
+    removed is baked through again; the input hash leaves that layer out, so that a rerun without it agrees with the
+    first bake. A map without the digest (a vertex map, or written before it was kept) passes."""
     text = header_text(header.get(UV_DIGEST_KEY))
     if not text:
         return True
@@ -53,7 +54,7 @@ def _on_its_layout(group, header):
     if not isinstance(stored, dict) or not isinstance(cached, dict):
         return False
     now = layout_digest(group, header_text(header.get("il:uv_layer")))
-    return all(now[o.name] == stored.get(o.name) if o.name in now else bool(cached.get(o.name)) for o in group)
+    return all(now.get(o.name) == stored.get(o.name) or bool(cached.get(o.name)) for o in group)
 
 
 def _kept_entries(name, group, kind, out, options, stems, stored, old_reports):

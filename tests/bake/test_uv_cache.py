@@ -678,45 +678,49 @@ def _alpha(report, name):
     return np.flipud(channels["A"]) > 0.5
 
 
-def test_a_map_stays_unchanged_only_while_the_mesh_carries_the_layer_it_was_baked_through(tmp_path):
-    """The map's header keeps a digest of the UVs it was baked through (inputs.UV_DIGEST_KEY). Rerun: kept. The
-    generated "Lightmap" layer edited by hand (mirrored): baked again, through the cached layout written back into
-    the layer, so that the map lies on the layer the mesh carries (its texels are the layer's coverage); before, the
-    input hash, which leaves that layer out so that a rerun without it agrees with the first bake, kept the map
-    "unchanged" on UVs the mesh no longer had. The layer removed: kept, its layout is in the UV cache. A plane's
-    own "Lightmap" layer, reused (no cache entry), then removed: baked again (the map's layout is gone)."""
+def test_a_map_stays_unchanged_only_while_its_layout_is_the_layer_or_the_cache(tmp_path):
+    """The map's header keeps a digest of the UVs it was baked through (inputs.UV_DIGEST_KEY). A generated layer
+    edited by hand, or removed, keeps the map: the UV cache makes its layout again, and the next bake that needs
+    the layer (one more map) writes it back, so the kept map lies on the layer again (its texels are the layer's
+    coverage). A plane's own "Lightmap" layer, reused (no cache entry): edited, the map is baked again through the
+    edited layer; removed, baked again (before, both were kept "unchanged" on UVs the mesh no longer had: the
+    input hash leaves that layer out, so that a rerun without it agrees with the first bake)."""
     bpy.ops.mesh.primitive_uv_sphere_add(segments=16, ring_count=8)
     obj = bpy.context.object
     opts = BakeOptions(resolution=32, samples=1, bounces=0, overwrite=True)
     first = bake_lightmaps([obj], ["ao"], tmp_path / "a", opts)
     layout = sc.corner_uv(obj.data, "Lightmap").copy()
-    assert obj.name in bake_lightmaps([obj], ["ao"], tmp_path / "a", opts)["unchanged"]
     mirrored = layout.copy()
     mirrored[:, 0] = 1.0 - mirrored[:, 0]
     obj.data.uv_layers["Lightmap"].data.foreach_set("uv", mirrored.ravel())
-    again = bake_lightmaps([obj], ["ao"], tmp_path / "a", opts)
-    assert obj.name not in again["unchanged"]
+    assert obj.name in bake_lightmaps([obj], ["ao"], tmp_path / "a", opts)["unchanged"]
+    more = bake_lightmaps([obj], ["ao", "irradiance"], tmp_path / "a", opts)
+    assert more["unchanged"] == {obj.name: ["ao"]}
     assert np.array_equal(sc.corner_uv(obj.data, "Lightmap"), layout)
-    assert np.array_equal(_alpha(again, obj.name), _alpha(first, obj.name))
-    assert np.array_equal(_alpha(again, obj.name), lightmap.coverage_mask(uvmod.triangles_uv(obj, "Lightmap"), 32, 32))
+    assert np.array_equal(_alpha(first, obj.name), lightmap.coverage_mask(uvmod.triangles_uv(obj, "Lightmap"), 32, 32))
     obj.data.uv_layers.remove(obj.data.uv_layers["Lightmap"])
     assert obj.name in bake_lightmaps([obj], ["ao"], tmp_path / "a", opts)["unchanged"]
 
     bpy.ops.mesh.primitive_plane_add(location=(0, 0, -2))
     plane = bpy.context.object
-    plane.data.uv_layers.new(name="Lightmap").data.foreach_set("uv", (0.1 + 0.8 * sc.corner_uv(plane.data, "UVMap")).ravel())
+    own = sc.corner_uv(plane.data, "UVMap")
+    plane.data.uv_layers.new(name="Lightmap").data.foreach_set("uv", (0.1 + 0.8 * own).ravel())
     reused = bake_lightmaps([plane], ["ao"], tmp_path / "b", opts)["objects"][plane.name]["ao"]
     assert reused["uv_layer"] == "Lightmap" and not reused.get("uv_cache") and "unwrap" not in reused
     assert plane.name in bake_lightmaps([plane], ["ao"], tmp_path / "b", opts)["unchanged"]
+    plane.data.uv_layers["Lightmap"].data.foreach_set("uv", (0.2 + 0.7 * own).ravel())
+    edited = bake_lightmaps([plane], ["ao"], tmp_path / "b", opts)
+    assert plane.name not in edited["unchanged"]
+    assert np.array_equal(_alpha(edited, plane.name),
+                          lightmap.coverage_mask(uvmod.triangles_uv(plane, "Lightmap"), 32, 32))
     plane.data.uv_layers.remove(plane.data.uv_layers["Lightmap"])
     assert plane.name not in bake_lightmaps([plane], ["ao"], tmp_path / "b", opts)["unchanged"]
 
 
-def test_the_layout_check_keeps_inside_out_meshes_given_layers_and_sees_each_object_of_an_atlas(tmp_path):
+def test_the_layout_check_keeps_inside_out_meshes(tmp_path):
     """The digest of the UVs a map was baked through (inputs.layout_digest) is taken face by face in the order of
     the corners' vertices: an inside-out cube, flipped for its bake and back, is kept on a rerun, with a generated
-    layer and with ``uv_layer`` (before, its corners' order changed and it was baked again on every rerun). In an
-    atlas each object counts: its cube's layer edited while the plane's is removed bakes it again."""
+    layer and with ``uv_layer`` (before, its corners' order changed and it was baked again on every rerun)."""
     bpy.ops.mesh.primitive_plane_add(size=4)
     plane = bpy.context.object
     bpy.ops.mesh.primitive_cube_add(size=0.6, location=(0, 0, 0.3))
@@ -726,13 +730,3 @@ def test_the_layout_check_keeps_inside_out_meshes_given_layers_and_sees_each_obj
         opts = BakeOptions(resolution=16, samples=1, bounces=0, overwrite=True, **extra)
         bake_lightmaps([plane, cube], ["ao"], tmp_path / name, opts)
         assert sorted(bake_lightmaps([plane, cube], ["ao"], tmp_path / name, opts)["unchanged"]) == ["Cube", "Plane"]
-    cube.data.flip_normals()
-    opts = BakeOptions(resolution=32, samples=1, bounces=0, overwrite=True, atlas=True)
-    first = bake_lightmaps([plane, cube], ["ao"], tmp_path / "atlas", opts)
-    (atlas,) = {e["ao"]["file"] for e in first["objects"].values()}
-    assert sorted(bake_lightmaps([plane, cube], ["ao"], tmp_path / "atlas", opts)["unchanged"])
-    uv = sc.corner_uv(cube.data, "Lightmap").copy()
-    uv[:, 0] = 1.0 - uv[:, 0]
-    cube.data.uv_layers["Lightmap"].data.foreach_set("uv", uv.ravel())
-    plane.data.uv_layers.remove(plane.data.uv_layers["Lightmap"])
-    assert not bake_lightmaps([plane, cube], ["ao"], tmp_path / "atlas", opts)["unchanged"]
