@@ -53,8 +53,9 @@ def _on_its_layout(group, header):
         return False
     if not isinstance(stored, dict) or not isinstance(cached, dict):
         return False
-    now = layout_digest(group, header_text(header.get("il:uv_layer")))
-    return all(now.get(o.name) == stored.get(o.name) or bool(cached.get(o.name)) for o in group)
+    rest = [o for o in group if not cached.get(o.name)]         # the cache makes the others' layouts again
+    now = layout_digest(rest, header_text(header.get("il:uv_layer")))
+    return all(now.get(o.name) == stored.get(o.name) for o in rest)
 
 
 def _kept_entries(name, group, kind, out, options, stems, stored, old_reports):

@@ -10,7 +10,7 @@ import pytest
 from addon.bake import BakeOptions, bake_lightmaps, unwrap, uvchecks
 from addon.bake import uv as uvmod
 from addon.blender.scene import corner_uv, corner_vertices
-from addon.core import lightmap
+from addon.core import lightmap, pack
 from addon.core.io import exr
 from tests.support.meshes import added, plain
 
@@ -36,6 +36,13 @@ def _texels(obj, entry):
     """The baked layout's triangles in texels of its w x h map, and their world positions."""
     w, h = entry["resolution"]
     return uvmod.triangles_uv(obj, "Lightmap") * (w, h), uvmod.world_triangles(obj)
+
+
+def _charts(obj):
+    """The chart of each face of ``obj``'s "Lightmap" layer (core.pack.chart_labels)."""
+    me = obj.data
+    faces = np.repeat(np.arange(len(me.polygons)), [p.loop_total for p in me.polygons])
+    return pack.chart_labels(faces, corner_vertices(me), corner_uv(me, "Lightmap"))
 
 
 def _coarsest(tri_texels, tri_world):
@@ -188,7 +195,6 @@ def test_a_torus_grid_too_long_for_its_map_is_cut_into_two_pieces_that_stack(tmp
     least 0.8 of a 128² map and of its window at 40 texels/m, with texels square to unwrap.OWN_ANISOTROPY (at 40
     texels/m resolving at least 40 / √OWN_ANISOTROPY per metre in its coarsest direction), no texel under two faces
     and every face with texels."""
-    from addon.core import pack
     obj = added(bpy.ops.mesh.primitive_torus_add)
     entry, _ = _bake(obj, tmp_path / "t", **size)
     assert entry["unwrap"] == unwrap.OWN + unwrap.CUT + unwrap.RASTER, entry["unwrap"]
@@ -198,9 +204,7 @@ def test_a_torus_grid_too_long_for_its_map_is_cut_into_two_pieces_that_stack(tmp
     if not size:
         assert _coarsest(texels, world) >= DENSITY / unwrap.OWN_ANISOTROPY ** 0.5
     assert entry["overlap"] == 0 and lightmap.unmapped_fraction(world, texels) == 0
-    me = obj.data
-    faces = np.repeat(np.arange(len(me.polygons)), [p.loop_total for p in me.polygons])
-    pieces = pack.chart_labels(faces, corner_vertices(me), corner_uv(me, "Lightmap"))
+    pieces = _charts(obj)
     assert sorted(np.bincount(pieces)) == [24 * 12, 24 * 12]
 
 
@@ -209,7 +213,6 @@ def test_a_uv_sphere_grid_at_a_fixed_side_is_cut_into_the_pieces_that_fill_most(
     high): whole it fills 0.50 of a 128² map. Cut into 4 pieces (unwrap.CUTS), three standing and one lying across
     them (8 of its 32 segments each), it fills at least the 55 % the search aims at, with texels square to unwrap.OWN_ANISOTROPY, no texel under
     two faces and every face with texels."""
-    from addon.core import pack
     obj = added(bpy.ops.mesh.primitive_uv_sphere_add)
     entry, _ = _bake(obj, tmp_path / "s", resolution=128)
     assert entry["unwrap"] == unwrap.OWN + unwrap.CUT + unwrap.RASTER, entry["unwrap"]
@@ -217,7 +220,5 @@ def test_a_uv_sphere_grid_at_a_fixed_side_is_cut_into_the_pieces_that_fill_most(
     texels, world = _texels(obj, entry)
     assert lightmap.texel_anisotropy(texels, world) <= unwrap.OWN_ANISOTROPY
     assert entry["overlap"] == 0 and lightmap.unmapped_fraction(world, texels) == 0
-    me = obj.data
-    faces = np.repeat(np.arange(len(me.polygons)), [p.loop_total for p in me.polygons])
-    pieces = pack.chart_labels(faces, corner_vertices(me), corner_uv(me, "Lightmap"))
+    pieces = _charts(obj)
     assert sorted(np.bincount(pieces)) == [8 * 16] * 4
