@@ -9,6 +9,8 @@ import math
 
 import numpy as np
 
+from .graph import components
+
 MAX_RESOLUTION = 16384
 
 
@@ -280,26 +282,12 @@ def overlap_fraction(tri_uv, width, height):
 
 def shell_labels(tris, vertices=None):
     """(T,) shell index 0..K-1 of each triangle: triangles sharing a vertex belong to one shell
-    (union-find by minimum label with pointer jumping). Returns ``(labels, K)``."""
+    (:func:`graph.components` of the vertices joined by the triangles' edges). Returns ``(labels, K)``."""
     tris = np.asarray(tris, np.int64).reshape(-1, 3)
     if not len(tris):
         return np.zeros(0, np.int64), 0
     n = int(tris.max()) + 1 if vertices is None else int(vertices)
-    parent = np.arange(n)
-    a = tris.ravel()
-    b = np.repeat(tris[:, 0], 3)
-    while True:
-        pa, pb = parent[a], parent[b]
-        differ = pa != pb
-        if not differ.any():
-            break
-        np.minimum.at(parent, np.maximum(pa, pb)[differ], np.minimum(pa, pb)[differ])
-        while True:
-            jumped = parent[parent]
-            if np.array_equal(jumped, parent):
-                break
-            parent = jumped
-    roots = parent[tris[:, 0]]
+    roots = components(tris.ravel(), np.repeat(tris[:, 0], 3), n)[tris[:, 0]]
     _, labels = np.unique(roots, return_inverse=True)
     return labels.ravel(), int(labels.max()) + 1
 

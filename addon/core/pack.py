@@ -23,6 +23,7 @@ import math
 
 import numpy as np
 
+from .graph import components
 from .lightmap import coverage_mask, uv_area
 from .rows import unique_rows
 
@@ -34,7 +35,7 @@ fine centre of a texel is its own centre)."""
 def chart_labels(owner, vertex, uv):
     """Chart 0..K-1 of each face (or triangle), from its corners: ``owner`` (N,) the face of each corner,
     ``vertex`` (N,) its vertex, ``uv`` (N, 2) its UVs; faces join through corners at one vertex with equal UVs
-    (bit for bit as float32; union by minimum label with pointer jumping)."""
+    (bit for bit as float32): the parts of the graph of faces and such corners (:func:`graph.components`)."""
     owner = np.asarray(owner, np.int64)
     if not len(owner):
         return np.zeros(0, np.int64)
@@ -42,16 +43,8 @@ def chart_labels(owner, vertex, uv):
     key = np.stack([np.asarray(vertex, np.int64), (bits[:, 0] << 32) | bits[:, 1]], axis=1)
     corner = unique_rows(key)                                         # one id for equal corners
     faces = int(owner.max()) + 1
-    label = np.arange(faces)
-    while True:
-        low = np.full(int(corner.max()) + 1, faces)
-        np.minimum.at(low, corner, label[owner])
-        new = label.copy()
-        np.minimum.at(new, owner, low[corner])
-        new = new[new]
-        if np.array_equal(new, label):
-            return np.unique(label, return_inverse=True)[1].ravel()
-        label = new
+    root = components(owner, faces + corner, faces + int(corner.max()) + 1)[:faces]
+    return np.unique(root, return_inverse=True)[1].ravel()
 
 
 @dataclasses.dataclass
