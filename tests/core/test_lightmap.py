@@ -419,3 +419,55 @@ def test_the_density_floor_is_the_least_triangle_density_over_the_median():
     c = t[5].mean(axis=0)
     t[5] = c + 0.1 * (t[5] - c)
     assert lm.density_floor(t, co[tri]) == pytest.approx(0.1)
+
+
+@pytest.fixture
+def by_rows(monkeypatch):
+    """The number of triangles lm._texels_by_rows is given, as the rasteriser runs."""
+    taken = [0]
+    rows = lm._texels_by_rows
+
+    def spy(idx, *args):
+        taken[0] += len(idx)
+        yield from rows(idx, *args)
+
+    monkeypatch.setattr(lm, "_texels_by_rows", spy)
+    return taken
+
+
+def test_wide_triangles_tested_row_by_row_match_the_loop(by_rows):
+    """Triangles of which under ROW_FILL of their candidate squares, wider than ROW_BOXES texels, can be inside are
+    tested by rows: a cap's fan of slivers, random triangles overhanging the map, slivers along a row or a column
+    and triangles with corners on texel centres count as the loop counts them, interiors (strict) too; well-shaped
+    triangles of a grid keep the squares (twice faster for them)."""
+    rng = np.random.default_rng(5)
+    a = np.linspace(0, 2 * np.pi, 33)
+    rim = np.stack([0.5 + 0.45 * np.cos(a), 0.5 + 0.45 * np.sin(a)], 1)
+    fan = np.stack([np.tile([0.5, 0.5], (32, 1)), rim[:-1], rim[1:]], 1)
+    big = rng.random((40, 3, 2)) * 1.6 - 0.3
+    flat = np.array([[[0.1, 0.3], [0.9, 0.3 + 1e-9], [0.5, 0.3 + 2e-7]], [[0.3, 0.1], [0.3 + 1e-9, 0.9], [0.3, 0.5]],
+                     [[0.05, 0.05], [0.95, 0.95], [0.95, 0.95 + 1e-6]]])
+    on_centres = (rng.integers(0, 96, (30, 3, 2)) + 0.5) / 96
+    for tri in (fan, big, flat, on_centres):
+        for w, h in ((96, 96), (200, 40)):
+            for strict in (False, True):
+                before = by_rows[0]
+                assert np.array_equal(lm.triangle_counts(tri, w, h, strict), _loop_counts(tri, w, h, strict))
+                assert by_rows[0] > before
+    before = by_rows[0]
+    grid = _grid_mesh_uv(3, 0.0, rng)
+    assert np.array_equal(lm.coverage_mask(grid, 96, 96), _loop_coverage_mask(grid, 96, 96))
+    assert by_rows[0] == before
+
+
+def test_a_bound_of_a_nearly_horizontal_edge_is_left_to_the_box(by_rows):
+    """An edge 4 ulps from horizontal whose strict line runs through the centres of row 0 (the second reader's
+    case): its w2 is 1e-6 in the test's rounding all along the row while its slope is 5e-23, so a bound taken from
+    that slope would drop centres the test keeps; the row is searched across the box, as the loop does."""
+    tri = np.array([[[float.fromhex("0x1.04826fcbf7d92p+5"), float.fromhex("0x1.016e16f4b66a7p-1")],
+                     [float.fromhex("0x1.afff522586e9fp+11"), float.fromhex("0x1.016e16f4b66abp-1")],
+                     [float.fromhex("0x1.ee76ad208fd07p+10"), float.fromhex("-0x1.5d114596d7f9ep+11")]]]) / 4096
+    for strict in (False, True):
+        counts = lm.triangle_counts(tri, 4096, 4096, strict)
+        assert np.array_equal(counts, _loop_counts(tri, 4096, 4096, strict))
+    assert counts[0, 2467:2471].all() and by_rows[0] == 2
