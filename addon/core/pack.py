@@ -116,13 +116,14 @@ def _footprints(tri, charts, scale, side):
         sheet[c] = p[c] - low + xy
     fine = coverage_mask(sheet / (sheet_w, sheet_h), FINE * sheet_w, FINE * sheet_h)
     edges = _traced(sheet * FINE, FINE * sheet_w, FINE * sheet_h)
+    centres, pooled = fine[FINE // 2::FINE, FINE // 2::FINE], _pooled(fine | edges)
     out = []
     for low, (w, h), (x0, y0) in zip(lows, sizes, corner):
-        box = slice(FINE * y0, FINE * (y0 + h)), slice(FINE * x0, FINE * (x0 + w))
-        turns = [(fine[box], edges[box], low)]
+        box = slice(y0, y0 + h), slice(x0, x0 + w)
+        turns = [(centres[box], pooled[box], low)]
         for _ in range(3):
             turns.append(_quarter(*turns[-1]))
-        out.append([(f[FINE // 2::FINE, FINE // 2::FINE], _pooled(f | g), lo) for f, g, lo in turns])
+        out.append(turns)
     return out
 
 
@@ -161,10 +162,11 @@ def _traced(tri, width, height):
     return mask
 
 
-def _quarter(fine, traced, low):
-    """The fine rasters and box corner of a chart turned a quarter (x, y) -> (-y, x) (:func:`_turned`)."""
-    h = fine.shape[0] // FINE
-    return fine[::-1].T, traced[::-1].T, np.array([-low[1] - h, low[0]])
+def _quarter(covered, footprint, low):
+    """A chart's texel rasters and box corner turned a quarter (x, y) -> (-y, x) (:func:`_turned`). The fine texels
+    of a texel are turned onto those of the turned texel (and the middle one, FINE odd, onto the middle one), so
+    the rasters of the turned chart are the texel rasters turned."""
+    return covered[::-1].T, footprint[::-1].T, np.array([-low[1] - covered.shape[0], low[0]])
 
 
 def _fast(n):
