@@ -182,7 +182,8 @@ def cut_long(uv, owner, chart, pieces=None, longest=LONG):
     faces = int(owner.max()) + 1
     face_chart = np.zeros(faces, np.int64)
     face_chart[owner] = chart
-    sizes = np.bincount(face_chart[np.unique(owner)], minlength=n)           # faces of each chart
+    used = np.unique(owner)
+    sizes = np.bincount(face_chart[used], minlength=n)                       # faces of each chart
     cut = (length >= longest * width) & (width > 1e-9 * length) & (sizes >= 2)
     k = np.where(cut, np.maximum(2.0, np.rint(np.sqrt(length / np.maximum(width, 1e-300))))
                  if pieces is None else float(pieces), 1.0)
@@ -192,7 +193,6 @@ def cut_long(uv, owner, chart, pieces=None, longest=LONG):
     face_along = np.bincount(owner, along, faces) / np.maximum(np.bincount(owner, minlength=faces), 1)
     c = face_chart
     piece = np.clip(np.floor((face_along - low[c]) / np.maximum(length[c], 1e-300) * k[c]), 0, k[c] - 1)
-    used = np.unique(owner)
     first = np.full(n, np.inf)
     np.minimum.at(first, c[used], piece[used])
     last = np.full(n, -np.inf)
