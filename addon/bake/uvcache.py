@@ -33,7 +33,7 @@ from ..blender.scene import corner_vertices, face_sizes, face_starts, from_its_m
 from ..core.io.files import prune_least_recent, write_bytes
 from .unwrap_copy import Stretches
 
-LAYOUT_VERSION = 15
+LAYOUT_VERSION = 16
 """Raised whenever the layout search (uv.py, unwrap.py) changes what it makes for the same input."""
 DIR = ".il-uv-cache"
 MAGIC = b"IL light-map UVs 1\n"
