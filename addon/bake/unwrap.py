@@ -673,7 +673,7 @@ class _Copies:
         Fewer, larger charts pay fewer margins but pack less tightly, and the fill moves from round to round, hence
         the best round, looked for from the last (fewest charts, quickest to pack) back while a round fills more
         than the one after it. Measured at 128² / 256², 4-texel margins (2 for Suzanne at 128²), fill before ->
-        after: Suzanne 0.45 / 0.38 -> 0.59 / 0.56, a torus 0.45 / 0.42 -> 0.55 / 0.48, an ico sphere 0.39 / 0.46 ->
+        after: Suzanne 0.45 / 0.38 -> 0.59 / 0.56, a torus 0.45 / 0.42 -> 0.55 / 0.50, an ico sphere 0.39 / 0.46 ->
         0.50 / 0.57; a cube unchanged (its joins would cross hard edges: merging.CREASE)."""
         if len(self.copies) != 1 or side < MERGE_SIDE:
             return

@@ -15,8 +15,8 @@ from ..core.smoothing import corner_next
 from .uv import LIGHTMAP
 
 ROUNDS = 10
-"""Most rounds of joins (each joins up to half the charts: 100 charts become 15 in 5; from Lightmap Pack's chart a
-face or two, a 320-face ico sphere's joins go on past the sixth round, and fill a 256² map 0.57 instead of 0.51)."""
+"""Most rounds of joins (each joins up to half the charts: 100 charts become 15 in 5; from Lightmap Pack's charts
+(a face or two each), a 320-face ico sphere's joins go on past the sixth round, and fill a 256² map 0.57 instead of 0.51)."""
 MERGE_TRIANGLES = 10000
 """Most triangles of a copy whose charts are merged (a round's unwrap of a 1,152-face torus cut into single faces
 takes 0.08 s)."""

@@ -830,13 +830,12 @@ def test_lightmap_pack_is_refused_where_it_gives_uneven_texels(tmp_path, monkeyp
     assert kept["coverage"] >= 0.55
 
 
-@pytest.mark.parametrize("side, unwrapper", [(64, "smart_project"), (256, "lightmap_pack"),
-                                             (64, "lightmap_pack+merged_charts")])
+@pytest.mark.parametrize("side, unwrapper", [(64, "smart_project"), (256, "lightmap_pack"), (64, "merged_charts")])
 def test_a_layout_depends_on_the_faces_not_on_their_order(tmp_path, monkeypatch, side, unwrapper):
     """The unwrap copy is canonical (faces sorted by their vertices, each starting at its lowest vertex): the same
     mesh with its faces in another order and each face starting at another corner gets the same UVs at every
-    face corner, by Smart UV Project (64², its charts not joined), by Lightmap Pack (256²) and by Lightmap Pack's
-    charts joined (64²)."""
+    face corner, by Smart UV Project (64², its charts not joined), by Lightmap Pack (256²) and with charts joined
+    (64²)."""
     from addon.bake import unwrap
     if "merged" not in unwrapper:
         monkeypatch.setattr(unwrap._Copies, "try_merged", lambda *a, **k: None)
@@ -861,7 +860,7 @@ def test_a_layout_depends_on_the_faces_not_on_their_order(tmp_path, monkeypatch,
 
     for obj in (a, b):
         rep = bake_lightmaps([obj], ["ao"], tmp_path / obj.name, BakeOptions(resolution=side, samples=1, margin=1))
-        assert rep["objects"][obj.name]["ao"]["unwrap"].startswith(unwrapper)
+        assert unwrapper in rep["objects"][obj.name]["ao"]["unwrap"]
     assert corners(a) == corners(b)
 
 
