@@ -248,10 +248,16 @@ def _texels_inside(tri_uv, width, height, strict=False, chunk=1 << 20):
                 ys = lo[i, 1][:, None, None] + r[None, y0:y0 + rows, None]
                 valid = (xs <= hi[i, 0][:, None, None]) & (ys <= hi[i, 1][:, None, None])
                 px, py = xs + 0.5 - a[i, 0][:, None, None], ys + 0.5 - a[i, 1][:, None, None]
-                w1 = (px * e2[:, 1] - py * e2[:, 0]) / dd
-                w2 = (e1[:, 0] * py - e1[:, 1] * px) / dd
-                inside = valid & (w1 >= eps) & (w2 >= eps) & (w1 + w2 <= 1 - eps)
+                inside = valid & _inside(px, py, e1[:, 0], e1[:, 1], e2[:, 0], e2[:, 1], dd, eps)
                 yield np.broadcast_to(ys, inside.shape)[inside] * width + np.broadcast_to(xs, inside.shape)[inside]
+
+
+def _inside(px, py, e1x, e1y, e2x, e2y, d, eps):
+    """The test of :func:`_texels_inside` for centres (px, py) taken from vertex a, edges e1 = b − a and e2 = c − a,
+    d = e1 × e2: w1 = (p × e2) / d, w2 = (e1 × p) / d, w1 ≥ eps, w2 ≥ eps and w1 + w2 ≤ 1 − eps."""
+    w1 = (px * e2y - py * e2x) / d
+    w2 = (e1x * py - e1y * px) / d
+    return (w1 >= eps) & (w2 >= eps) & (w1 + w2 <= 1 - eps)
 
 
 ROW_BOXES = 16
@@ -308,9 +314,7 @@ def _rows_of(idx, a, b, c, d, lo, hi, width, eps, chunk):
         xs = x_lo[row].astype(np.int64) + np.arange(len(row)) - np.repeat(np.cumsum(n) - n, n)
         y = ys[row]
         px, pyr = xs + 0.5 - at[row, 0], y + 0.5 - at[row, 1]
-        w1 = (px * e2[row, 1] - pyr * e2[row, 0]) / dd[row]
-        w2 = (e1[row, 0] * pyr - e1[row, 1] * px) / dd[row]
-        inside = (w1 >= eps) & (w2 >= eps) & (w1 + w2 <= 1 - eps)
+        inside = _inside(px, pyr, e1[row, 0], e1[row, 1], e2[row, 0], e2[row, 1], dd[row], eps)
         yield y[inside] * width + xs[inside]
         start = stop
 
